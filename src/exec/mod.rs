@@ -1,0 +1,376 @@
+//! Stage 5, execute: the only place that uses threads.
+//!
+//! The source is read once, in batches of episodes decoded in parallel (rayon) and consumed in
+//! episode order, so memory stays bounded by the batch and every write and every statistics merge
+//! happens in the same order whatever the thread count. A panic inside an episode job becomes an
+//! error naming the episode.
+//!
+//! - `staging`: the staging directory and the final renames.
+//! - `progress`: progress bars (hidden when stderr is not a terminal).
+
+mod progress;
+mod staging;
+
+use std::collections::BTreeMap;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use crate::error::{Error, IoContext, Result};
+use crate::lock::{self, Lock, LockedProfile, LOCK_VERSION};
+use crate::plan::{self, Plan, ProfilePlan, DATA_FILE, LOADER_FILE, META_FILE, STATS_FILE};
+use crate::render;
+use crate::sink::documents;
+use crate::sink::hdf5::Hdf5Writer;
+use crate::source::{self, ChannelData, ChannelKind, Episode, Source};
+use crate::spec::LoadedSpec;
+use crate::stats::{self, normalize::Normalizer, ChannelStats, ImagePartial};
+
+pub use staging::STAGING_DIR;
+
+#[derive(Debug, Clone, Default)]
+pub struct BuildOptions {
+    /// Fail instead of building when anything is out of date (`--locked`).
+    pub locked: bool,
+    /// Show progress bars (they are hidden anyway when stderr is not a terminal).
+    pub progress: bool,
+}
+
+#[derive(Debug, Clone)]
+pub struct BuildReport {
+    pub out_dir: PathBuf,
+    pub built: Vec<String>,
+    pub up_to_date: Vec<String>,
+}
+
+/// Opens the source and resolves the plan against the lock (what `chunkc plan` shows).
+pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
+    let source = source::open(spec)?;
+    let out_dir = spec.resolve(&spec.spec.output.dir);
+    check_output_location(spec, &out_dir)?;
+    let lock = Lock::read(&lock::path_for(&spec.file))?;
+    let plan = plan::resolve(spec, source.manifest(), lock.as_ref(), &out_dir)?;
+    Ok((source, plan))
+}
+
+fn check_output_location(spec: &LoadedSpec, out_dir: &Path) -> Result<()> {
+    let source_dir = spec.resolve(&spec.spec.source.path);
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    if abs(out_dir).starts_with(abs(&source_dir)) {
+        return Err(spec.error_at(
+            &["output", "dir"],
+            format!(
+                "the output directory {} is inside the source {}; chunkc never writes into a source",
+                out_dir.display(),
+                source_dir.display()
+            ),
+            None,
+        ));
+    }
+    Ok(())
+}
+
+pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
+    let (source, plan) = plan(spec)?;
+    let out_dir = spec.resolve(&spec.spec.output.dir);
+    let stale: Vec<&ProfilePlan> = plan.profiles.iter().filter(|p| !p.status.up_to_date).collect();
+    let up_to_date: Vec<String> = plan
+        .profiles
+        .iter()
+        .filter(|p| p.status.up_to_date)
+        .map(|p| p.name.clone())
+        .collect();
+    if stale.is_empty() {
+        return Ok(BuildReport {
+            out_dir,
+            built: Vec::new(),
+            up_to_date,
+        });
+    }
+    if opts.locked {
+        let reasons: Vec<String> = stale
+            .iter()
+            .map(|p| format!("  {}: {}", p.name, p.status.reason))
+            .collect();
+        return Err(Error::Locked(format!(
+            "--locked: these profiles would be rebuilt:\n{}",
+            reasons.join("\n")
+        )));
+    }
+
+    let staging = staging::Staging::new(&out_dir)?;
+    let hashes = run(spec, &plan, &stale, source.as_ref(), &staging, opts)?;
+    let built: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
+    staging.commit(&built)?;
+
+    let previous = Lock::read(&lock::path_for(&spec.file))?.unwrap_or_default();
+    let mut profiles = BTreeMap::new();
+    for p in &plan.profiles {
+        let entry = match hashes.get(&p.name) {
+            Some(files) => LockedProfile {
+                fingerprint: p.fingerprint.clone(),
+                files: files.clone(),
+            },
+            None => previous.profiles.get(&p.name).cloned().unwrap_or_default(),
+        };
+        profiles.insert(p.name.clone(), entry);
+    }
+    Lock {
+        version: LOCK_VERSION,
+        tool_version: plan::TOOL_VERSION.to_string(),
+        spec_hash: plan.spec_hash.clone(),
+        source_fingerprint: plan.source.fingerprint.clone(),
+        profiles,
+    }
+    .write(&lock::path_for(&spec.file))?;
+    Ok(BuildReport {
+        out_dir,
+        built,
+        up_to_date,
+    })
+}
+
+/// Per-rate state: the decimated low-dimensional data of every episode, and the streaming
+/// statistics of image channels.
+struct RateState {
+    factor: usize,
+    /// Exclusive ends of each episode in the decimated per-step arrays.
+    ends: Vec<u64>,
+    /// Per channel (manifest order): concatenated low-dim values; empty for images.
+    lowdim: Vec<Vec<f32>>,
+    /// Per channel: merged image partials over training episodes; `None` for low-dim.
+    images: Vec<Option<ImagePartial>>,
+}
+
+/// One episode after the parallel part of the work: decimated per rate, image partials computed.
+struct Processed {
+    /// Per rate (in `RateState` order), per channel.
+    data: Vec<Vec<ChannelData>>,
+    /// Per rate, per channel: image partial if this is a training episode.
+    partials: Vec<Vec<Option<ImagePartial>>>,
+}
+
+fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
+    if factor == 1 || width == 0 {
+        return values.to_vec();
+    }
+    values
+        .chunks_exact(width)
+        .step_by(factor)
+        .flatten()
+        .copied()
+        .collect()
+}
+
+fn process(episode: Episode, source: &dyn Source, factors: &[usize], train: bool) -> Processed {
+    let channels = &source.manifest().channels;
+    let mut data = Vec::with_capacity(factors.len());
+    let mut partials = Vec::with_capacity(factors.len());
+    for &factor in factors {
+        let mut per_channel = Vec::with_capacity(channels.len());
+        let mut per_partial = Vec::with_capacity(channels.len());
+        for (ch, values) in channels.iter().zip(&episode.channels) {
+            let width = ch.width();
+            match values {
+                ChannelData::Lowdim(v) => {
+                    per_channel.push(ChannelData::Lowdim(decimate(v, width, factor)));
+                    per_partial.push(None);
+                }
+                ChannelData::Image(v) => {
+                    let d = decimate(v, width, factor);
+                    let frames = d.len() / width.max(1);
+                    let colors = *ch.shape.last().unwrap_or(&1);
+                    per_partial.push(train.then(|| ImagePartial::of_frames(&d, frames, colors)));
+                    per_channel.push(ChannelData::Image(d));
+                }
+            }
+        }
+        data.push(per_channel);
+        partials.push(per_partial);
+    }
+    Processed { data, partials }
+}
+
+/// Episodes decoded at once: enough to keep every thread busy, few enough to bound memory.
+fn batch_size() -> usize {
+    2 * rayon::current_num_threads()
+}
+
+fn run(
+    spec: &LoadedSpec,
+    plan: &Plan,
+    stale: &[&ProfilePlan],
+    source: &dyn Source,
+    staging: &staging::Staging,
+    opts: &BuildOptions,
+) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
+    let manifest = source.manifest();
+    let mut factors: Vec<usize> = stale.iter().map(|p| p.rate_factor).collect();
+    factors.sort_unstable();
+    factors.dedup();
+
+    let mut rates: Vec<RateState> = factors
+        .iter()
+        .map(|&factor| {
+            let mut ends = Vec::with_capacity(manifest.episodes.len());
+            let mut total = 0u64;
+            for e in &manifest.episodes {
+                total += crate::chunk::decimated_len(e.len, factor) as u64;
+                ends.push(total);
+            }
+            RateState {
+                factor,
+                ends,
+                lowdim: manifest
+                    .channels
+                    .iter()
+                    .map(|c| match c.kind {
+                        ChannelKind::Lowdim => Vec::with_capacity(total as usize * c.width()),
+                        ChannelKind::Image => Vec::new(),
+                    })
+                    .collect(),
+                images: manifest
+                    .channels
+                    .iter()
+                    .map(|c| {
+                        (c.kind == ChannelKind::Image)
+                            .then(|| ImagePartial::new(*c.shape.last().unwrap_or(&1)))
+                    })
+                    .collect(),
+            }
+        })
+        .collect();
+
+    let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
+    let mut writers = Vec::with_capacity(stale.len());
+    let mut dirs = Vec::with_capacity(stale.len());
+    for p in stale {
+        let dir = staging.profile_dir(&p.name)?;
+        let rate = rates.iter().position(|r| r.factor == p.rate_factor).unwrap();
+        writers.push((rate, Hdf5Writer::create(&dir.join(DATA_FILE), p, &rates[rate].ends, &ids)?));
+        dirs.push(dir);
+    }
+
+    let bar = progress::bar(opts.progress, manifest.episodes.len() as u64, "reading episodes");
+    let positions: Vec<usize> = (0..manifest.episodes.len()).collect();
+    for batch in positions.chunks(batch_size()) {
+        let processed: Vec<Processed> = batch
+            .par_iter()
+            .map(|&i| {
+                let id = manifest.episodes[i].id;
+                let train = plan.split.is_train(id);
+                catch_unwind(AssertUnwindSafe(|| {
+                    source
+                        .read_episode(i)
+                        .map(|ep| process(ep, source, &factors, train))
+                }))
+                .unwrap_or_else(|panic| {
+                    let what = panic
+                        .downcast_ref::<String>()
+                        .cloned()
+                        .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                        .unwrap_or_default();
+                    Err(Error::Internal(format!("panic while processing episode {id}: {what}")))
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+
+        for (&i, episode) in batch.iter().zip(processed) {
+            for (r, (rate, (data, partials))) in rates
+                .iter_mut()
+                .zip(episode.data.into_iter().zip(episode.partials))
+                .enumerate()
+            {
+                let row = if i == 0 { 0 } else { rate.ends[i - 1] as usize };
+                let rows = (rate.ends[i] as usize) - row;
+                for (c, (values, partial)) in data.into_iter().zip(partials).enumerate() {
+                    match values {
+                        ChannelData::Lowdim(v) => rate.lowdim[c].extend_from_slice(&v),
+                        ChannelData::Image(v) => {
+                            for (wr, writer) in &writers {
+                                if *wr == r {
+                                    writer.write_u8(c, row, rows, &v)?;
+                                }
+                            }
+                            if let (Some(acc), Some(p)) = (rate.images[c].as_mut(), partial) {
+                                acc.merge(&p);
+                            }
+                        }
+                    }
+                }
+            }
+            bar.inc(1);
+        }
+    }
+    bar.finish_and_clear();
+
+    // Statistics once per (rate, channel), shared by every profile at that rate.
+    let train_mask: Vec<bool> = ids.iter().map(|&id| plan.split.is_train(id)).collect();
+    let mut stats_by_rate: Vec<BTreeMap<String, ChannelStats>> = Vec::with_capacity(rates.len());
+    for rate in &mut rates {
+        let mut by_channel = BTreeMap::new();
+        for (c, ch) in manifest.channels.iter().enumerate() {
+            let s = match ch.kind {
+                ChannelKind::Lowdim => {
+                    let width = ch.width();
+                    let values = &rate.lowdim[c];
+                    let ends = &rate.ends;
+                    let blocks = (0..ends.len()).filter(|&e| train_mask[e]).map(|e| {
+                        let start = if e == 0 { 0 } else { ends[e - 1] as usize };
+                        &values[start * width..ends[e] as usize * width]
+                    });
+                    stats::lowdim(blocks, width)
+                }
+                ChannelKind::Image => rate.images[c].take().expect("image partial").finish(),
+            };
+            by_channel.insert(ch.name.clone(), s);
+        }
+        stats_by_rate.push(by_channel);
+    }
+
+    let mut hashes = BTreeMap::new();
+    for ((p, (r, writer)), dir) in stale.iter().zip(writers).zip(&dirs) {
+        let rate = &rates[r];
+        let stats = &stats_by_rate[r];
+        let mut normalizers = BTreeMap::new();
+        for (c, ch) in p.channels.iter().enumerate() {
+            let n = Normalizer::fit(ch.normalize, &stats[&ch.name]);
+            if ch.kind == ChannelKind::Lowdim {
+                let mut values = rate.lowdim[c].clone();
+                n.apply(&mut values);
+                writer.write_f32(c, &values)?;
+            }
+            normalizers.insert(ch.name.clone(), n);
+        }
+        let window = p.window();
+        let mut train = Vec::new();
+        let mut val = Vec::new();
+        for (e, ep) in p.episodes.iter().enumerate() {
+            let rows = if ep.split == "train" { &mut train } else { &mut val };
+            rows.extend(window.starts(ep.len).into_iter().map(|t| [e as i64, t as i64]));
+        }
+        writer.write_index("train", &train)?;
+        writer.write_index("val", &val)?;
+        writer.close()?;
+
+        let write = |name: &str, text: String| -> Result<()> {
+            let path = dir.join(name);
+            std::fs::write(&path, text).at("write", &path)
+        };
+        write(
+            META_FILE,
+            documents::meta_json(plan, p, &rate.ends, &normalizers, DATA_FILE),
+        )?;
+        write(STATS_FILE, documents::stats_json(stats))?;
+        let hint = Path::new(&spec.spec.output.dir).join(&p.name);
+        write(LOADER_FILE, render::loader(p, &hint.to_string_lossy())?)?;
+
+        let mut files = BTreeMap::new();
+        for name in [DATA_FILE, LOADER_FILE, META_FILE, STATS_FILE] {
+            files.insert(name.to_string(), lock::hash_file(&dir.join(name))?);
+        }
+        hashes.insert(p.name.clone(), files);
+    }
+    Ok(hashes)
+}

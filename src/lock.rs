@@ -1,0 +1,77 @@
+//! `chunkc.lock`: what the last successful build produced, written next to the spec.
+//!
+//! JSON with sorted keys and no timestamps, so that it is itself reproducible and diffs well in
+//! code review. The plan compares it with the current spec, source and output files to decide
+//! which profiles are up to date.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, IoContext, Result};
+
+pub const LOCK_VERSION: u32 = 1;
+pub const LOCK_FILE: &str = "chunkc.lock";
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Lock {
+    pub version: u32,
+    pub tool_version: String,
+    pub spec_hash: String,
+    pub source_fingerprint: String,
+    pub profiles: BTreeMap<String, LockedProfile>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct LockedProfile {
+    /// Fingerprint of everything the profile's outputs depend on.
+    pub fingerprint: String,
+    /// BLAKE3 of every output file, by path relative to the profile directory.
+    pub files: BTreeMap<String, String>,
+}
+
+/// Where the lock of a spec lives.
+pub fn path_for(spec_file: &Path) -> PathBuf {
+    spec_file
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default()
+        .join(LOCK_FILE)
+}
+
+impl Lock {
+    /// Reads a lock; a missing file is `Ok(None)`, an unreadable one an error.
+    pub fn read(path: &Path) -> Result<Option<Lock>> {
+        match std::fs::read_to_string(path) {
+            Ok(text) => serde_json::from_str(&text).map(Some).map_err(|e| {
+                Error::output(format!(
+                    "{} is not a valid chunkc lock file ({e}); delete it to rebuild everything",
+                    path.display()
+                ))
+            }),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+            Err(e) => Err(Error::io_path("read", path, e)),
+        }
+    }
+
+    pub fn to_json(&self) -> String {
+        let mut s = serde_json::to_string_pretty(self).expect("lock serializes");
+        s.push('\n');
+        s
+    }
+
+    /// Writes atomically (temporary file + rename).
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let tmp = path.with_extension("lock.tmp");
+        std::fs::write(&tmp, self.to_json()).at("write", &tmp)?;
+        std::fs::rename(&tmp, path).at("rename into place", path)
+    }
+}
+
+/// BLAKE3 of a file's contents, hex.
+pub fn hash_file(path: &Path) -> Result<String> {
+    let mut h = blake3::Hasher::new();
+    h.update_mmap_rayon(path).at("hash", path)?;
+    Ok(h.finalize().to_hex().to_string())
+}

@@ -1,0 +1,118 @@
+//! The `chunkc` command line. Everything it does is a call into the library.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand, ValueEnum};
+
+use chunkc::exec::{self, BuildOptions};
+use chunkc::spec::{self, LoadedSpec};
+use chunkc::{plan, Error};
+
+#[derive(Parser)]
+#[command(name = "chunkc", version, about = "Compile robot demonstration datasets into training-ready action chunks")]
+struct Cli {
+    /// Worker threads (default: RAYON_NUM_THREADS, else the number of cores).
+    #[arg(long, short = 'j', global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Parse and validate a spec, and check that its source opens.
+    Check { spec: PathBuf },
+    /// Show what `build` would do, without writing anything.
+    Plan {
+        spec: PathBuf,
+        #[arg(long, value_enum, default_value_t = PlanFormat::Text)]
+        format: PlanFormat,
+    },
+    /// Build every profile of a spec that is not up to date.
+    Build {
+        spec: PathBuf,
+        /// Fail (exit 5) instead of building if any output is out of date.
+        #[arg(long)]
+        locked: bool,
+        /// No progress bars.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// Print the JSON Schema of the spec format.
+    Schema,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum PlanFormat {
+    Text,
+    Json,
+}
+
+fn run(cli: Cli) -> Result<(), Error> {
+    if let Some(n) = cli.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .map_err(|e| Error::Internal(format!("thread pool: {e}")))?;
+    }
+    match cli.command {
+        Command::Check { spec } => {
+            let spec = LoadedSpec::load(&spec)?;
+            let (_, plan) = exec::plan(&spec)?;
+            eprintln!(
+                "ok: {} ({} episodes, {} profile(s))",
+                spec.file.display(),
+                plan.source.episodes,
+                plan.profiles.len()
+            );
+        }
+        Command::Plan { spec, format } => {
+            let spec = LoadedSpec::load(&spec)?;
+            let (_, plan) = exec::plan(&spec)?;
+            match format {
+                PlanFormat::Text => print!("{}", plan::render_text(&plan)),
+                PlanFormat::Json => print!("{}", plan.to_json()),
+            }
+        }
+        Command::Build { spec, locked, quiet } => {
+            let spec = LoadedSpec::load(&spec)?;
+            let report = exec::build(
+                &spec,
+                &BuildOptions {
+                    locked,
+                    progress: !quiet,
+                },
+            )?;
+            if report.built.is_empty() {
+                eprintln!(
+                    "up to date: nothing to do ({} in {})",
+                    report.up_to_date.join(", "),
+                    report.out_dir.display()
+                );
+            } else {
+                eprintln!(
+                    "built {} in {}",
+                    report.built.join(", "),
+                    report.out_dir.display()
+                );
+                if !report.up_to_date.is_empty() {
+                    eprintln!("up to date: {}", report.up_to_date.join(", "));
+                }
+            }
+        }
+        Command::Schema => print!("{}", spec::json_schema()),
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("{e}");
+            ExitCode::from(e.exit_code() as u8)
+        }
+    }
+}

@@ -1,0 +1,476 @@
+//! Stage 4, resolve: spec + source manifest + lock → [`Plan`].
+//!
+//! The plan is data: serializable, versioned, sorted. It says, for every profile, which episodes
+//! it uses and how they split, the rate conversion, the number of windows, the files it writes
+//! with estimated sizes, a fingerprint, and whether it must run (and why). Work shared between
+//! profiles appears once: the source read, and the statistics of each (rate, channel) pair.
+//!
+//! - `split`: the deterministic train/validation split.
+//! - `text`: the human-readable rendering of `chunkc plan`.
+
+pub mod split;
+mod text;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::Serialize;
+
+pub use split::Split;
+pub use text::render_text;
+
+use crate::chunk::{decimated_len, Window};
+use crate::error::Result;
+use crate::lock::{self, Lock};
+use crate::source::{ChannelInfo, ChannelKind, Manifest};
+use crate::spec::{LoadedSpec, NormalizeMode, Profile};
+
+pub const PLAN_VERSION: u32 = 1;
+pub const TOOL_VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// Files every profile writes, relative to its directory.
+pub const DATA_FILE: &str = "data.h5";
+pub const META_FILE: &str = "meta.json";
+pub const STATS_FILE: &str = "stats.json";
+pub const LOADER_FILE: &str = "loader.py";
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Plan {
+    pub version: u32,
+    pub tool_version: &'static str,
+    pub spec_hash: String,
+    pub source: SourcePlan,
+    pub split: Split,
+    /// One job per distinct profile rate: the source is read once and decimated per rate.
+    pub rates: Vec<RateJob>,
+    /// One job per (rate, channel): statistics over the training split, shared by the profiles
+    /// listed.
+    pub statistics: Vec<StatsJob>,
+    pub profiles: Vec<ProfilePlan>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SourcePlan {
+    pub format: &'static str,
+    /// As written in the spec (relative to the spec file).
+    pub path: String,
+    pub fps: f64,
+    pub episodes: usize,
+    pub steps: usize,
+    pub fingerprint: String,
+    pub channels: Vec<ChannelInfo>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RateJob {
+    pub fps: f64,
+    /// Keep every `factor`-th source step.
+    pub factor: usize,
+    pub steps: usize,
+    pub profiles: Vec<String>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct StatsJob {
+    pub fps: f64,
+    pub channel: String,
+    pub split: &'static str,
+    pub profiles: Vec<String>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ProfilePlan {
+    pub name: String,
+    /// Every value, fully resolved.
+    pub values: Profile,
+    pub fps: f64,
+    pub rate_factor: usize,
+    pub rate: String,
+    pub channels: Vec<ProfileChannel>,
+    pub episodes: Vec<ProfileEpisode>,
+    pub excluded: Vec<Excluded>,
+    pub warnings: Vec<String>,
+    pub num_samples: SplitCounts,
+    pub steps: usize,
+    pub files: Vec<PlannedFile>,
+    pub fingerprint: String,
+    pub status: Status,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ProfileChannel {
+    pub name: String,
+    pub kind: ChannelKind,
+    pub shape: Vec<usize>,
+    pub normalize: NormalizeMode,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ProfileEpisode {
+    pub id: u64,
+    pub split: &'static str,
+    pub source_len: usize,
+    /// Steps at the profile's rate.
+    pub len: usize,
+    pub samples: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Excluded {
+    pub id: u64,
+    pub reason: String,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct SplitCounts {
+    pub train: usize,
+    pub val: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct PlannedFile {
+    pub path: String,
+    pub estimated_bytes: u64,
+}
+
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Status {
+    pub up_to_date: bool,
+    pub reason: String,
+}
+
+impl ProfilePlan {
+    pub fn window(&self) -> Window {
+        Window {
+            chunk: self.values.chunk as usize,
+            obs_history: self.values.obs_history as usize,
+            padding: self.values.padding,
+            stride: self.values.stride as usize,
+        }
+    }
+}
+
+impl Plan {
+    pub fn to_json(&self) -> String {
+        let mut s = serde_json::to_string_pretty(self).expect("plan serializes");
+        s.push('\n');
+        s
+    }
+
+    pub fn up_to_date(&self) -> bool {
+        self.profiles.iter().all(|p| p.status.up_to_date)
+    }
+}
+
+/// Integer decimation factor from `source_fps` to `fps`, or a message saying why there is none.
+fn rate_factor(source_fps: f64, fps: f64) -> std::result::Result<usize, String> {
+    if fps > source_fps * (1.0 + 1e-9) {
+        return Err(format!(
+            "{fps} Hz is faster than the source's {source_fps} Hz; chunkc does not upsample"
+        ));
+    }
+    let ratio = source_fps / fps;
+    let factor = ratio.round();
+    if (ratio - factor).abs() > 1e-6 * ratio {
+        return Err(format!(
+            "the source's {source_fps} Hz is not an integer multiple of {fps} Hz (ratio {ratio:.4}); only integer decimation is supported so far"
+        ));
+    }
+    Ok(factor as usize)
+}
+
+/// Bytes one step of a channel takes in the output.
+fn step_bytes(ch: &ChannelInfo) -> u64 {
+    let width = ch.width() as u64;
+    match ch.kind {
+        ChannelKind::Lowdim => 4 * width,
+        ChannelKind::Image => width,
+    }
+}
+
+/// Builds the plan. `lock` is the previous build's lock, if any; `out_dir` is the resolved output
+/// directory (used to check the files the lock lists).
+pub fn resolve(
+    spec: &LoadedSpec,
+    manifest: &Manifest,
+    lock: Option<&Lock>,
+    out_dir: &Path,
+) -> Result<Plan> {
+    let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
+    let split = split::split(&ids, spec.spec.split.val_fraction, spec.spec.split.seed);
+    if split.train.is_empty() {
+        return Err(spec.error_at(
+            &["split", "val_fraction"],
+            format!(
+                "this leaves no training episode ({} episodes, {} for validation)",
+                ids.len(),
+                split.val.len()
+            ),
+            None,
+        ));
+    }
+
+    let mut profiles = Vec::new();
+    for profile in &spec.profiles {
+        profiles.push(resolve_profile(spec, manifest, &split, profile, lock, out_dir)?);
+    }
+
+    let mut rates: BTreeMap<usize, RateJob> = BTreeMap::new();
+    let mut statistics: BTreeMap<(usize, String), StatsJob> = BTreeMap::new();
+    for p in &profiles {
+        let job = rates.entry(p.rate_factor).or_insert_with(|| RateJob {
+            fps: p.fps,
+            factor: p.rate_factor,
+            steps: p.steps,
+            profiles: Vec::new(),
+        });
+        job.profiles.push(p.name.clone());
+        for ch in &p.channels {
+            statistics
+                .entry((p.rate_factor, ch.name.clone()))
+                .or_insert_with(|| StatsJob {
+                    fps: p.fps,
+                    channel: ch.name.clone(),
+                    split: "train",
+                    profiles: Vec::new(),
+                })
+                .profiles
+                .push(p.name.clone());
+        }
+    }
+
+    Ok(Plan {
+        version: PLAN_VERSION,
+        tool_version: TOOL_VERSION,
+        spec_hash: spec.hash.clone(),
+        source: SourcePlan {
+            format: manifest.format.name(),
+            path: spec.spec.source.path.clone(),
+            fps: manifest.fps,
+            episodes: manifest.episodes.len(),
+            steps: manifest.episodes.iter().map(|e| e.len).sum(),
+            fingerprint: manifest.fingerprint.clone(),
+            channels: manifest.channels.clone(),
+        },
+        split,
+        rates: rates.into_values().collect(),
+        statistics: statistics.into_values().collect(),
+        profiles,
+    })
+}
+
+fn resolve_profile(
+    spec: &LoadedSpec,
+    manifest: &Manifest,
+    split: &Split,
+    profile: &Profile,
+    lock: Option<&Lock>,
+    out_dir: &Path,
+) -> Result<ProfilePlan> {
+    let name = &profile.name;
+    let fps = profile.fps.unwrap_or(manifest.fps);
+    let factor = rate_factor(manifest.fps, fps).map_err(|msg| {
+        spec.error_at(
+            &["profiles", name, "fps"],
+            format!("profile `{name}` runs at {msg}"),
+            Some(format!(
+                "set `profiles.{name}.fps` to the source rate ({} Hz) or an integer divisor of it",
+                manifest.fps
+            )),
+        )
+    })?;
+    let rate = if factor == 1 {
+        format!("{fps} Hz (the source rate, no conversion)")
+    } else {
+        format!(
+            "{} Hz -> {fps} Hz: keep every {factor}th step",
+            manifest.fps
+        )
+    };
+
+    let mut channels = Vec::new();
+    for ch in &manifest.channels {
+        let explicit = profile.normalize.get(&ch.name).copied();
+        let normalize = match ch.kind {
+            ChannelKind::Lowdim => explicit.unwrap_or(profile.normalize_lowdim),
+            ChannelKind::Image => {
+                let mode = explicit.unwrap_or(NormalizeMode::None);
+                if mode != NormalizeMode::None {
+                    return Err(spec.error_at(
+                        &["profiles", name, "normalize", &ch.name],
+                        format!(
+                            "`{}` is an image channel; images are stored as uint8 and only `none` is supported",
+                            ch.name
+                        ),
+                        None,
+                    ));
+                }
+                mode
+            }
+        };
+        channels.push(ProfileChannel {
+            name: ch.name.clone(),
+            kind: ch.kind,
+            shape: ch.shape.clone(),
+            normalize,
+        });
+    }
+
+    let window = Window {
+        chunk: profile.chunk as usize,
+        obs_history: profile.obs_history as usize,
+        padding: profile.padding,
+        stride: profile.stride as usize,
+    };
+    let mut episodes = Vec::new();
+    let mut warnings = Vec::new();
+    let mut counts = SplitCounts::default();
+    let mut steps = 0;
+    for e in &manifest.episodes {
+        let len = decimated_len(e.len, factor);
+        let samples = window.count(len);
+        let is_train = split.is_train(e.id);
+        if is_train {
+            counts.train += samples;
+        } else {
+            counts.val += samples;
+        }
+        if samples == 0 {
+            warnings.push(format!(
+                "episode {} has {len} steps at {fps} Hz and yields no samples with {} padding (chunk {}, obs_history {})",
+                e.id,
+                profile.padding.name(),
+                profile.chunk,
+                profile.obs_history
+            ));
+        }
+        steps += len;
+        episodes.push(ProfileEpisode {
+            id: e.id,
+            split: if is_train { "train" } else { "val" },
+            source_len: e.len,
+            len,
+            samples,
+        });
+    }
+    if counts.train == 0 {
+        return Err(spec.error_at(
+            &["profiles", name, "chunk"],
+            format!("profile `{name}` yields no training samples: every training episode is too short"),
+            None,
+        ));
+    }
+
+    let data_bytes: u64 = manifest
+        .channels
+        .iter()
+        .map(|c| step_bytes(c) * steps as u64)
+        .sum::<u64>()
+        + 16 * (counts.train + counts.val) as u64
+        + 16 * manifest.episodes.len() as u64;
+    let files = vec![
+        PlannedFile {
+            path: DATA_FILE.into(),
+            estimated_bytes: data_bytes + 8192,
+        },
+        PlannedFile {
+            path: LOADER_FILE.into(),
+            estimated_bytes: 12_000,
+        },
+        PlannedFile {
+            path: META_FILE.into(),
+            estimated_bytes: 2048 + 24 * manifest.episodes.len() as u64,
+        },
+        PlannedFile {
+            path: STATS_FILE.into(),
+            estimated_bytes: 512 + manifest.channels.iter().map(|c| 180 * c.width() as u64).sum::<u64>(),
+        },
+    ];
+
+    let fingerprint = profile_fingerprint(spec, manifest, profile);
+    let status = status_of(name, &fingerprint, lock, &out_dir.join(name))?;
+    Ok(ProfilePlan {
+        name: name.clone(),
+        values: profile.clone(),
+        fps,
+        rate_factor: factor,
+        rate,
+        channels,
+        episodes,
+        excluded: Vec::new(),
+        warnings,
+        num_samples: counts,
+        steps,
+        files,
+        fingerprint,
+        status,
+    })
+}
+
+/// Everything a profile's outputs depend on: the tool, the resolved profile, the source bytes,
+/// the channel mapping, the split and the spec's output location. Other profiles' settings are
+/// deliberately left out, so editing one profile rebuilds only that one.
+fn profile_fingerprint(spec: &LoadedSpec, manifest: &Manifest, profile: &Profile) -> String {
+    let mut h = blake3::Hasher::new();
+    let parts = [
+        TOOL_VERSION.to_string(),
+        serde_json::to_string(profile).unwrap(),
+        serde_json::to_string(&spec.spec.source).unwrap(),
+        serde_json::to_string(&spec.spec.split).unwrap(),
+        spec.spec.output.dir.clone(),
+        manifest.fingerprint.clone(),
+    ];
+    for p in parts {
+        h.update(&(p.len() as u64).to_le_bytes());
+        h.update(p.as_bytes());
+    }
+    h.finalize().to_hex().to_string()
+}
+
+fn status_of(name: &str, fingerprint: &str, lock: Option<&Lock>, dir: &Path) -> Result<Status> {
+    let build = |reason: String| Ok(Status {
+        up_to_date: false,
+        reason,
+    });
+    let Some(lock) = lock else {
+        return build("no chunkc.lock: first build".into());
+    };
+    let Some(entry) = lock.profiles.get(name) else {
+        return build(format!("profile `{name}` is not in chunkc.lock"));
+    };
+    if lock.tool_version != TOOL_VERSION {
+        return build(format!(
+            "chunkc changed ({} -> {TOOL_VERSION})",
+            lock.tool_version
+        ));
+    }
+    if entry.fingerprint != fingerprint {
+        return build("the spec or the source changed".into());
+    }
+    for (file, hash) in &entry.files {
+        let path = dir.join(file);
+        if !path.exists() {
+            return build(format!("{} is missing", path.display()));
+        }
+        if &lock::hash_file(&path)? != hash {
+            return build(format!("{} was modified", path.display()));
+        }
+    }
+    Ok(Status {
+        up_to_date: true,
+        reason: "up to date".into(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::rate_factor;
+
+    #[test]
+    fn integer_rates_only() {
+        assert_eq!(rate_factor(50.0, 10.0), Ok(5));
+        assert_eq!(rate_factor(10.0, 10.0), Ok(1));
+        assert!(rate_factor(30.0, 20.0).is_err());
+        assert!(rate_factor(10.0, 50.0).is_err());
+    }
+}

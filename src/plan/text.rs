@@ -1,0 +1,138 @@
+//! `chunkc plan` as text: what will be built, from what, and whether it must run.
+
+use std::fmt::Write;
+
+use super::Plan;
+
+fn human_bytes(n: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut v = n as f64;
+    let mut u = 0;
+    while v >= 1024.0 && u < UNITS.len() - 1 {
+        v /= 1024.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{n} B")
+    } else {
+        format!("{v:.1} {}", UNITS[u])
+    }
+}
+
+pub fn render_text(plan: &Plan) -> String {
+    let mut s = String::new();
+    let src = &plan.source;
+    let _ = writeln!(
+        s,
+        "source  {} {} ({} episodes, {} steps, {} Hz)",
+        src.format, src.path, src.episodes, src.steps, src.fps
+    );
+    let _ = writeln!(s, "        fingerprint {}", &src.fingerprint[..16]);
+    for ch in &src.channels {
+        let _ = writeln!(
+            s,
+            "        {:<24} <- {:<12} {:?} {} ({})",
+            ch.name,
+            ch.key,
+            ch.shape,
+            ch.source_dtype,
+            match ch.kind {
+                crate::source::ChannelKind::Lowdim => "lowdim",
+                crate::source::ChannelKind::Image => "image",
+            }
+        );
+    }
+    let _ = writeln!(
+        s,
+        "split   {} train / {} val episodes",
+        plan.split.train.len(),
+        plan.split.val.len()
+    );
+    let _ = writeln!(s, "read    the source once, for all profiles");
+    for r in &plan.rates {
+        let _ = writeln!(
+            s,
+            "rate    {} Hz (every {} step(s), {} steps) for {}",
+            r.fps,
+            r.factor,
+            r.steps,
+            r.profiles.join(", ")
+        );
+    }
+    for st in &plan.statistics {
+        let _ = writeln!(
+            s,
+            "stats   {} @ {} Hz on {} for {}",
+            st.channel,
+            st.fps,
+            st.split,
+            st.profiles.join(", ")
+        );
+    }
+    for p in &plan.profiles {
+        let v = &p.values;
+        let _ = writeln!(s);
+        let state = if p.status.up_to_date {
+            "up to date".to_string()
+        } else {
+            format!("build: {}", p.status.reason)
+        };
+        let _ = writeln!(s, "profile {}  [{}]", p.name, state);
+        let _ = writeln!(
+            s,
+            "  preset {}  format {}  alignment {}",
+            v.preset.map(|p| p.name()).unwrap_or("none"),
+            v.format.name(),
+            v.alignment
+        );
+        let _ = writeln!(s, "  rate   {}", p.rate);
+        let _ = writeln!(
+            s,
+            "  window chunk {}  obs_history {}  padding {}  stride {}",
+            v.chunk,
+            v.obs_history,
+            v.padding.name(),
+            v.stride
+        );
+        for ch in &p.channels {
+            let _ = writeln!(s, "  normalize {:<24} {}", ch.name, ch.normalize.name());
+        }
+        let train_eps = p.episodes.iter().filter(|e| e.split == "train").count();
+        let _ = writeln!(
+            s,
+            "  episodes {} used ({} train, {} val), {} excluded; {} steps",
+            p.episodes.len(),
+            train_eps,
+            p.episodes.len() - train_eps,
+            p.excluded.len(),
+            p.steps
+        );
+        for e in &p.excluded {
+            let _ = writeln!(s, "    excluded episode {}: {}", e.id, e.reason);
+        }
+        let _ = writeln!(
+            s,
+            "  samples {} train, {} val",
+            p.num_samples.train, p.num_samples.val
+        );
+        for f in &p.files {
+            let _ = writeln!(s, "  write  {}/{}  ~{}", p.name, f.path, human_bytes(f.estimated_bytes));
+        }
+        for w in &p.warnings {
+            let _ = writeln!(s, "  warning: {w}");
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::human_bytes;
+
+    #[test]
+    fn bytes() {
+        assert_eq!(human_bytes(12), "12 B");
+        assert_eq!(human_bytes(2048), "2.0 KiB");
+        assert_eq!(human_bytes(3 * 1024 * 1024 + 1), "3.0 MiB");
+    }
+}

@@ -1,0 +1,89 @@
+//! `meta.json` and `stats.json`: the JSON documents every profile directory holds.
+//!
+//! Key order is fixed by construction (serde_json's `preserve_order`), floats are printed in
+//! their shortest round-trip form, and nothing depends on the clock: the bytes are a function
+//! of the plan and the data.
+
+use std::collections::BTreeMap;
+
+use serde_json::{json, Value};
+
+use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
+use crate::source::ChannelKind;
+use crate::stats::normalize::Normalizer;
+use crate::stats::ChannelStats;
+
+pub const META_FORMAT_VERSION: u32 = 1;
+
+fn pretty(v: &Value) -> String {
+    let mut s = serde_json::to_string_pretty(v).expect("JSON serializes");
+    s.push('\n');
+    s
+}
+
+/// `meta.json`: everything the loader needs, and the provenance of the dataset.
+pub fn meta_json(
+    plan: &Plan,
+    profile: &ProfilePlan,
+    episode_ends: &[u64],
+    normalizers: &BTreeMap<String, Normalizer>,
+    data_file: &str,
+) -> String {
+    let v = &profile.values;
+    let mut channels = serde_json::Map::new();
+    for (ch, src) in profile.channels.iter().zip(&plan.source.channels) {
+        channels.insert(
+            ch.name.clone(),
+            json!({
+                "kind": ch.kind,
+                "shape": ch.shape,
+                "dtype": match ch.kind { ChannelKind::Lowdim => "float32", ChannelKind::Image => "uint8" },
+                "source_key": src.key,
+                "source_dtype": src.source_dtype,
+            }),
+        );
+    }
+    let mut normalization = serde_json::Map::new();
+    for (name, n) in normalizers {
+        normalization.insert(
+            name.clone(),
+            json!({ "mode": n.mode, "center": n.center, "scale": n.scale, "clip": n.clip }),
+        );
+    }
+    let ids: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();
+    let doc = json!({
+        "format_version": META_FORMAT_VERSION,
+        "chunkc_version": TOOL_VERSION,
+        "profile": profile.name,
+        "preset": v.preset.map(|p| p.name()),
+        "chunk_size": v.chunk,
+        "obs_history": v.obs_history,
+        "padding": v.padding.name(),
+        "stride": v.stride,
+        "fps": profile.fps,
+        "alignment": v.alignment,
+        "layout": "index",
+        "data_file": data_file,
+        "rate": { "source_fps": plan.source.fps, "factor": profile.rate_factor },
+        "episode_ends": episode_ends,
+        "episodes": ids,
+        "split": { "train": plan.split.train, "val": plan.split.val },
+        "num_samples": { "train": profile.num_samples.train, "val": profile.num_samples.val },
+        "channels": channels,
+        "normalization": normalization,
+        "excluded": profile.excluded,
+        "warnings": profile.warnings,
+        "source": {
+            "format": plan.source.format,
+            "path": plan.source.path,
+            "fingerprint": plan.source.fingerprint,
+        },
+        "spec_hash": plan.spec_hash,
+    });
+    pretty(&doc)
+}
+
+/// `stats.json`: per channel, per dimension statistics of the training split in raw units.
+pub fn stats_json(stats: &BTreeMap<String, ChannelStats>) -> String {
+    pretty(&serde_json::to_value(stats).expect("stats serialize"))
+}

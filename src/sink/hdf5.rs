@@ -1,0 +1,170 @@
+//! The HDF5 writer for chunkc's own `index` layout.
+//!
+//! ```text
+//! /data/<channel>      (N, ...) float32 (normalized low-dim) or uint8 (images, HWC)
+//! /meta/episode_ends   (E,) int64  exclusive ends of each episode in /data
+//! /meta/episode_ids    (E,) int64  source episode ids, in stored order
+//! /index/train         (S, 2) int64 rows of (episode position, start step t)
+//! /index/val           (S, 2) int64
+//! ```
+//! Attributes on `/` name the window parameters. Object time tracking is off everywhere, and
+//! data is written in a fixed order, so the file's bytes depend only on its contents.
+
+use std::path::Path;
+
+use hdf5::types::VarLenUnicode;
+use hdf5::{Dataset, File, Group};
+use ndarray::{ArrayViewD, IxDyn};
+
+use crate::error::{Error, Result};
+use crate::plan::ProfilePlan;
+use crate::source::ChannelKind;
+
+/// Chunks of low-dimensional data hold about this many bytes (a few windows' worth).
+const LOWDIM_CHUNK_BYTES: usize = 64 * 1024;
+/// Image frames are compressed with deflate at this level (fast, and lossless).
+const IMAGE_DEFLATE_LEVEL: u8 = 1;
+
+pub struct Hdf5Writer {
+    file: File,
+    data: Vec<Dataset>,
+    shapes: Vec<Vec<usize>>,
+}
+
+fn group(parent: &Group, name: &str) -> Result<Group> {
+    Ok(parent
+        .create_group_builder()
+        .obj_track_times(false)
+        .create(name)?)
+}
+
+fn text(s: &str) -> Result<VarLenUnicode> {
+    s.parse::<VarLenUnicode>()
+        .map_err(|e| Error::Internal(format!("attribute text {s:?}: {e}")))
+}
+
+impl Hdf5Writer {
+    pub fn create(path: &Path, plan: &ProfilePlan, episode_ends: &[u64], ids: &[u64]) -> Result<Self> {
+        let file = File::with_options()
+            .with_fcpl(|p| p.obj_track_times(false))
+            .create(path)
+            .map_err(|e| Error::output(format!("cannot create {}: {e}", path.display())))?;
+        let steps = *episode_ends.last().unwrap_or(&0) as usize;
+
+        let v = &plan.values;
+        let root: &Group = &file;
+        root.new_attr::<i64>().create("chunk_size")?.write_scalar(&i64::from(v.chunk))?;
+        root.new_attr::<i64>()
+            .create("obs_history")?
+            .write_scalar(&i64::from(v.obs_history))?;
+        root.new_attr::<i64>().create("stride")?.write_scalar(&i64::from(v.stride))?;
+        root.new_attr::<f64>().create("fps")?.write_scalar(&plan.fps)?;
+        root.new_attr::<VarLenUnicode>()
+            .create("padding")?
+            .write_scalar(&text(v.padding.name())?)?;
+        root.new_attr::<VarLenUnicode>()
+            .create("alignment")?
+            .write_scalar(&text(v.alignment)?)?;
+        root.new_attr::<VarLenUnicode>()
+            .create("layout")?
+            .write_scalar(&text("index")?)?;
+
+        let data_group = group(root, "data")?;
+        let mut data = Vec::new();
+        let mut shapes = Vec::new();
+        for ch in &plan.channels {
+            let mut shape = vec![steps];
+            shape.extend(&ch.shape);
+            let ds = match ch.kind {
+                ChannelKind::Lowdim => {
+                    let row_bytes = 4 * ch.shape.iter().product::<usize>().max(1);
+                    let rows = (LOWDIM_CHUNK_BYTES / row_bytes).clamp(1, steps.max(1));
+                    let mut chunk = vec![rows];
+                    chunk.extend(&ch.shape);
+                    data_group
+                        .new_dataset::<f32>()
+                        .shape(shape.clone())
+                        .chunk(chunk)
+                        .obj_track_times(false)
+                        .create(ch.name.as_str())?
+                }
+                ChannelKind::Image => {
+                    let mut chunk = vec![1];
+                    chunk.extend(&ch.shape);
+                    data_group
+                        .new_dataset::<u8>()
+                        .shape(shape.clone())
+                        .chunk(chunk)
+                        .deflate(IMAGE_DEFLATE_LEVEL)
+                        .obj_track_times(false)
+                        .create(ch.name.as_str())?
+                }
+            };
+            data.push(ds);
+            shapes.push(ch.shape.clone());
+        }
+
+        let meta = group(root, "meta")?;
+        let ends: Vec<i64> = episode_ends.iter().map(|&e| e as i64).collect();
+        let ids: Vec<i64> = ids.iter().map(|&e| e as i64).collect();
+        for (name, values) in [("episode_ends", &ends), ("episode_ids", &ids)] {
+            meta.new_dataset::<i64>()
+                .shape([values.len()])
+                .obj_track_times(false)
+                .create(name)?
+                .write_raw(values)?;
+        }
+        group(root, "index")?;
+        Ok(Hdf5Writer { file, data, shapes })
+    }
+
+    fn selection(&self, channel: usize, row: usize, rows: usize) -> hdf5::Hyperslab {
+        let mut sel: Vec<hdf5::SliceOrIndex> = vec![(row..row + rows).into()];
+        sel.extend(self.shapes[channel].iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
+        hdf5::Hyperslab::from(sel)
+    }
+
+    fn view<'a, T>(&self, channel: usize, rows: usize, values: &'a [T]) -> Result<ArrayViewD<'a, T>> {
+        let mut shape = vec![rows];
+        shape.extend(&self.shapes[channel]);
+        ArrayViewD::from_shape(IxDyn(&shape), values)
+            .map_err(|e| Error::Internal(format!("channel {channel}: {e}")))
+    }
+
+    /// Writes `rows` steps of an image channel starting at stored row `row`.
+    pub fn write_u8(&self, channel: usize, row: usize, rows: usize, values: &[u8]) -> Result<()> {
+        let view = self.view(channel, rows, values)?;
+        self.data[channel].write_slice(view, self.selection(channel, row, rows))?;
+        Ok(())
+    }
+
+    /// Writes the whole of a low-dimensional channel.
+    pub fn write_f32(&self, channel: usize, values: &[f32]) -> Result<()> {
+        let rows = values.len() / self.shapes[channel].iter().product::<usize>().max(1);
+        let view = self.view(channel, rows, values)?;
+        self.data[channel].write_slice(view, self.selection(channel, 0, rows))?;
+        Ok(())
+    }
+
+    /// Writes one split's window index: rows of (episode position, start step).
+    pub fn write_index(&self, split: &str, rows: &[[i64; 2]]) -> Result<()> {
+        let flat: Vec<i64> = rows.iter().flatten().copied().collect();
+        let ds = self
+            .file
+            .group("index")?
+            .new_dataset::<i64>()
+            .shape([rows.len(), 2])
+            .obj_track_times(false)
+            .create(split)?;
+        if !rows.is_empty() {
+            ds.write_raw(&flat)?;
+        }
+        Ok(())
+    }
+
+    pub fn close(self) -> Result<()> {
+        drop(self.data);
+        self.file.close()?;
+        Ok(())
+    }
+}

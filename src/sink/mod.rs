@@ -1,0 +1,7 @@
+//! Stage 5b, write: the container writers and the JSON documents beside them.
+//!
+//! - `hdf5`: chunkc's own `index` layout in HDF5.
+//! - `documents`: `meta.json` and `stats.json`.
+
+pub mod documents;
+pub mod hdf5;

@@ -1,0 +1,277 @@
+//! Diffusion Policy's zarr ReplayBuffer: all episodes concatenated along axis 0 of `data/<key>`,
+//! with `meta/episode_ends` holding the exclusive cumulative ends.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use zarrs::array::{Array, ArraySubset};
+use zarrs::filesystem::FilesystemStore;
+
+use super::{
+    fingerprint, image_to_u8, kind_for_shape, ChannelData, ChannelInfo, ChannelKind, Episode,
+    EpisodeInfo, Manifest, Source,
+};
+use crate::error::{Error, Result};
+use crate::spec::{LoadedSpec, SourceFormat};
+
+type ZArray = Array<FilesystemStore>;
+
+pub struct DpZarrSource {
+    root: PathBuf,
+    manifest: Manifest,
+    /// Cumulative episode starts (len = episodes + 1).
+    bounds: Vec<u64>,
+    arrays: Vec<ZArray>,
+}
+
+fn open_array(store: &Arc<FilesystemStore>, root: &Path, key: &str) -> Result<ZArray> {
+    Array::open(store.clone(), &format!("/{key}")).map_err(|e| {
+        Error::source(format!(
+            "{}: cannot open zarr array `{key}`: {e}",
+            root.display()
+        ))
+    })
+}
+
+/// Names of the arrays under `data/`, for "did you mean" style listings.
+fn data_keys(root: &Path) -> Vec<String> {
+    let mut keys: Vec<String> = std::fs::read_dir(root.join("data"))
+        .map(|rd| {
+            rd.filter_map(|e| e.ok())
+                .filter(|e| e.path().join(".zarray").exists() || e.path().join("zarr.json").exists())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    keys.sort();
+    keys
+}
+
+/// Reads `subset` of `array` and converts it to `f32`, whatever the stored numeric type.
+fn read_f32(array: &ZArray, subset: &ArraySubset) -> std::result::Result<Vec<f32>, String> {
+    let dtype = dtype_name(array);
+    macro_rules! conv {
+        ($t:ty) => {
+            array
+                .retrieve_array_subset::<Vec<$t>>(subset)
+                .map(|v| v.into_iter().map(|x| x as f32).collect())
+                .map_err(|e| e.to_string())
+        };
+    }
+    match dtype.as_str() {
+        "float32" => array
+            .retrieve_array_subset::<Vec<f32>>(subset)
+            .map_err(|e| e.to_string()),
+        "float64" => conv!(f64),
+        "int8" => conv!(i8),
+        "int16" => conv!(i16),
+        "int32" => conv!(i32),
+        "int64" => conv!(i64),
+        "uint8" => conv!(u8),
+        "uint16" => conv!(u16),
+        "uint32" => conv!(u32),
+        "uint64" => conv!(u64),
+        "bool" => array
+            .retrieve_array_subset::<Vec<bool>>(subset)
+            .map(|v| v.into_iter().map(|x| x as u8 as f32).collect())
+            .map_err(|e| e.to_string()),
+        other => Err(format!("unsupported element type {other}")),
+    }
+}
+
+fn dtype_name(array: &ZArray) -> String {
+    let shown = array.data_type().to_string();
+    shown.split(" / ").next().unwrap_or(&shown).to_string()
+}
+
+impl DpZarrSource {
+    pub fn open(spec: &LoadedSpec, root: &Path) -> Result<Self> {
+        let store = Arc::new(FilesystemStore::new(root).map_err(|e| {
+            Error::source(format!("{}: cannot open zarr store: {e}", root.display()))
+        })?);
+        let fps = spec.spec.source.fps.ok_or_else(|| {
+            spec.error_at(
+                &["source", "fps"],
+                "a diffusion_policy_zarr source stores no rate; set `source.fps`",
+                Some("Push-T is recorded at 10 Hz".into()),
+            )
+        })?;
+
+        let ends_array = open_array(&store, root, "meta/episode_ends")?;
+        let n = ends_array.shape().first().copied().unwrap_or(0);
+        let ends = read_f32_exact_i64(&ends_array, n)
+            .map_err(|e| Error::source(format!("{}: meta/episode_ends: {e}", root.display())))?;
+        let mut bounds = vec![0u64];
+        let mut episodes = Vec::with_capacity(ends.len());
+        for (i, &end) in ends.iter().enumerate() {
+            let start = *bounds.last().unwrap();
+            if end < 0 || (end as u64) <= start {
+                return Err(Error::source(format!(
+                    "{}: meta/episode_ends[{i}] = {end} does not exceed the previous end {start}: episode {i} is empty or the ends are not increasing",
+                    root.display()
+                )));
+            }
+            episodes.push(EpisodeInfo {
+                id: i as u64,
+                len: (end as u64 - start) as usize,
+            });
+            bounds.push(end as u64);
+        }
+        let total = *bounds.last().unwrap();
+
+        let available = data_keys(root);
+        let mut channels = Vec::new();
+        let mut arrays = Vec::new();
+        for (name, key) in &spec.spec.source.channels {
+            if !available.iter().any(|k| k == key) {
+                return Err(spec.error_at(
+                    &["source", "channels", name],
+                    format!(
+                        "no array `data/{key}` in {}; the source has: {}",
+                        root.display(),
+                        available.join(", ")
+                    ),
+                    None,
+                ));
+            }
+            let array = open_array(&store, root, &format!("data/{key}"))?;
+            let shape: Vec<usize> = array.shape().iter().map(|&d| d as usize).collect();
+            if shape.first().copied().unwrap_or(0) as u64 != total {
+                return Err(Error::source(format!(
+                    "{}: data/{key} has {} steps but meta/episode_ends ends at {total}",
+                    root.display(),
+                    shape.first().copied().unwrap_or(0)
+                )));
+            }
+            let step_shape = shape[1..].to_vec();
+            let kind = kind_for_shape(&step_shape)
+                .map_err(|e| Error::source(format!("{}: data/{key}: {e}", root.display())))?;
+            if name == "action" && kind != ChannelKind::Lowdim {
+                return Err(spec.error_at(
+                    &["source", "channels", name],
+                    format!("`action` must be a vector per step, but data/{key} is {step_shape:?}"),
+                    None,
+                ));
+            }
+            channels.push(ChannelInfo {
+                name: name.clone(),
+                key: key.clone(),
+                kind,
+                shape: step_shape,
+                source_dtype: dtype_name(&array),
+            });
+            arrays.push(array);
+        }
+
+        let mut files = fingerprint::list_files(&root.join("meta"))?
+            .into_iter()
+            .map(|p| Path::new("meta").join(p))
+            .collect::<Vec<_>>();
+        let mut keys: Vec<&String> = spec.spec.source.channels.values().collect();
+        keys.sort();
+        keys.dedup();
+        for key in keys {
+            let dir = Path::new("data").join(key);
+            files.extend(
+                fingerprint::list_files(&root.join(&dir))?
+                    .into_iter()
+                    .map(|p| dir.join(p)),
+            );
+        }
+        files.sort();
+        let fingerprint = fingerprint::of_files(root, &files)?;
+
+        Ok(DpZarrSource {
+            root: root.to_path_buf(),
+            manifest: Manifest {
+                format: SourceFormat::DiffusionPolicyZarr,
+                fps,
+                episodes,
+                channels,
+                fingerprint,
+            },
+            bounds,
+            arrays,
+        })
+    }
+}
+
+/// `episode_ends` is int64 in every replay buffer seen so far; read it without a float detour.
+fn read_f32_exact_i64(array: &ZArray, n: u64) -> std::result::Result<Vec<i64>, String> {
+    let subset = ArraySubset::new_with_ranges(&[0..n]);
+    match dtype_name(array).as_str() {
+        "int64" => array
+            .retrieve_array_subset::<Vec<i64>>(&subset)
+            .map_err(|e| e.to_string()),
+        "int32" => array
+            .retrieve_array_subset::<Vec<i32>>(&subset)
+            .map(|v| v.into_iter().map(i64::from).collect())
+            .map_err(|e| e.to_string()),
+        "uint64" => array
+            .retrieve_array_subset::<Vec<u64>>(&subset)
+            .map(|v| v.into_iter().map(|x| x as i64).collect())
+            .map_err(|e| e.to_string()),
+        other => Err(format!("expected an integer array, found {other}")),
+    }
+}
+
+impl Source for DpZarrSource {
+    fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    fn read_episode(&self, index: usize) -> Result<Episode> {
+        let info = &self.manifest.episodes[index];
+        let (start, end) = (self.bounds[index], self.bounds[index + 1]);
+        let mut channels = Vec::with_capacity(self.arrays.len());
+        for (ch, array) in self.manifest.channels.iter().zip(&self.arrays) {
+            let mut ranges = vec![start..end];
+            ranges.extend(ch.shape.iter().map(|&d| 0..d as u64));
+            let subset = ArraySubset::new_with_ranges(&ranges);
+            let where_ = || {
+                format!(
+                    "{}: episode {} channel `{}` (data/{})",
+                    self.root.display(),
+                    info.id,
+                    ch.name,
+                    ch.key
+                )
+            };
+            let data = if ch.kind == ChannelKind::Image && ch.source_dtype == "uint8" {
+                array
+                    .retrieve_array_subset::<Vec<u8>>(&subset)
+                    .map(ChannelData::Image)
+                    .map_err(|e| Error::source(format!("{}: {e}", where_())))?
+            } else {
+                let values =
+                    read_f32(array, &subset).map_err(|e| Error::source(format!("{}: {e}", where_())))?;
+                match ch.kind {
+                    ChannelKind::Lowdim => {
+                        let width = ch.width().max(1);
+                        if let Some(bad) = values.iter().position(|v| !v.is_finite()) {
+                            return Err(Error::source(format!(
+                                "{}: step {} holds a non-finite value ({})",
+                                where_(),
+                                bad / width,
+                                values[bad]
+                            )));
+                        }
+                        ChannelData::Lowdim(values)
+                    }
+                    ChannelKind::Image => {
+                        let per_step = ch.width();
+                        ChannelData::Image(image_to_u8(&values, |i| {
+                            format!("{} step {}", where_(), i / per_step)
+                        })?)
+                    }
+                }
+            };
+            channels.push(data);
+        }
+        Ok(Episode {
+            id: info.id,
+            len: info.len,
+            channels,
+        })
+    }
+}

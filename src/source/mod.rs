@@ -1,0 +1,137 @@
+//! Stage 2, open: one adapter per on-disk layout, all behind the same [`Source`] trait.
+//!
+//! Everything downstream sees one model: a [`Manifest`] (cheap metadata, known before any data is
+//! read) and [`Episode`]s read one at a time. Low-dimensional channels arrive as `f32`, images as
+//! `u8` (HWC); the time axis is always first.
+//!
+//! - `dp_zarr`: Diffusion Policy zarr ReplayBuffer (`data/<key>`, `meta/episode_ends`).
+//! - `fingerprint`: the content hash that tells the plan whether a source changed.
+
+mod dp_zarr;
+pub mod fingerprint;
+
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::spec::{LoadedSpec, SourceFormat};
+
+/// What a channel holds, decided from its per-step rank: vectors are low-dimensional, arrays of
+/// rank 3 (H, W, C) are images.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ChannelKind {
+    Lowdim,
+    Image,
+}
+
+/// A channel as the manifest describes it.
+#[derive(Debug, Clone, Serialize)]
+pub struct ChannelInfo {
+    /// Our name (`action`, `observation.state`).
+    pub name: String,
+    /// The key in the source.
+    pub key: String,
+    pub kind: ChannelKind,
+    /// Per-step shape (everything after the time axis).
+    pub shape: Vec<usize>,
+    /// The source's element type, as the source names it.
+    pub source_dtype: String,
+}
+
+impl ChannelInfo {
+    /// Number of values per step.
+    pub fn width(&self) -> usize {
+        self.shape.iter().product()
+    }
+}
+
+/// One episode's place in the source.
+#[derive(Debug, Clone, Serialize)]
+pub struct EpisodeInfo {
+    /// The source's own id (the episode number in the source's naming).
+    pub id: u64,
+    pub len: usize,
+}
+
+/// Metadata of a whole source: known before any per-step data is read.
+#[derive(Debug, Clone, Serialize)]
+pub struct Manifest {
+    pub format: SourceFormat,
+    /// The source's recording rate in Hz.
+    pub fps: f64,
+    pub episodes: Vec<EpisodeInfo>,
+    /// In the spec's (sorted) channel order; `action` is among them.
+    pub channels: Vec<ChannelInfo>,
+    /// BLAKE3 over the bytes of everything the adapter reads.
+    pub fingerprint: String,
+}
+
+/// One channel's values for one episode, time-major and row-major.
+#[derive(Debug, Clone)]
+pub enum ChannelData {
+    Lowdim(Vec<f32>),
+    Image(Vec<u8>),
+}
+
+/// One episode's data, channels in manifest order.
+#[derive(Debug, Clone)]
+pub struct Episode {
+    pub id: u64,
+    pub len: usize,
+    pub channels: Vec<ChannelData>,
+}
+
+/// A dataset on disk, opened. Implementations must be safe to read from several threads.
+pub trait Source: Send + Sync {
+    fn manifest(&self) -> &Manifest;
+    /// Reads the episode at position `index` of `manifest().episodes`.
+    fn read_episode(&self, index: usize) -> Result<Episode>;
+}
+
+/// Opens the source a spec names.
+pub fn open(spec: &LoadedSpec) -> Result<Box<dyn Source>> {
+    let src = &spec.spec.source;
+    let path = spec.resolve(&src.path);
+    if !path.exists() {
+        return Err(spec.error_at(
+            &["source", "path"],
+            format!("source path {} does not exist", path.display()),
+            None,
+        ));
+    }
+    match src.format {
+        SourceFormat::DiffusionPolicyZarr => Ok(Box::new(dp_zarr::DpZarrSource::open(spec, &path)?)),
+        other => Err(spec.error_at(
+            &["source", "format"],
+            format!("source format `{}` is not supported yet", other.name()),
+            None,
+        )),
+    }
+}
+
+/// Decides a channel's kind from its per-step shape, or says why it cannot be used.
+pub fn kind_for_shape(shape: &[usize]) -> std::result::Result<ChannelKind, String> {
+    match shape.len() {
+        0 | 1 | 2 => Ok(ChannelKind::Lowdim),
+        3 if shape[2] == 1 || shape[2] == 3 || shape[2] == 4 => Ok(ChannelKind::Image),
+        _ => Err(format!(
+            "per-step shape {shape:?} is neither a vector nor an (H, W, C) image"
+        )),
+    }
+}
+
+/// Converts image values that arrive as floats holding 0..255 (Push-T stores them so) to `u8`,
+/// refusing anything that would not round-trip exactly.
+pub fn image_to_u8(values: &[f32], what: impl Fn(usize) -> String) -> Result<Vec<u8>> {
+    let mut out = Vec::with_capacity(values.len());
+    for (i, &v) in values.iter().enumerate() {
+        if !(0.0..=255.0).contains(&v) || v.fract() != 0.0 {
+            return Err(Error::source(format!(
+                "{}: image value {v} is not an integer in 0..=255",
+                what(i)
+            )));
+        }
+        out.push(v as u8);
+    }
+    Ok(out)
+}

@@ -1,0 +1,395 @@
+//! Reading a spec: TOML text → spanned document → typed [`Spec`] → validated, expanded profiles.
+//!
+//! The spanned `toml_edit` document is kept next to the typed spec (cargo's habit), so any later
+//! stage can turn "this key is wrong" into a `file:line:col` excerpt with [`LoadedSpec::error_at`].
+//! serde's error messages are rewritten here into ones that name the key and its table and
+//! suggest the closest valid name.
+
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use toml_edit::{Document, Item, TableLike};
+
+use super::diagnostic::{backticked, did_you_mean, Diagnostic};
+use super::model::Spec;
+use super::preset::Profile;
+use super::{reference, validate};
+use crate::error::{Error, Result};
+
+/// A parsed, validated spec with every profile expanded, and the text it came from.
+#[derive(Debug, Clone)]
+pub struct LoadedSpec {
+    pub spec: Spec,
+    /// The expanded profiles, sorted by name.
+    pub profiles: Vec<Profile>,
+    /// The spec's path as given (shown in messages).
+    pub file: PathBuf,
+    /// The directory relative paths in the spec are resolved against.
+    pub dir: PathBuf,
+    pub text: String,
+    /// BLAKE3 of the canonical JSON of `spec`: comments and formatting do not change it.
+    pub hash: String,
+    doc: Document<String>,
+}
+
+/// Which part of a `key = value` line a diagnostic underlines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Target {
+    Key,
+    Value,
+}
+
+impl LoadedSpec {
+    pub fn load(path: &Path) -> Result<LoadedSpec> {
+        // A spec that cannot be read is the user's input error (exit 2), not an output failure.
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| Error::Spec(format!("error: cannot read spec {}: {e}", path.display())))?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut loaded = Self::parse(&path.display().to_string(), &text, &dir)?;
+        loaded.file = path.to_path_buf();
+        Ok(loaded)
+    }
+
+    /// Parses `text`; `name` stands for the file in messages, `dir` anchors relative paths.
+    pub fn parse(name: &str, text: &str, dir: &Path) -> Result<LoadedSpec> {
+        let fail = |diagnostics: &[Diagnostic]| Error::Spec(render_all(diagnostics, name, text));
+        let doc = Document::parse(text.to_string())
+            .map_err(|e| fail(&[syntax_error(e.message(), e.span(), text)]))?;
+        let spec: Spec = toml::from_str(text).map_err(|e| fail(&[serde_error(&e, &doc)]))?;
+        let canonical = serde_json::to_string(&spec).expect("a spec serializes to JSON");
+        let mut loaded = LoadedSpec {
+            hash: blake3::hash(canonical.as_bytes()).to_hex().to_string(),
+            spec,
+            profiles: Vec::new(),
+            file: PathBuf::from(name),
+            dir: dir.to_path_buf(),
+            text: text.to_string(),
+            doc,
+        };
+        loaded.profiles = validate::check(&loaded).map_err(|d| fail(&d))?;
+        Ok(loaded)
+    }
+
+    /// A spec error at the value of `key` (e.g. `&["profiles", "act", "fps"]`). When the key is
+    /// not in the file, it points at the closest table that is and says the key is missing there.
+    pub fn error_at(&self, key: &[&str], message: impl Into<String>, help: Option<String>) -> Error {
+        self.error(&[self.diagnostic(key, Target::Value, message, "").with_help(help)])
+    }
+
+    pub fn resolve(&self, rel: &str) -> PathBuf {
+        self.dir.join(rel)
+    }
+
+    pub(crate) fn error(&self, diagnostics: &[Diagnostic]) -> Error {
+        Error::Spec(render_all(
+            diagnostics,
+            &self.file.display().to_string(),
+            &self.text,
+        ))
+    }
+
+    /// A diagnostic underlining `key`'s name or value, or, when the key is absent, the header of
+    /// its closest ancestor in the file.
+    pub(crate) fn diagnostic(
+        &self,
+        key: &[&str],
+        target: Target,
+        message: impl Into<String>,
+        label: impl Into<String>,
+    ) -> Diagnostic {
+        let diagnostic = Diagnostic::new(message);
+        let mut item = self.doc.as_item();
+        // The root has no span of its own; its "header" is the start of the file.
+        let mut ancestor = 0..0;
+        for (depth, segment) in key.iter().enumerate() {
+            let found = item.as_table_like().and_then(|t| t.get_key_value(segment));
+            let Some((k, child)) = found else {
+                let missing = dotted(&key[depth..]);
+                let place = if depth == 0 {
+                    "at the top level".to_string()
+                } else {
+                    "in this table".to_string()
+                };
+                return diagnostic.at(ancestor, format!("`{missing}` is missing {place}"));
+            };
+            let key_span = k.span().unwrap_or(ancestor.clone());
+            // A `[table]`'s span is its header; an implicit table (`profiles` in
+            // `[profiles.act]`) has none, so its key stands for it.
+            ancestor = child.span().unwrap_or(key_span.clone());
+            if depth + 1 == key.len() && target == Target::Key {
+                return diagnostic.at(key_span, label);
+            }
+            item = child;
+        }
+        diagnostic.at(ancestor, label)
+    }
+}
+
+fn render_all(diagnostics: &[Diagnostic], file: &str, text: &str) -> String {
+    let rendered: Vec<String> = diagnostics.iter().map(|d| d.render(file, text)).collect();
+    rendered.join("\n\n")
+}
+
+/// `profiles.act.normalize."observation.state"`: the key as it could be written in TOML.
+pub(crate) fn dotted(path: &[&str]) -> String {
+    let bare = |s: &str| {
+        !s.is_empty()
+            && s.chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+    };
+    let quoted: Vec<String> = path
+        .iter()
+        .map(|s| if bare(s) { s.to_string() } else { format!("{s:?}") })
+        .collect();
+    quoted.join(".")
+}
+
+/// "in `[profiles.act]`" or "at the top level", for the table that holds a key.
+fn in_table(table: &[&str]) -> String {
+    if table.is_empty() {
+        "at the top level".into()
+    } else {
+        format!("in `[{}]`", dotted(table))
+    }
+}
+
+fn syntax_error(message: &str, span: Option<Range<usize>>, text: &str) -> Diagnostic {
+    let span = span.unwrap_or(0..0);
+    let diagnostic = if message == "duplicate key" {
+        let key = text.get(span.clone()).unwrap_or("");
+        Diagnostic::new(format!("duplicate key `{key}`")).at(span, "defined a second time here")
+    } else {
+        // "unclosed table, expected `]`": the first half says what is wrong, the second what
+        // belongs under the caret.
+        let (what, expected) = message.split_once(", expected ").unwrap_or((message, "nothing"));
+        let label = if expected == "nothing" { String::new() } else { format!("expected {expected}") };
+        Diagnostic::new(format!("invalid TOML: {what}")).at(span, label)
+    };
+    diagnostic.with_help(Some("see https://toml.io for the TOML syntax".into()))
+}
+
+/// Rewrites serde's messages (`unknown field`, `unknown variant`, `invalid type`, …) into ones
+/// that name the key, its table, and the closest valid name.
+fn serde_error(err: &toml::de::Error, doc: &Document<String>) -> Diagnostic {
+    let message = err.message();
+    let span = err.span().unwrap_or(0..0);
+    let names = ticked(message);
+    // `missing field` points at the table (or, for the top level, at 0..0 inside the first
+    // key), so its key path is the table's.
+    let path = if span.is_empty() {
+        Vec::new()
+    } else {
+        path_at(doc.as_item(), &span)
+    };
+    let path: Vec<&str> = path.iter().map(String::as_str).collect();
+    let key = dotted(&path);
+
+    if message.starts_with("unknown field") {
+        let (given, valid) = names.split_first().unwrap_or((&"", &[]));
+        let table = &path[..path.len().saturating_sub(1)];
+        return Diagnostic::new(format!("unknown key `{given}` {}", in_table(table)))
+            .at(span, "unknown key")
+            .with_help(did_you_mean(given, valid, "key"));
+    }
+    if message.starts_with("unknown variant") {
+        let (given, valid) = names.split_first().unwrap_or((&"", &[]));
+        return Diagnostic::new(format!("unknown value `{given}` for `{key}`"))
+            .at(span, "unknown value")
+            .with_help(did_you_mean(given, valid, "value"));
+    }
+    if message.starts_with("missing field") {
+        let field = names.first().copied().unwrap_or("");
+        let mut full = path.clone();
+        full.push(field);
+        let help = reference::lookup(&full)
+            .filter(|doc| !doc.description.is_empty())
+            .map(|doc| format!("`{}`: {}", dotted(&full), doc.description.replace('\n', " ")));
+        let place = if path.is_empty() {
+            "at the top level"
+        } else {
+            "in this table"
+        };
+        return Diagnostic::new(format!("missing key `{field}` {}", in_table(&path)))
+            .at(span, format!("`{field}` is missing {place}"))
+            .with_help(help);
+    }
+    if let Some(rest) = message.strip_prefix("invalid type: ") {
+        let (found, expected) = rest.split_once(", expected ").unwrap_or((rest, ""));
+        let expected = describe_expected(expected);
+        return Diagnostic::new(format!(
+            "wrong type for `{key}`: expected {expected}, found {}",
+            describe_found(found)
+        ))
+        .at(span, format!("expected {expected}"));
+    }
+    if let Some(rest) = message.strip_prefix("invalid value: ") {
+        let (found, expected) = rest.split_once(", expected ").unwrap_or((rest, ""));
+        let found = names.first().copied().unwrap_or(found);
+        let expected = match describe_expected(expected) {
+            e if e.contains("non-negative") && !found.starts_with('-') => "a smaller integer".into(),
+            e => e,
+        };
+        return Diagnostic::new(format!(
+            "invalid value for `{key}`: expected {expected}, found `{found}`"
+        ))
+        .at(span, format!("expected {expected}"));
+    }
+    // toml's own message for an enum given something other than a string.
+    if message == "wanted string or table" {
+        let allowed: Vec<String> = reference::lookup(&path)
+            .map(|doc| doc.allowed.into_iter().map(|(v, _)| v).collect())
+            .unwrap_or_default();
+        let allowed: Vec<&str> = allowed.iter().map(String::as_str).collect();
+        let help = (!allowed.is_empty()).then(|| format!("valid values: {}", backticked(&allowed)));
+        return Diagnostic::new(format!("wrong type for `{key}`: expected a string"))
+            .at(span, "expected a string")
+            .with_help(help);
+    }
+    let label = if key.is_empty() { String::new() } else { format!("in `{key}`") };
+    Diagnostic::new(message.to_string()).at(span, label)
+}
+
+/// The `ticked` names in a serde message, in order.
+fn ticked(message: &str) -> Vec<&str> {
+    message.split('`').skip(1).step_by(2).collect()
+}
+
+fn describe_expected(serde: &str) -> String {
+    match serde {
+        "u8" | "u16" | "u32" | "u64" | "usize" => "a non-negative integer".into(),
+        "i8" | "i16" | "i32" | "i64" | "isize" => "an integer".into(),
+        "f32" | "f64" => "a number".into(),
+        "a map" | "map" => "a table".into(),
+        "a sequence" => "an array".into(),
+        s if s.starts_with("struct ") => "a table".into(),
+        s => s.into(),
+    }
+}
+
+/// serde's `Unexpected` as a TOML user would say it.
+fn describe_found(serde: &str) -> String {
+    let kinds = [
+        ("string", "a string"),
+        ("integer", "an integer"),
+        ("unsigned integer", "an integer"),
+        ("floating point", "a float"),
+        ("boolean", "a boolean"),
+        ("map", "a table"),
+        ("sequence", "an array"),
+    ];
+    kinds
+        .iter()
+        .find(|(prefix, _)| serde.starts_with(prefix))
+        .map_or_else(|| serde.to_string(), |(_, said)| said.to_string())
+}
+
+/// The deepest key whose name or value contains `span`.
+fn path_at(root: &Item, span: &Range<usize>) -> Vec<String> {
+    fn walk(table: &dyn TableLike, span: &Range<usize>, path: &mut Vec<String>, best: &mut Vec<String>) {
+        let contains = |r: Option<Range<usize>>| r.is_some_and(|r| r.start <= span.start && span.end <= r.end);
+        for (name, item) in table.iter() {
+            let key_span = table.get_key_value(name).and_then(|(k, _)| k.span());
+            path.push(name.to_string());
+            if (contains(key_span) || contains(item.span())) && path.len() > best.len() {
+                *best = path.clone();
+            }
+            if let Some(inner) = item.as_table_like() {
+                walk(inner, span, path, best);
+            }
+            path.pop();
+        }
+    }
+    let mut best = Vec::new();
+    if let Some(table) = root.as_table_like() {
+        walk(table, span, &mut Vec::new(), &mut best);
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SPEC: &str = r#"version = 1
+
+[source]
+format = "diffusion_policy_zarr"
+path = "data/x.zarr"
+fps = 10
+
+[source.channels]
+action = "action"
+"observation.state" = "state"
+
+[output]
+dir = "out/x"
+
+[profiles.dp]
+preset = "diffusion_policy"
+
+[profiles.act]
+preset = "act"
+chunk = 20
+"#;
+
+    fn parse(text: &str) -> Result<LoadedSpec> {
+        LoadedSpec::parse("t.toml", text, Path::new("specs"))
+    }
+
+    #[test]
+    fn loads_and_expands_in_name_order() {
+        let loaded = parse(SPEC).unwrap();
+        let names: Vec<_> = loaded.profiles.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(names, ["act", "dp"]);
+        assert_eq!(loaded.profiles[0].chunk, 20);
+        assert_eq!(loaded.resolve("data/x.zarr"), Path::new("specs/data/x.zarr"));
+        assert_eq!(loaded.file, Path::new("t.toml"));
+    }
+
+    #[test]
+    fn hash_ignores_comments_and_layout() {
+        let a = parse(SPEC).unwrap().hash;
+        let reformatted = SPEC.replace("fps = 10", "# the recording rate\nfps   =   10.0");
+        assert_eq!(parse(&reformatted).unwrap().hash, a);
+        let changed = SPEC.replace("chunk = 20", "chunk = 21");
+        assert_ne!(parse(&changed).unwrap().hash, a);
+        assert_eq!(a.len(), 64);
+    }
+
+    #[test]
+    fn error_at_points_at_the_value() {
+        let loaded = parse(SPEC).unwrap();
+        let err = loaded.error_at(&["profiles", "act", "chunk"], "too long", Some("shorter".into()));
+        let text = err.to_string();
+        assert!(text.contains("t.toml:20:9"), "{text}");
+        assert!(text.contains("chunk = 20\n   |         ^^"), "{text}");
+        assert!(text.contains("= help: shorter"), "{text}");
+    }
+
+    #[test]
+    fn error_at_a_missing_key_points_at_its_table() {
+        let loaded = parse(SPEC).unwrap();
+        let text = loaded.error_at(&["profiles", "dp", "stride"], "no stride", None).to_string();
+        assert!(text.contains("t.toml:15:1"), "{text}");
+        assert!(text.contains("^^^^^^^^^^^^^ `stride` is missing in this table"), "{text}");
+        let text = loaded.error_at(&["nope", "x"], "no", None).to_string();
+        assert!(text.contains("t.toml:1:1"), "{text}");
+        assert!(text.contains("`nope.x` is missing at the top level"), "{text}");
+    }
+
+    #[test]
+    fn keys_are_quoted_when_needed() {
+        assert_eq!(dotted(&["profiles", "act", "normalize", "observation.state"]), "profiles.act.normalize.\"observation.state\"");
+    }
+
+    #[test]
+    fn serde_messages_are_rewritten() {
+        let err = parse(&SPEC.replace("chunk = 20", "chunk = -3")).unwrap_err().to_string();
+        assert!(err.starts_with("error: invalid value for `profiles.act.chunk`: expected a non-negative integer, found `-3`"), "{err}");
+        let err = parse(&SPEC.replace("chunk = 20", "padding = 3")).unwrap_err().to_string();
+        assert!(err.contains("valid values: `edge`, `zero`, `mask`, `truncate`"), "{err}");
+        let err = parse(&SPEC.replace("path = \"data/x.zarr\"\n", "")).unwrap_err().to_string();
+        assert!(err.starts_with("error: missing key `path` in `[source]`"), "{err}");
+        assert!(err.contains("t.toml:3:1"), "{err}");
+    }
+}

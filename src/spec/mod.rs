@@ -1,0 +1,29 @@
+//! Stage 1, parse: TOML → typed [`Spec`] → fully explicit [`Profile`]s.
+//!
+//! - `model`: the serde/schemars types as written (no engine dependencies).
+//! - `load`: reads the file, keeps the spanned TOML document, turns serde errors into
+//!   `file:line:col` diagnostics with "did you mean".
+//! - `validate`: semantic checks that need no source (ranges, channel names, references).
+//! - `preset`: preset expansion into [`Profile`].
+//! - `diagnostic`: renders an error with the offending text underlined.
+//! - `reference`: the spec's documentation read from the JSON Schema (book chapter, hints).
+
+mod diagnostic;
+mod load;
+pub mod model;
+mod preset;
+pub mod reference;
+mod validate;
+
+pub use diagnostic::Diagnostic;
+pub use load::LoadedSpec;
+pub use model::*;
+pub use preset::Profile;
+
+/// The JSON Schema of the spec, pretty-printed with a trailing newline (`chunkc schema`).
+pub fn json_schema() -> String {
+    let schema = schemars::schema_for!(Spec);
+    let mut s = serde_json::to_string_pretty(&schema).expect("schema serializes");
+    s.push('\n');
+    s
+}

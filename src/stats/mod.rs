@@ -1,0 +1,184 @@
+//! Statistics over the training split: exact, per dimension, over all timesteps.
+//!
+//! - `moments`: mergeable count/mean/M2/min/max partials.
+//! - `percentile`: exact percentiles (numpy's linear definition).
+//! - `normalize`: per-channel normalization parameters derived from the statistics.
+//!
+//! Low-dimensional channels are reduced from the in-memory per-step buffers; image channels are
+//! reduced per colour channel from per-episode partials (moments + a 256-bin histogram) built
+//! while the images stream through.
+
+mod moments;
+pub mod normalize;
+mod percentile;
+
+pub use moments::Moments;
+pub use percentile::{percentile, percentile_of_histogram};
+
+use serde::Serialize;
+
+/// The numbers `stats.json` holds for one channel. Vectors have one entry per dimension
+/// (per colour channel for images, in stored 0..255 units). `std` is the population standard
+/// deviation (ddof = 0); `p001`/`p999` are the 0.1th and 99.9th percentiles.
+#[derive(Debug, Clone, Serialize)]
+pub struct ChannelStats {
+    pub mean: Vec<f64>,
+    pub std: Vec<f64>,
+    pub min: Vec<f64>,
+    pub max: Vec<f64>,
+    pub p001: Vec<f64>,
+    pub p999: Vec<f64>,
+    /// Number of timesteps the statistics cover.
+    pub count: u64,
+    /// Kept for normalization modes that need another ddof; not serialized.
+    #[serde(skip)]
+    pub moments: Moments,
+}
+
+/// Statistics of a low-dimensional channel from row-major per-episode blocks (`dims` values per
+/// step), merged in the given order.
+pub fn lowdim<'a>(blocks: impl Iterator<Item = &'a [f32]> + Clone, dims: usize) -> ChannelStats {
+    let mut m = Moments::new(dims);
+    for block in blocks.clone() {
+        m.merge(&Moments::of_rows(block, dims));
+    }
+    let rows = m.count as usize;
+    let mut p001 = Vec::with_capacity(dims);
+    let mut p999 = Vec::with_capacity(dims);
+    let mut column = Vec::with_capacity(rows);
+    for d in 0..dims {
+        column.clear();
+        for block in blocks.clone() {
+            column.extend(block.iter().skip(d).step_by(dims));
+        }
+        if column.is_empty() {
+            p001.push(f64::NAN);
+            p999.push(f64::NAN);
+        } else {
+            p001.push(percentile(&mut column, 0.1));
+            p999.push(percentile(&mut column, 99.9));
+        }
+    }
+    finish(m, p001, p999, rows as u64)
+}
+
+/// Per-episode partial statistics of an image channel (per colour channel).
+#[derive(Debug, Clone)]
+pub struct ImagePartial {
+    pub frames: u64,
+    pub moments: Moments,
+    pub hist: Vec<[u64; 256]>,
+}
+
+impl ImagePartial {
+    pub fn new(colors: usize) -> Self {
+        ImagePartial {
+            frames: 0,
+            moments: Moments::new(colors),
+            hist: vec![[0; 256]; colors],
+        }
+    }
+
+    /// Partial of `frames` frames of HWC `u8` pixels with `colors` channels.
+    pub fn of_frames(pixels: &[u8], frames: usize, colors: usize) -> Self {
+        let mut p = ImagePartial::new(colors);
+        p.frames = frames as u64;
+        for px in pixels.chunks_exact(colors) {
+            for (c, &v) in px.iter().enumerate() {
+                p.hist[c][v as usize] += 1;
+            }
+        }
+        // Moments follow exactly from the histogram, which avoids a second pass over the pixels.
+        let n: u64 = p.hist.first().map(|h| h.iter().sum()).unwrap_or(0);
+        p.moments.count = n;
+        for c in 0..colors {
+            let h = &p.hist[c];
+            if n == 0 {
+                continue;
+            }
+            let mean = h.iter().enumerate().map(|(v, &k)| v as f64 * k as f64).sum::<f64>() / n as f64;
+            let m2 = h
+                .iter()
+                .enumerate()
+                .map(|(v, &k)| (v as f64 - mean).powi(2) * k as f64)
+                .sum::<f64>();
+            p.moments.mean[c] = mean;
+            p.moments.m2[c] = m2;
+            p.moments.min[c] = h.iter().position(|&k| k > 0).unwrap() as f64;
+            p.moments.max[c] = (255 - h.iter().rev().position(|&k| k > 0).unwrap()) as f64;
+        }
+        p
+    }
+
+    pub fn merge(&mut self, other: &ImagePartial) {
+        self.frames += other.frames;
+        self.moments.merge(&other.moments);
+        for (a, b) in self.hist.iter_mut().zip(&other.hist) {
+            for (x, y) in a.iter_mut().zip(b.iter()) {
+                *x += y;
+            }
+        }
+    }
+
+    pub fn finish(self) -> ChannelStats {
+        let has = self.moments.count > 0;
+        let pct = |q| {
+            self.hist
+                .iter()
+                .map(|h| if has { percentile_of_histogram(h, q) } else { f64::NAN })
+                .collect()
+        };
+        let (p001, p999) = (pct(0.1), pct(99.9));
+        finish(self.moments, p001, p999, self.frames)
+    }
+}
+
+fn finish(m: Moments, p001: Vec<f64>, p999: Vec<f64>, count: u64) -> ChannelStats {
+    let empty = m.count == 0;
+    let fix = |v: &Vec<f64>| -> Vec<f64> {
+        if empty {
+            vec![f64::NAN; v.len()]
+        } else {
+            v.clone()
+        }
+    };
+    ChannelStats {
+        mean: fix(&m.mean),
+        std: fix(&m.std(0)),
+        min: fix(&m.min),
+        max: fix(&m.max),
+        p001,
+        p999,
+        count,
+        moments: m,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn image_partial_matches_direct_moments() {
+        let pixels: Vec<u8> = (0..2 * 4 * 4 * 3).map(|i| ((i * 53) % 256) as u8).collect();
+        let p = ImagePartial::of_frames(&pixels, 2, 3);
+        let as_f32: Vec<f32> = pixels.iter().map(|&v| f32::from(v)).collect();
+        let direct = Moments::of_rows(&as_f32, 3);
+        for c in 0..3 {
+            assert!((p.moments.mean[c] - direct.mean[c]).abs() < 1e-9);
+            assert!((p.moments.m2[c] - direct.m2[c]).abs() < 1e-6);
+            assert_eq!(p.moments.min[c], direct.min[c]);
+            assert_eq!(p.moments.max[c], direct.max[c]);
+        }
+    }
+
+    #[test]
+    fn lowdim_blocks_equal_one_block() {
+        let a: Vec<f32> = (0..20).map(|i| i as f32).collect();
+        let split = lowdim([&a[..8], &a[8..]].into_iter(), 2);
+        let whole = lowdim(std::iter::once(&a[..]), 2);
+        assert_eq!(split.p001, whole.p001);
+        assert_eq!(split.p999, whole.p999);
+        assert_eq!(split.count, 10);
+    }
+}

@@ -1,0 +1,117 @@
+//! Per-dimension count, mean, M2, min and max, mergeable exactly in a fixed order.
+//!
+//! Partials are built per episode and merged with Chan et al.'s pairwise formula. Merging in the
+//! episode order the plan fixes makes the result independent of the thread count.
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Moments {
+    pub count: u64,
+    pub mean: Vec<f64>,
+    pub m2: Vec<f64>,
+    pub min: Vec<f64>,
+    pub max: Vec<f64>,
+}
+
+impl Moments {
+    pub fn new(dims: usize) -> Self {
+        Moments {
+            count: 0,
+            mean: vec![0.0; dims],
+            m2: vec![0.0; dims],
+            min: vec![f64::INFINITY; dims],
+            max: vec![f64::NEG_INFINITY; dims],
+        }
+    }
+
+    /// Partial of a row-major block of `rows × dims` values (two-pass within the block, which is
+    /// both exact enough and fast).
+    pub fn of_rows(values: &[f32], dims: usize) -> Self {
+        let mut m = Moments::new(dims);
+        if dims == 0 || values.is_empty() {
+            return m;
+        }
+        let rows = values.len() / dims;
+        m.count = rows as u64;
+        for row in values.chunks_exact(dims) {
+            for (d, &v) in row.iter().enumerate() {
+                let v = f64::from(v);
+                m.mean[d] += v;
+                m.min[d] = m.min[d].min(v);
+                m.max[d] = m.max[d].max(v);
+            }
+        }
+        for mean in &mut m.mean {
+            *mean /= rows as f64;
+        }
+        for row in values.chunks_exact(dims) {
+            for (d, &v) in row.iter().enumerate() {
+                let dv = f64::from(v) - m.mean[d];
+                m.m2[d] += dv * dv;
+            }
+        }
+        m
+    }
+
+    /// Folds `other` into `self` (Chan's parallel update).
+    pub fn merge(&mut self, other: &Moments) {
+        if other.count == 0 {
+            return;
+        }
+        if self.count == 0 {
+            *self = other.clone();
+            return;
+        }
+        let (na, nb) = (self.count as f64, other.count as f64);
+        let n = na + nb;
+        for d in 0..self.mean.len() {
+            let delta = other.mean[d] - self.mean[d];
+            self.mean[d] += delta * nb / n;
+            self.m2[d] += other.m2[d] + delta * delta * na * nb / n;
+            self.min[d] = self.min[d].min(other.min[d]);
+            self.max[d] = self.max[d].max(other.max[d]);
+        }
+        self.count += other.count;
+    }
+
+    /// Standard deviation with `ddof` delta degrees of freedom (0: population, 1: sample).
+    pub fn std(&self, ddof: u64) -> Vec<f64> {
+        self.m2
+            .iter()
+            .map(|&m2| {
+                if self.count > ddof {
+                    (m2 / (self.count - ddof) as f64).sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn merge_equals_whole() {
+        let data: Vec<f32> = (0..60).map(|i| ((i * 37) % 11) as f32 * 0.5 - 2.0).collect();
+        let whole = Moments::of_rows(&data, 3);
+        let mut merged = Moments::of_rows(&data[..21], 3);
+        merged.merge(&Moments::of_rows(&data[21..45], 3));
+        merged.merge(&Moments::of_rows(&data[45..], 3));
+        assert_eq!(merged.count, whole.count);
+        for d in 0..3 {
+            assert!((merged.mean[d] - whole.mean[d]).abs() < 1e-12);
+            assert!((merged.m2[d] - whole.m2[d]).abs() < 1e-9);
+            assert_eq!(merged.min[d], whole.min[d]);
+            assert_eq!(merged.max[d], whole.max[d]);
+        }
+    }
+
+    #[test]
+    fn std_ddof() {
+        let m = Moments::of_rows(&[1.0, 2.0, 3.0, 4.0], 1);
+        assert!((m.std(0)[0] - 1.118033988749895).abs() < 1e-12);
+        assert!((m.std(1)[0] - 1.2909944487358056).abs() < 1e-12);
+    }
+}
