@@ -1,0 +1,75 @@
+"""Shared helpers: the chunkc binary, spec writing, and an independent reading of the source."""
+
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+import zarr
+
+REPO = Path(__file__).resolve().parents[2]
+PUSHT = REPO / "tests" / "data" / "pusht_subset.zarr"
+
+
+def chunkc_bin() -> str:
+    path = os.environ.get("CHUNKC_BIN", str(REPO / "target" / "release" / "chunkc"))
+    if not Path(path).exists():
+        pytest.fail(f"chunkc binary not found at {path}; run `cargo build --release` first")
+    return path
+
+
+def run_chunkc(*args, env=None, check=True):
+    full_env = dict(os.environ)
+    full_env.update(env or {})
+    proc = subprocess.run([chunkc_bin(), *map(str, args)], capture_output=True, text=True, env=full_env)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"chunkc {' '.join(map(str, args))} failed ({proc.returncode}):\n{proc.stderr}")
+    return proc
+
+
+def write_spec(directory: Path, profiles: str, source: Path = PUSHT, fps: float = 10,
+               channels=None, split="val_fraction = 0.1\nseed = 0") -> Path:
+    """A spec in `directory` reading `source`, with the given `[profiles.*]` TOML text."""
+    channels = channels or {"action": "action", "observation.state": "state", "observation.image": "img"}
+    lines = [
+        "version = 1",
+        "[source]",
+        'format = "diffusion_policy_zarr"',
+        f'path = "{source}"',
+        f"fps = {fps}",
+        "[source.channels]",
+        *[f'"{k}" = "{v}"' for k, v in channels.items()],
+        "[split]",
+        split,
+        "[output]",
+        'dir = "out"',
+        profiles,
+    ]
+    spec = directory / "spec.toml"
+    spec.write_text("\n".join(lines) + "\n")
+    return spec
+
+
+class RawSource:
+    """The source read with zarr-python: per-episode raw arrays, independent of chunkc."""
+
+    def __init__(self, path: Path = PUSHT):
+        root = zarr.open(str(path), mode="r")
+        self.ends = root["meta/episode_ends"][:].astype(np.int64)
+        self.starts = np.concatenate([[0], self.ends[:-1]])
+        self.root = root
+        self._cache = {}
+
+    def array(self, key):
+        if key not in self._cache:
+            self._cache[key] = self.root["data"][key][:]
+        return self._cache[key]
+
+    def episode(self, key, e, factor=1):
+        return self.array(key)[self.starts[e] : self.ends[e]][::factor]
+
+
+@pytest.fixture(scope="session")
+def raw():
+    return RawSource()

@@ -1,0 +1,58 @@
+"""Independent numpy implementations of what a chunkc profile should contain.
+
+Nothing here imports chunkc code or its generated loader: windows, padding and normalization are
+recomputed from the documented definitions, straight from the raw source arrays.
+"""
+
+import numpy as np
+
+
+def norm_params(mode, train_values):
+    """(center, scale, clip) for `mode`, from all training timesteps (rows) of one channel."""
+    x = np.asarray(train_values, dtype=np.float64)
+    dims = x.shape[1]
+    if mode == "none":
+        return np.zeros(dims), np.ones(dims), False
+    if mode == "zscore":
+        # ACT: unbiased std, clipped to at least 1e-2.
+        return x.mean(axis=0), np.maximum(x.std(axis=0, ddof=1), 1e-2), False
+    if mode == "minmax":
+        lo = np.percentile(x, 0.1, axis=0)
+        hi = np.percentile(x, 99.9, axis=0)
+        center = (lo + hi) / 2
+        scale = np.where(hi - lo < 1e-4, 1.0, (hi - lo) / 2)
+        return center, scale, True
+    raise ValueError(mode)
+
+
+def normalize(x, params):
+    center, scale, clip = params
+    y = (np.asarray(x, dtype=np.float64) - center) / scale
+    return np.clip(y, -1, 1) if clip else y
+
+
+def expected_starts(length, chunk, obs_history, padding, stride):
+    if padding == "truncate":
+        first, end = obs_history - 1, length - chunk + 1
+    else:
+        first, end = 0, length
+    return list(range(first, end, stride)) if end > first else []
+
+
+def action_window(actions, t, chunk, padding, params):
+    """Normalized action chunk and pad mask for the sample at step t of one episode."""
+    length = len(actions)
+    rows = np.arange(t, t + chunk)
+    is_pad = rows >= length
+    raw = actions[np.minimum(rows, length - 1)].astype(np.float64)  # edge repetition
+    out = normalize(raw, params)
+    if padding == "zero":
+        out[is_pad] = normalize(np.zeros((1, actions.shape[1])), params)[0]
+    elif padding == "mask":
+        out[is_pad] = 0.0
+    return out, is_pad
+
+
+def obs_window(values, t, obs_history):
+    rows = np.maximum(np.arange(t - obs_history + 1, t + 1), 0)
+    return values[rows]
