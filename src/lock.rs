@@ -69,9 +69,11 @@ impl Lock {
     }
 }
 
-/// BLAKE3 of a file's contents, hex.
+/// BLAKE3 of a file's contents, hex. Streams the file (no mmap), so hashing large outputs does
+/// not show up as resident memory.
 pub fn hash_file(path: &Path) -> Result<String> {
     let mut h = blake3::Hasher::new();
-    h.update_mmap_rayon(path).at("hash", path)?;
+    let file = std::fs::File::open(path).at("open", path)?;
+    h.update_reader(file).at("hash", path)?;
     Ok(h.finalize().to_hex().to_string())
 }

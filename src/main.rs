@@ -10,7 +10,11 @@ use chunkc::spec::{self, LoadedSpec};
 use chunkc::{plan, Error};
 
 #[derive(Parser)]
-#[command(name = "chunkc", version, about = "Compile robot demonstration datasets into training-ready action chunks")]
+#[command(
+    name = "chunkc",
+    version,
+    about = "Compile robot demonstration datasets into training-ready action chunks"
+)]
 struct Cli {
     /// Worker threads (default: RAYON_NUM_THREADS, else the number of cores).
     #[arg(long, short = 'j', global = true)]
@@ -75,7 +79,11 @@ fn run(cli: Cli) -> Result<(), Error> {
                 PlanFormat::Json => print!("{}", plan.to_json()),
             }
         }
-        Command::Build { spec, locked, quiet } => {
+        Command::Build {
+            spec,
+            locked,
+            quiet,
+        } => {
             let spec = LoadedSpec::load(&spec)?;
             let report = exec::build(
                 &spec,

@@ -29,8 +29,13 @@ fn check_generated(rel: &str, expected: &str) {
         .lines()
         .zip(expected.lines())
         .position(|(a, e)| a != e)
-        .map_or_else(|| "at the end".to_string(), |i| format!("at line {}", i + 1));
-    panic!("{rel} is stale (first difference {first_difference}); regenerate it with `{REGENERATE}`");
+        .map_or_else(
+            || "at the end".to_string(),
+            |i| format!("at line {}", i + 1),
+        );
+    panic!(
+        "{rel} is stale (first difference {first_difference}); regenerate it with `{REGENERATE}`"
+    );
 }
 
 #[test]
@@ -49,8 +54,16 @@ fn spec_reference_names_every_key() {
     let md = reference::markdown();
     for table in reference::tables() {
         for key in &table.keys {
-            assert!(md.contains(&format!("### `{}`", key.path)), "{} is undocumented", key.path);
-            assert!(!key.description.is_empty(), "{} has no doc comment in model.rs", key.path);
+            assert!(
+                md.contains(&format!("### `{}`", key.path)),
+                "{} is undocumented",
+                key.path
+            );
+            assert!(
+                !key.description.is_empty(),
+                "{} has no doc comment in model.rs",
+                key.path
+            );
         }
     }
 }

@@ -31,18 +31,30 @@ fn stem(path: &Path) -> String {
 #[test]
 fn bad_specs_fail_with_a_located_message() {
     let files = bad_specs();
-    assert!(files.len() >= 8, "expected the bad-spec fixtures, found {files:?}");
+    assert!(
+        files.len() >= 8,
+        "expected the bad-spec fixtures, found {files:?}"
+    );
     for path in files {
-        let name = format!("tests/specs_bad/{}", path.file_name().unwrap().to_string_lossy());
+        let name = format!(
+            "tests/specs_bad/{}",
+            path.file_name().unwrap().to_string_lossy()
+        );
         let text = fs::read_to_string(&path).unwrap();
         let err = match LoadedSpec::parse(&name, &text, path.parent().unwrap()) {
             Ok(_) => panic!("{name} loaded without an error"),
             Err(err) => err,
         };
-        assert!(matches!(err, Error::Spec(_)), "{name}: not a spec error: {err:?}");
+        assert!(
+            matches!(err, Error::Spec(_)),
+            "{name}: not a spec error: {err:?}"
+        );
         assert_eq!(err.exit_code(), 2);
         let message = err.to_string();
-        assert!(message.contains(&format!("--> {name}:")), "{name}: no location in\n{message}");
+        assert!(
+            message.contains(&format!("--> {name}:")),
+            "{name}: no location in\n{message}"
+        );
         insta::with_settings!({
             input_file => &path,
             omit_expression => true,
@@ -60,7 +72,10 @@ fn every_snapshot_has_a_fixture() {
     let snapshots = root().join("tests/snapshots");
     for entry in fs::read_dir(&snapshots).into_iter().flatten() {
         let file = entry.unwrap().file_name().to_string_lossy().into_owned();
-        if let Some(case) = file.strip_prefix("spec_errors__").and_then(|f| f.strip_suffix(".snap")) {
+        if let Some(case) = file
+            .strip_prefix("spec_errors__")
+            .and_then(|f| f.strip_suffix(".snap"))
+        {
             assert!(
                 stems.iter().any(|s| s == case),
                 "tests/snapshots/{file} has no tests/specs_bad/{case}.toml: delete it"
@@ -86,7 +101,13 @@ fn check_reports_the_location_and_writes_nothing() {
 
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(2), "stderr:\n{stderr}");
-    assert!(stderr.contains(&format!("misspelled_key.toml:{line}:1")), "stderr:\n{stderr}");
-    assert!(stderr.contains("did you mean `chunk`?"), "stderr:\n{stderr}");
+    assert!(
+        stderr.contains(&format!("misspelled_key.toml:{line}:1")),
+        "stderr:\n{stderr}"
+    );
+    assert!(
+        stderr.contains("did you mean `chunk`?"),
+        "stderr:\n{stderr}"
+    );
     assert!(!out_dir.exists(), "check wrote {}", out_dir.display());
 }

@@ -81,7 +81,12 @@ mod tests {
 
     #[test]
     fn starts_match_count_for_every_mode() {
-        for padding in [Padding::Edge, Padding::Zero, Padding::Mask, Padding::Truncate] {
+        for padding in [
+            Padding::Edge,
+            Padding::Zero,
+            Padding::Mask,
+            Padding::Truncate,
+        ] {
             for len in 0..40 {
                 for chunk in 1..12 {
                     for obs in 1..4 {

@@ -74,7 +74,11 @@ fn check_output_location(spec: &LoadedSpec, out_dir: &Path) -> Result<()> {
 pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let (source, plan) = plan(spec)?;
     let out_dir = spec.resolve(&spec.spec.output.dir);
-    let stale: Vec<&ProfilePlan> = plan.profiles.iter().filter(|p| !p.status.up_to_date).collect();
+    let stale: Vec<&ProfilePlan> = plan
+        .profiles
+        .iter()
+        .filter(|p| !p.status.up_to_date)
+        .collect();
     let up_to_date: Vec<String> = plan
         .profiles
         .iter()
@@ -247,12 +251,22 @@ fn run(
     let mut dirs = Vec::with_capacity(stale.len());
     for p in stale {
         let dir = staging.profile_dir(&p.name)?;
-        let rate = rates.iter().position(|r| r.factor == p.rate_factor).unwrap();
-        writers.push((rate, Hdf5Writer::create(&dir.join(DATA_FILE), p, &rates[rate].ends, &ids)?));
+        let rate = rates
+            .iter()
+            .position(|r| r.factor == p.rate_factor)
+            .unwrap();
+        writers.push((
+            rate,
+            Hdf5Writer::create(&dir.join(DATA_FILE), p, &rates[rate].ends, &ids)?,
+        ));
         dirs.push(dir);
     }
 
-    let bar = progress::bar(opts.progress, manifest.episodes.len() as u64, "reading episodes");
+    let bar = progress::bar(
+        opts.progress,
+        manifest.episodes.len() as u64,
+        "reading episodes",
+    );
     let positions: Vec<usize> = (0..manifest.episodes.len()).collect();
     for batch in positions.chunks(batch_size()) {
         let processed: Vec<Processed> = batch
@@ -271,7 +285,9 @@ fn run(
                         .cloned()
                         .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
                         .unwrap_or_default();
-                    Err(Error::Internal(format!("panic while processing episode {id}: {what}")))
+                    Err(Error::Internal(format!(
+                        "panic while processing episode {id}: {what}"
+                    )))
                 })
             })
             .collect::<Result<Vec<_>>>()?;
@@ -347,8 +363,17 @@ fn run(
         let mut train = Vec::new();
         let mut val = Vec::new();
         for (e, ep) in p.episodes.iter().enumerate() {
-            let rows = if ep.split == "train" { &mut train } else { &mut val };
-            rows.extend(window.starts(ep.len).into_iter().map(|t| [e as i64, t as i64]));
+            let rows = if ep.split == "train" {
+                &mut train
+            } else {
+                &mut val
+            };
+            rows.extend(
+                window
+                    .starts(ep.len)
+                    .into_iter()
+                    .map(|t| [e as i64, t as i64]),
+            );
         }
         writer.write_index("train", &train)?;
         writer.write_index("val", &val)?;

@@ -212,7 +212,9 @@ pub fn resolve(
 
     let mut profiles = Vec::new();
     for profile in &spec.profiles {
-        profiles.push(resolve_profile(spec, manifest, &split, profile, lock, out_dir)?);
+        profiles.push(resolve_profile(
+            spec, manifest, &split, profile, lock, out_dir,
+        )?);
     }
 
     let mut rates: BTreeMap<usize, RateJob> = BTreeMap::new();
@@ -356,7 +358,9 @@ fn resolve_profile(
     if counts.train == 0 {
         return Err(spec.error_at(
             &["profiles", name, "chunk"],
-            format!("profile `{name}` yields no training samples: every training episode is too short"),
+            format!(
+                "profile `{name}` yields no training samples: every training episode is too short"
+            ),
             None,
         ));
     }
@@ -383,7 +387,12 @@ fn resolve_profile(
         },
         PlannedFile {
             path: STATS_FILE.into(),
-            estimated_bytes: 512 + manifest.channels.iter().map(|c| 180 * c.width() as u64).sum::<u64>(),
+            estimated_bytes: 512
+                + manifest
+                    .channels
+                    .iter()
+                    .map(|c| 180 * c.width() as u64)
+                    .sum::<u64>(),
         },
     ];
 
@@ -428,10 +437,12 @@ fn profile_fingerprint(spec: &LoadedSpec, manifest: &Manifest, profile: &Profile
 }
 
 fn status_of(name: &str, fingerprint: &str, lock: Option<&Lock>, dir: &Path) -> Result<Status> {
-    let build = |reason: String| Ok(Status {
-        up_to_date: false,
-        reason,
-    });
+    let build = |reason: String| {
+        Ok(Status {
+            up_to_date: false,
+            reason,
+        })
+    };
     let Some(lock) = lock else {
         return build("no chunkc.lock: first build".into());
     };

@@ -116,7 +116,13 @@ pub fn render_text(plan: &Plan) -> String {
             p.num_samples.train, p.num_samples.val
         );
         for f in &p.files {
-            let _ = writeln!(s, "  write  {}/{}  ~{}", p.name, f.path, human_bytes(f.estimated_bytes));
+            let _ = writeln!(
+                s,
+                "  write  {}/{}  ~{}",
+                p.name,
+                f.path,
+                human_bytes(f.estimated_bytes)
+            );
         }
         for w in &p.warnings {
             let _ = writeln!(s, "  warning: {w}");

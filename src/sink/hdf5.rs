@@ -44,7 +44,12 @@ fn text(s: &str) -> Result<VarLenUnicode> {
 }
 
 impl Hdf5Writer {
-    pub fn create(path: &Path, plan: &ProfilePlan, episode_ends: &[u64], ids: &[u64]) -> Result<Self> {
+    pub fn create(
+        path: &Path,
+        plan: &ProfilePlan,
+        episode_ends: &[u64],
+        ids: &[u64],
+    ) -> Result<Self> {
         let file = File::with_options()
             .with_fcpl(|p| p.obj_track_times(false))
             .create(path)
@@ -53,12 +58,18 @@ impl Hdf5Writer {
 
         let v = &plan.values;
         let root: &Group = &file;
-        root.new_attr::<i64>().create("chunk_size")?.write_scalar(&i64::from(v.chunk))?;
+        root.new_attr::<i64>()
+            .create("chunk_size")?
+            .write_scalar(&i64::from(v.chunk))?;
         root.new_attr::<i64>()
             .create("obs_history")?
             .write_scalar(&i64::from(v.obs_history))?;
-        root.new_attr::<i64>().create("stride")?.write_scalar(&i64::from(v.stride))?;
-        root.new_attr::<f64>().create("fps")?.write_scalar(&plan.fps)?;
+        root.new_attr::<i64>()
+            .create("stride")?
+            .write_scalar(&i64::from(v.stride))?;
+        root.new_attr::<f64>()
+            .create("fps")?
+            .write_scalar(&plan.fps)?;
         root.new_attr::<VarLenUnicode>()
             .create("padding")?
             .write_scalar(&text(v.padding.name())?)?;
@@ -120,11 +131,20 @@ impl Hdf5Writer {
 
     fn selection(&self, channel: usize, row: usize, rows: usize) -> hdf5::Hyperslab {
         let mut sel: Vec<hdf5::SliceOrIndex> = vec![(row..row + rows).into()];
-        sel.extend(self.shapes[channel].iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
+        sel.extend(
+            self.shapes[channel]
+                .iter()
+                .map(|&d| hdf5::SliceOrIndex::from(0..d)),
+        );
         hdf5::Hyperslab::from(sel)
     }
 
-    fn view<'a, T>(&self, channel: usize, rows: usize, values: &'a [T]) -> Result<ArrayViewD<'a, T>> {
+    fn view<'a, T>(
+        &self,
+        channel: usize,
+        rows: usize,
+        values: &'a [T],
+    ) -> Result<ArrayViewD<'a, T>> {
         let mut shape = vec![rows];
         shape.extend(&self.shapes[channel]);
         ArrayViewD::from_shape(IxDyn(&shape), values)

@@ -38,7 +38,9 @@ fn data_keys(root: &Path) -> Vec<String> {
     let mut keys: Vec<String> = std::fs::read_dir(root.join("data"))
         .map(|rd| {
             rd.filter_map(|e| e.ok())
-                .filter(|e| e.path().join(".zarray").exists() || e.path().join("zarr.json").exists())
+                .filter(|e| {
+                    e.path().join(".zarray").exists() || e.path().join("zarr.json").exists()
+                })
                 .map(|e| e.file_name().to_string_lossy().into_owned())
                 .collect()
         })
@@ -243,8 +245,8 @@ impl Source for DpZarrSource {
                     .map(ChannelData::Image)
                     .map_err(|e| Error::source(format!("{}: {e}", where_())))?
             } else {
-                let values =
-                    read_f32(array, &subset).map_err(|e| Error::source(format!("{}: {e}", where_())))?;
+                let values = read_f32(array, &subset)
+                    .map_err(|e| Error::source(format!("{}: {e}", where_())))?;
                 match ch.kind {
                     ChannelKind::Lowdim => {
                         let width = ch.width().max(1);

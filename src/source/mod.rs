@@ -100,7 +100,9 @@ pub fn open(spec: &LoadedSpec) -> Result<Box<dyn Source>> {
         ));
     }
     match src.format {
-        SourceFormat::DiffusionPolicyZarr => Ok(Box::new(dp_zarr::DpZarrSource::open(spec, &path)?)),
+        SourceFormat::DiffusionPolicyZarr => {
+            Ok(Box::new(dp_zarr::DpZarrSource::open(spec, &path)?))
+        }
         other => Err(spec.error_at(
             &["source", "format"],
             format!("source format `{}` is not supported yet", other.name()),

@@ -84,7 +84,9 @@ impl Diagnostic {
 const TAB: &str = "    ";
 
 fn display_width(s: &str) -> usize {
-    s.chars().map(|c| if c == '\t' { TAB.len() } else { 1 }).sum()
+    s.chars()
+        .map(|c| if c == '\t' { TAB.len() } else { 1 })
+        .sum()
 }
 
 /// Where a byte offset falls: 1-based line and column (columns count characters, as rustc's do).
@@ -132,7 +134,12 @@ pub(crate) fn suggest<'a>(given: &str, candidates: &[&'a str]) -> Option<&'a str
     let given_lower = given.to_lowercase();
     candidates
         .iter()
-        .map(|&c| (strsim::damerau_levenshtein(&given_lower, &c.to_lowercase()), c))
+        .map(|&c| {
+            (
+                strsim::damerau_levenshtein(&given_lower, &c.to_lowercase()),
+                c,
+            )
+        })
         // One edit per three characters, as cargo allows, and at least one: short names like
         // `fps` still get a suggestion for a transposition.
         .filter(|&(distance, c)| distance <= (c.chars().count() / 3).max(1))
@@ -219,7 +226,14 @@ error: unknown key `chunck` in `[profiles.act]`
 
     #[test]
     fn suggestions() {
-        let keys = ["preset", "fps", "chunk", "obs_history", "stride", "normalize"];
+        let keys = [
+            "preset",
+            "fps",
+            "chunk",
+            "obs_history",
+            "stride",
+            "normalize",
+        ];
         assert_eq!(suggest("chunck", &keys), Some("chunk"));
         assert_eq!(suggest("fsp", &keys), Some("fps"));
         assert_eq!(suggest("CHUNK", &keys), Some("chunk"));

@@ -55,7 +55,12 @@ impl LoadedSpec {
         let fail = |diagnostics: &[Diagnostic]| Error::Spec(render_all(diagnostics, name, text));
         let doc = Document::parse(text.to_string())
             .map_err(|e| fail(&[syntax_error(e.message(), e.span(), text)]))?;
-        let spec: Spec = toml::from_str(text).map_err(|e| fail(&[serde_error(&e, &doc)]))?;
+        let spec: Spec = toml::from_str(text).map_err(|e| {
+            // serde reads `[[x]]` as a sequence of structs and complains about something else.
+            let diagnostic = array_of_tables(doc.as_item(), &mut Vec::new())
+                .unwrap_or_else(|| serde_error(&e, &doc));
+            fail(&[diagnostic])
+        })?;
         let canonical = serde_json::to_string(&spec).expect("a spec serializes to JSON");
         let mut loaded = LoadedSpec {
             hash: blake3::hash(canonical.as_bytes()).to_hex().to_string(),
@@ -72,8 +77,15 @@ impl LoadedSpec {
 
     /// A spec error at the value of `key` (e.g. `&["profiles", "act", "fps"]`). When the key is
     /// not in the file, it points at the closest table that is and says the key is missing there.
-    pub fn error_at(&self, key: &[&str], message: impl Into<String>, help: Option<String>) -> Error {
-        self.error(&[self.diagnostic(key, Target::Value, message, "").with_help(help)])
+    pub fn error_at(
+        &self,
+        key: &[&str],
+        message: impl Into<String>,
+        help: Option<String>,
+    ) -> Error {
+        self.error(&[self
+            .diagnostic(key, Target::Value, message, "")
+            .with_help(help)])
     }
 
     pub fn resolve(&self, rel: &str) -> PathBuf {
@@ -106,9 +118,9 @@ impl LoadedSpec {
             let Some((k, child)) = found else {
                 let missing = dotted(&key[depth..]);
                 let place = if depth == 0 {
-                    "at the top level".to_string()
+                    "at the top level"
                 } else {
-                    "in this table".to_string()
+                    "in this table"
                 };
                 return diagnostic.at(ancestor, format!("`{missing}` is missing {place}"));
             };
@@ -139,7 +151,13 @@ pub(crate) fn dotted(path: &[&str]) -> String {
     };
     let quoted: Vec<String> = path
         .iter()
-        .map(|s| if bare(s) { s.to_string() } else { format!("{s:?}") })
+        .map(|s| {
+            if bare(s) {
+                s.to_string()
+            } else {
+                format!("{s:?}")
+            }
+        })
         .collect();
     quoted.join(".")
 }
@@ -161,8 +179,14 @@ fn syntax_error(message: &str, span: Option<Range<usize>>, text: &str) -> Diagno
     } else {
         // "unclosed table, expected `]`": the first half says what is wrong, the second what
         // belongs under the caret.
-        let (what, expected) = message.split_once(", expected ").unwrap_or((message, "nothing"));
-        let label = if expected == "nothing" { String::new() } else { format!("expected {expected}") };
+        let (what, expected) = message
+            .split_once(", expected ")
+            .unwrap_or((message, "nothing"));
+        let label = if expected == "nothing" {
+            String::new()
+        } else {
+            format!("expected {expected}")
+        };
         Diagnostic::new(format!("invalid TOML: {what}")).at(span, label)
     };
     diagnostic.with_help(Some("see https://toml.io for the TOML syntax".into()))
@@ -193,7 +217,7 @@ fn serde_error(err: &toml::de::Error, doc: &Document<String>) -> Diagnostic {
     }
     if message.starts_with("unknown variant") {
         let (given, valid) = names.split_first().unwrap_or((&"", &[]));
-        return Diagnostic::new(format!("unknown value `{given}` for `{key}`"))
+        return Diagnostic::new(format!("unknown value `{given}`{}", for_key(&key)))
             .at(span, "unknown value")
             .with_help(did_you_mean(given, valid, "value"));
     }
@@ -203,7 +227,15 @@ fn serde_error(err: &toml::de::Error, doc: &Document<String>) -> Diagnostic {
         full.push(field);
         let help = reference::lookup(&full)
             .filter(|doc| !doc.description.is_empty())
-            .map(|doc| format!("`{}`: {}", dotted(&full), doc.description.replace('\n', " ")));
+            .map(|doc| {
+                // Written the way it would appear in the file: `[output]` or `source.path`.
+                let name = if doc.ty.starts_with("table") {
+                    format!("[{}]", dotted(&full))
+                } else {
+                    dotted(&full)
+                };
+                format!("`{name}`: {}", doc.description.replace('\n', " "))
+            });
         let place = if path.is_empty() {
             "at the top level"
         } else {
@@ -217,7 +249,8 @@ fn serde_error(err: &toml::de::Error, doc: &Document<String>) -> Diagnostic {
         let (found, expected) = rest.split_once(", expected ").unwrap_or((rest, ""));
         let expected = describe_expected(expected);
         return Diagnostic::new(format!(
-            "wrong type for `{key}`: expected {expected}, found {}",
+            "wrong type{}: expected {expected}, found {}",
+            for_key(&key),
             describe_found(found)
         ))
         .at(span, format!("expected {expected}"));
@@ -226,11 +259,14 @@ fn serde_error(err: &toml::de::Error, doc: &Document<String>) -> Diagnostic {
         let (found, expected) = rest.split_once(", expected ").unwrap_or((rest, ""));
         let found = names.first().copied().unwrap_or(found);
         let expected = match describe_expected(expected) {
-            e if e.contains("non-negative") && !found.starts_with('-') => "a smaller integer".into(),
+            e if e.contains("non-negative") && !found.starts_with('-') => {
+                "a smaller integer".into()
+            }
             e => e,
         };
         return Diagnostic::new(format!(
-            "invalid value for `{key}`: expected {expected}, found `{found}`"
+            "invalid value{}: expected {expected}, found `{found}`",
+            for_key(&key)
         ))
         .at(span, format!("expected {expected}"));
     }
@@ -241,12 +277,25 @@ fn serde_error(err: &toml::de::Error, doc: &Document<String>) -> Diagnostic {
             .unwrap_or_default();
         let allowed: Vec<&str> = allowed.iter().map(String::as_str).collect();
         let help = (!allowed.is_empty()).then(|| format!("valid values: {}", backticked(&allowed)));
-        return Diagnostic::new(format!("wrong type for `{key}`: expected a string"))
+        return Diagnostic::new(format!("wrong type{}: expected a string", for_key(&key)))
             .at(span, "expected a string")
             .with_help(help);
     }
-    let label = if key.is_empty() { String::new() } else { format!("in `{key}`") };
+    let label = if key.is_empty() {
+        String::new()
+    } else {
+        format!("in `{key}`")
+    };
     Diagnostic::new(message.to_string()).at(span, label)
+}
+
+/// " for `profiles.act.chunk`", or nothing when the error is not inside a key.
+fn for_key(key: &str) -> String {
+    if key.is_empty() {
+        String::new()
+    } else {
+        format!(" for `{key}`")
+    }
 }
 
 /// The `ticked` names in a serde message, in order.
@@ -283,10 +332,40 @@ fn describe_found(serde: &str) -> String {
         .map_or_else(|| serde.to_string(), |(_, said)| said.to_string())
 }
 
+/// The first `[[array.of.tables]]`: the spec has none, so one is always a typo for `[table]`.
+fn array_of_tables(item: &Item, path: &mut Vec<String>) -> Option<Diagnostic> {
+    if let Some(array) = item.as_array_of_tables() {
+        let header = dotted(&path.iter().map(String::as_str).collect::<Vec<_>>());
+        let span = array.get(0).and_then(|t| t.span()).unwrap_or(0..0);
+        let message = format!("`[[{header}]]` is an array of tables, which a spec never has");
+        let help = Some(format!("use single brackets: `[{header}]`"));
+        return Some(
+            Diagnostic::new(message)
+                .at(span, "double brackets")
+                .with_help(help),
+        );
+    }
+    for (name, inner) in item.as_table_like()?.iter() {
+        path.push(name.to_string());
+        let found = array_of_tables(inner, path);
+        path.pop();
+        if found.is_some() {
+            return found;
+        }
+    }
+    None
+}
+
 /// The deepest key whose name or value contains `span`.
 fn path_at(root: &Item, span: &Range<usize>) -> Vec<String> {
-    fn walk(table: &dyn TableLike, span: &Range<usize>, path: &mut Vec<String>, best: &mut Vec<String>) {
-        let contains = |r: Option<Range<usize>>| r.is_some_and(|r| r.start <= span.start && span.end <= r.end);
+    fn walk(
+        table: &dyn TableLike,
+        span: &Range<usize>,
+        path: &mut Vec<String>,
+        best: &mut Vec<String>,
+    ) {
+        let contains =
+            |r: Option<Range<usize>>| r.is_some_and(|r| r.start <= span.start && span.end <= r.end);
         for (name, item) in table.iter() {
             let key_span = table.get_key_value(name).and_then(|(k, _)| k.span());
             path.push(name.to_string());
@@ -294,6 +373,9 @@ fn path_at(root: &Item, span: &Range<usize>) -> Vec<String> {
                 *best = path.clone();
             }
             if let Some(inner) = item.as_table_like() {
+                walk(inner, span, path, best);
+            }
+            for inner in item.as_array_of_tables().into_iter().flat_map(|a| a.iter()) {
                 walk(inner, span, path, best);
             }
             path.pop();
@@ -342,7 +424,10 @@ chunk = 20
         let names: Vec<_> = loaded.profiles.iter().map(|p| p.name.as_str()).collect();
         assert_eq!(names, ["act", "dp"]);
         assert_eq!(loaded.profiles[0].chunk, 20);
-        assert_eq!(loaded.resolve("data/x.zarr"), Path::new("specs/data/x.zarr"));
+        assert_eq!(
+            loaded.resolve("data/x.zarr"),
+            Path::new("specs/data/x.zarr")
+        );
         assert_eq!(loaded.file, Path::new("t.toml"));
     }
 
@@ -359,7 +444,11 @@ chunk = 20
     #[test]
     fn error_at_points_at_the_value() {
         let loaded = parse(SPEC).unwrap();
-        let err = loaded.error_at(&["profiles", "act", "chunk"], "too long", Some("shorter".into()));
+        let err = loaded.error_at(
+            &["profiles", "act", "chunk"],
+            "too long",
+            Some("shorter".into()),
+        );
         let text = err.to_string();
         assert!(text.contains("t.toml:20:9"), "{text}");
         assert!(text.contains("chunk = 20\n   |         ^^"), "{text}");
@@ -369,27 +458,50 @@ chunk = 20
     #[test]
     fn error_at_a_missing_key_points_at_its_table() {
         let loaded = parse(SPEC).unwrap();
-        let text = loaded.error_at(&["profiles", "dp", "stride"], "no stride", None).to_string();
+        let text = loaded
+            .error_at(&["profiles", "dp", "stride"], "no stride", None)
+            .to_string();
         assert!(text.contains("t.toml:15:1"), "{text}");
-        assert!(text.contains("^^^^^^^^^^^^^ `stride` is missing in this table"), "{text}");
+        assert!(
+            text.contains("^^^^^^^^^^^^^ `stride` is missing in this table"),
+            "{text}"
+        );
         let text = loaded.error_at(&["nope", "x"], "no", None).to_string();
         assert!(text.contains("t.toml:1:1"), "{text}");
-        assert!(text.contains("`nope.x` is missing at the top level"), "{text}");
+        assert!(
+            text.contains("`nope.x` is missing at the top level"),
+            "{text}"
+        );
     }
 
     #[test]
     fn keys_are_quoted_when_needed() {
-        assert_eq!(dotted(&["profiles", "act", "normalize", "observation.state"]), "profiles.act.normalize.\"observation.state\"");
+        assert_eq!(
+            dotted(&["profiles", "act", "normalize", "observation.state"]),
+            "profiles.act.normalize.\"observation.state\""
+        );
     }
 
     #[test]
     fn serde_messages_are_rewritten() {
-        let err = parse(&SPEC.replace("chunk = 20", "chunk = -3")).unwrap_err().to_string();
+        let err = parse(&SPEC.replace("chunk = 20", "chunk = -3"))
+            .unwrap_err()
+            .to_string();
         assert!(err.starts_with("error: invalid value for `profiles.act.chunk`: expected a non-negative integer, found `-3`"), "{err}");
-        let err = parse(&SPEC.replace("chunk = 20", "padding = 3")).unwrap_err().to_string();
-        assert!(err.contains("valid values: `edge`, `zero`, `mask`, `truncate`"), "{err}");
-        let err = parse(&SPEC.replace("path = \"data/x.zarr\"\n", "")).unwrap_err().to_string();
-        assert!(err.starts_with("error: missing key `path` in `[source]`"), "{err}");
+        let err = parse(&SPEC.replace("chunk = 20", "padding = 3"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("valid values: `edge`, `zero`, `mask`, `truncate`"),
+            "{err}"
+        );
+        let err = parse(&SPEC.replace("path = \"data/x.zarr\"\n", ""))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("error: missing key `path` in `[source]`"),
+            "{err}"
+        );
         assert!(err.contains("t.toml:3:1"), "{err}");
     }
 }

@@ -254,7 +254,11 @@ fn write_table(md: &mut String, table: &TableDoc) {
         md.push_str("\n## Top level\n\n");
     } else {
         let _ = write!(md, "\n## `{}`\n\n", table.header);
-        let _ = writeln!(md, "{}\n", without_header(&table.description, &table.header));
+        let _ = writeln!(
+            md,
+            "{}\n",
+            without_header(&table.description, &table.header)
+        );
     }
     if let Some(entry) = &table.entries {
         let _ = writeln!(md, "Each entry is `<name> = <{}>`.", entry.ty);
@@ -283,7 +287,9 @@ fn without_header(description: &str, header: &str) -> String {
         return description.to_string();
     };
     let mut chars = rest.chars();
-    chars.next().map_or_else(String::new, |first| first.to_uppercase().chain(chars).collect())
+    chars.next().map_or_else(String::new, |first| {
+        first.to_uppercase().chain(chars).collect()
+    })
 }
 
 fn default_cell(key: &KeyDoc) -> String {

@@ -96,7 +96,12 @@ impl ImagePartial {
             if n == 0 {
                 continue;
             }
-            let mean = h.iter().enumerate().map(|(v, &k)| v as f64 * k as f64).sum::<f64>() / n as f64;
+            let mean = h
+                .iter()
+                .enumerate()
+                .map(|(v, &k)| v as f64 * k as f64)
+                .sum::<f64>()
+                / n as f64;
             let m2 = h
                 .iter()
                 .enumerate()
@@ -125,7 +130,13 @@ impl ImagePartial {
         let pct = |q| {
             self.hist
                 .iter()
-                .map(|h| if has { percentile_of_histogram(h, q) } else { f64::NAN })
+                .map(|h| {
+                    if has {
+                        percentile_of_histogram(h, q)
+                    } else {
+                        f64::NAN
+                    }
+                })
                 .collect()
         };
         let (p001, p999) = (pct(0.1), pct(99.9));

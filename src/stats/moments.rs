@@ -94,7 +94,9 @@ mod tests {
 
     #[test]
     fn merge_equals_whole() {
-        let data: Vec<f32> = (0..60).map(|i| ((i * 37) % 11) as f32 * 0.5 - 2.0).collect();
+        let data: Vec<f32> = (0..60)
+            .map(|i| ((i * 37) % 11) as f32 * 0.5 - 2.0)
+            .collect();
         let whole = Moments::of_rows(&data, 3);
         let mut merged = Moments::of_rows(&data[..21], 3);
         merged.merge(&Moments::of_rows(&data[21..45], 3));

@@ -5,12 +5,13 @@ Usage: python tests/data/make_pusht_subset.py PATH/TO/pusht_cchi_v7_replay.zarr
 Keeps the first N_EPISODES episodes with the source's own chunking and Blosc settings, so the
 subset exercises the same decoding path as the full dataset.
 """
+import os
 import sys
 
 import numpy as np
 import zarr
 
-N_EPISODES = 20
+N_EPISODES = int(os.environ.get("N_EPISODES", "20"))
 
 
 def main(src_path: str, dst_path: str = "tests/data/pusht_subset.zarr") -> None:

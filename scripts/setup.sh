@@ -1,0 +1,83 @@
+#!/usr/bin/env bash
+# Prepares a checkout for building and testing chunkc. Safe to run any number of times.
+#
+#   scripts/setup.sh        run it: creates .venv, installs the Python packages, builds chunkc
+#   . scripts/setup.sh      source it (the other scripts do): the same, and then .venv/bin is on
+#                           PATH in the sourcing shell
+#
+# Steps:
+#   1. create the project virtualenv `.venv` (python3 -m venv) if there is none;
+#   2. install tests/python/requirements.txt into it, only when that file changed since the last
+#      successful install (its hash is kept in .venv/.chunkc-requirements.sha256);
+#   3. put .venv/bin first on PATH: the bundled HDF5 build needs cmake >= 3.26, which comes from
+#      the venv;
+#   4. build chunkc with `cargo build --release --locked` (the first build compiles HDF5).
+#
+# Environment: PYTHON (the interpreter that creates the venv; default python3),
+# CHUNKC_VERBOSE=1 (show pip's and cargo's full output).
+
+if [[ "${BASH_SOURCE[0]}" != "$0" ]]; then
+    # Sourced. Do the work in a child bash, so that strict mode and helper variables never leak
+    # into (or kill) the sourcing shell; then put .venv/bin on its PATH, once.
+    CHUNKC_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)" || return
+    export CHUNKC_ROOT
+    "${BASH:-bash}" "$CHUNKC_ROOT/scripts/setup.sh" || return
+    case ":$PATH:" in
+        *":$CHUNKC_ROOT/.venv/bin:"*) ;;
+        *) export PATH="$CHUNKC_ROOT/.venv/bin:$PATH" ;;
+    esac
+    return 0
+fi
+
+set -euo pipefail
+CHUNKC_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$CHUNKC_ROOT"
+
+say() { printf 'setup: %s\n' "$*" >&2; }
+die() { printf 'setup: error: %s\n' "$*" >&2; exit 1; }
+
+python=${PYTHON:-python3}
+venv=.venv
+requirements=tests/python/requirements.txt
+stamp=$venv/.chunkc-requirements.sha256
+quiet=(--quiet)
+[ "${CHUNKC_VERBOSE:-0}" = 1 ] && quiet=()
+
+command -v cargo >/dev/null \
+    || die "cargo not found: install a Rust toolchain (https://rustup.rs)"
+command -v cc >/dev/null || command -v gcc >/dev/null \
+    || die "no C compiler found; HDF5 is compiled from source (Debian: apt-get install gcc)"
+
+# 1. The virtualenv. A half-created one (no python in it) is replaced.
+if [ ! -x "$venv/bin/python" ]; then
+    command -v "$python" >/dev/null \
+        || die "$python not found: install Python 3.11 with pip, or set PYTHON"
+    say "creating $venv with $("$python" --version 2>&1)"
+    rm -rf "$venv"
+    if ! "$python" -m venv "$venv"; then
+        rm -rf "$venv"
+        die "'$python -m venv' failed (Debian: apt-get install python3-venv)"
+    fi
+fi
+
+# 2. The Python packages, when the requirements changed.
+want=$("$venv/bin/python" -c 'import hashlib, sys
+print(hashlib.sha256(open(sys.argv[1], "rb").read()).hexdigest())' "$requirements")
+have=$(cat "$stamp" 2>/dev/null || true)
+if [ "$want" != "$have" ]; then
+    say "installing $requirements into $venv (first time: ~3 GB of downloads, torch included)"
+    "$venv/bin/python" -m pip install "${quiet[@]}" --disable-pip-version-check -r "$requirements"
+    # Written only after a successful install, so an interrupted install is retried next time.
+    printf '%s\n' "$want" >"$stamp"
+fi
+
+# 3. cmake (and python) from the venv.
+export PATH="$CHUNKC_ROOT/$venv/bin:$PATH"
+
+# 4. The release build (tests build with --release too, so HDF5 is compiled only once).
+say "building chunkc (cargo build --release --locked; $(cmake --version | head -n1))"
+if [ ! -d target/release/build ]; then
+    say "first build: compiling HDF5 and ~300 crates takes a while"
+fi
+cargo build --release --locked "${quiet[@]}"
+say "ready: $(target/release/chunkc --version) at target/release/chunkc"

@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# The whole test suite, exactly as CI runs it (.ci/run calls this). Works from any directory.
+#
+#   scripts/test.sh
+#
+# Runs every check even when an earlier one fails, prints a summary, and exits non-zero if any
+# check failed: cargo fmt --check, cargo clippy (-D warnings), cargo test --release, and the Python
+# suite in tests/python against target/release/chunkc.
+#
+# CHUNKC_FULL_PUSHT=/path/to/pusht_cchi_v7_replay.zarr also runs the tests that build the full
+# Push-T dataset (slow; off by default). A relative path is taken from where you run this.
+set -euo pipefail
+exec 2>&1 # one stream, so that piped output stays in order
+
+if [ -n "${CHUNKC_FULL_PUSHT:-}" ]; then
+    CHUNKC_FULL_PUSHT=$(cd "$(dirname "$CHUNKC_FULL_PUSHT")" && pwd)/$(basename "$CHUNKC_FULL_PUSHT")
+    export CHUNKC_FULL_PUSHT
+fi
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+. scripts/setup.sh
+
+if [ -t 1 ]; then bold=$'\033[1m' plain=$'\033[0m'; else bold='' plain=''; fi
+start=$SECONDS
+passed=()
+failed=()
+
+# Runs one named check; records the result instead of stopping at the first failure.
+check() {
+    local name=$1
+    shift
+    printf '\n%s== %s%s\n' "$bold" "$name: $*" "$plain"
+    local t0=$SECONDS rc=0
+    "$@" || rc=$?
+    if [ "$rc" -eq 0 ]; then
+        passed+=("$name")
+        printf -- '-- %s: ok (%ss)\n' "$name" $((SECONDS - t0))
+    else
+        failed+=("$name")
+        printf -- '-- %s: FAILED with exit code %s (%ss)\n' "$name" "$rc" $((SECONDS - t0))
+    fi
+}
+
+# rustfmt and clippy ship with rustup's default profile; add them if this toolchain lacks them.
+for component in rustfmt clippy; do
+    sub=${component/rustfmt/fmt}
+    if ! cargo "$sub" --version >/dev/null 2>&1; then
+        if command -v rustup >/dev/null; then
+            echo "test: adding the $component component (rustup component add $component)"
+            rustup component add "$component"
+        fi
+    fi
+done
+
+pytest_run() {
+    # Exit code 5 means pytest collected no tests: that is a failure here, not a pass.
+    local rc=0
+    CHUNKC_BIN="$PWD/target/release/chunkc" .venv/bin/python -m pytest tests/python -q || rc=$?
+    [ "$rc" -eq 5 ] && echo "pytest collected no tests in tests/python"
+    return "$rc"
+}
+
+check fmt cargo fmt --check
+check clippy cargo clippy --release --locked --all-targets -- -D warnings
+check cargo-test cargo test --release --locked
+if [ -n "${CHUNKC_FULL_PUSHT:-}" ]; then
+    echo "test: CHUNKC_FULL_PUSHT=$CHUNKC_FULL_PUSHT (full Push-T tests enabled)"
+fi
+check pytest pytest_run
+
+elapsed=$((SECONDS - start))
+echo
+if [ "${#failed[@]}" -eq 0 ]; then
+    echo "test.sh: all ${#passed[@]} checks passed (${passed[*]}) in $((elapsed / 60))m$((elapsed % 60))s"
+else
+    echo "test.sh: FAILED: ${failed[*]} (passed: ${passed[*]:-none}) in $((elapsed / 60))m$((elapsed % 60))s"
+    exit 1
+fi
