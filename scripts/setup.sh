@@ -77,7 +77,7 @@ export PATH="$CHUNKC_ROOT/$venv/bin:$PATH"
 # 4. The release build (tests build with --release too, so HDF5 is compiled only once).
 say "building chunkc (cargo build --release --locked; $(cmake --version | head -n1))"
 if [ ! -d target/release/build ]; then
-    say "first build: compiling HDF5 and ~300 crates takes a while"
+    say "first build: compiling HDF5 and ~220 crates takes a while"
 fi
 cargo build --release --locked "${quiet[@]}"
 say "ready: $(target/release/chunkc --version) at target/release/chunkc"

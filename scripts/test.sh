@@ -12,7 +12,8 @@
 set -euo pipefail
 exec 2>&1 # one stream, so that piped output stays in order
 
-if [ -n "${CHUNKC_FULL_PUSHT:-}" ]; then
+if [ -n "${CHUNKC_FULL_PUSHT:-}" ] && [ -e "$CHUNKC_FULL_PUSHT" ]; then
+    # Absolute, because the tests run from the repository root.
     CHUNKC_FULL_PUSHT=$(cd "$(dirname "$CHUNKC_FULL_PUSHT")" && pwd)/$(basename "$CHUNKC_FULL_PUSHT")
     export CHUNKC_FULL_PUSHT
 fi
@@ -28,7 +29,9 @@ failed=()
 check() {
     local name=$1
     shift
-    printf '\n%s== %s%s\n' "$bold" "$name: $*" "$plain"
+    local shown="$name: $*"
+    declare -F "$1" >/dev/null && shown=$name # a function below prints its own command
+    printf '\n%s== %s%s\n' "$bold" "$shown" "$plain"
     local t0=$SECONDS rc=0
     "$@" || rc=$?
     if [ "$rc" -eq 0 ]; then
@@ -54,6 +57,7 @@ done
 pytest_run() {
     # Exit code 5 means pytest collected no tests: that is a failure here, not a pass.
     local rc=0
+    echo "CHUNKC_BIN=$PWD/target/release/chunkc .venv/bin/python -m pytest tests/python -q"
     CHUNKC_BIN="$PWD/target/release/chunkc" .venv/bin/python -m pytest tests/python -q || rc=$?
     [ "$rc" -eq 5 ] && echo "pytest collected no tests in tests/python"
     return "$rc"

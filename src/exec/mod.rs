@@ -22,7 +22,7 @@ use crate::lock::{self, Lock, LockedProfile, LOCK_VERSION};
 use crate::plan::{self, Plan, ProfilePlan, DATA_FILE, LOADER_FILE, META_FILE, STATS_FILE};
 use crate::render;
 use crate::sink::documents;
-use crate::sink::hdf5::Hdf5Writer;
+use crate::sink::hdf5::{compress_frame, Hdf5Writer};
 use crate::source::{self, ChannelData, ChannelKind, Episode, Source};
 use crate::spec::LoadedSpec;
 use crate::stats::{self, normalize::Normalizer, ChannelStats, ImagePartial};
@@ -147,10 +147,18 @@ struct RateState {
     images: Vec<Option<ImagePartial>>,
 }
 
-/// One episode after the parallel part of the work: decimated per rate, image partials computed.
+/// One episode's channel after the parallel part of the work.
+enum Prepared {
+    Lowdim(Vec<f32>),
+    /// Compressed frames, ready to be written as HDF5 chunks.
+    Frames(Vec<Vec<u8>>),
+}
+
+/// One episode after the parallel part of the work: decimated per rate, images compressed,
+/// image partials computed.
 struct Processed {
     /// Per rate (in `RateState` order), per channel.
-    data: Vec<Vec<ChannelData>>,
+    data: Vec<Vec<Prepared>>,
     /// Per rate, per channel: image partial if this is a training episode.
     partials: Vec<Vec<Option<ImagePartial>>>,
 }
@@ -178,7 +186,7 @@ fn process(episode: Episode, source: &dyn Source, factors: &[usize], train: bool
             let width = ch.width();
             match values {
                 ChannelData::Lowdim(v) => {
-                    per_channel.push(ChannelData::Lowdim(decimate(v, width, factor)));
+                    per_channel.push(Prepared::Lowdim(decimate(v, width, factor)));
                     per_partial.push(None);
                 }
                 ChannelData::Image(v) => {
@@ -186,7 +194,8 @@ fn process(episode: Episode, source: &dyn Source, factors: &[usize], train: bool
                     let frames = d.len() / width.max(1);
                     let colors = *ch.shape.last().unwrap_or(&1);
                     per_partial.push(train.then(|| ImagePartial::of_frames(&d, frames, colors)));
-                    per_channel.push(ChannelData::Image(d));
+                    let compressed = d.par_chunks(width.max(1)).map(compress_frame).collect();
+                    per_channel.push(Prepared::Frames(compressed));
                 }
             }
         }
@@ -299,14 +308,13 @@ fn run(
                 .enumerate()
             {
                 let row = if i == 0 { 0 } else { rate.ends[i - 1] as usize };
-                let rows = (rate.ends[i] as usize) - row;
                 for (c, (values, partial)) in data.into_iter().zip(partials).enumerate() {
                     match values {
-                        ChannelData::Lowdim(v) => rate.lowdim[c].extend_from_slice(&v),
-                        ChannelData::Image(v) => {
+                        Prepared::Lowdim(v) => rate.lowdim[c].extend_from_slice(&v),
+                        Prepared::Frames(frames) => {
                             for (wr, writer) in &writers {
                                 if *wr == r {
-                                    writer.write_u8(c, row, rows, &v)?;
+                                    writer.write_frames(c, row, &frames)?;
                                 }
                             }
                             if let (Some(acc), Some(p)) = (rate.images[c].as_mut(), partial) {

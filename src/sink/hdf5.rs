@@ -25,6 +25,21 @@ const LOWDIM_CHUNK_BYTES: usize = 64 * 1024;
 /// Image frames are compressed with deflate at this level (fast, and lossless).
 const IMAGE_DEFLATE_LEVEL: u8 = 1;
 
+/// One image frame compressed exactly as HDF5's deflate filter stores a chunk (a zlib stream).
+///
+/// Frames are compressed by the caller, in parallel and once per rate however many profiles
+/// share it, and handed to [`Hdf5Writer::write_frames`], which writes the chunks directly: HDF5
+/// itself compresses on one thread under its global lock.
+pub fn compress_frame(frame: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut enc = flate2::write::ZlibEncoder::new(
+        Vec::with_capacity(frame.len() / 2),
+        flate2::Compression::new(u32::from(IMAGE_DEFLATE_LEVEL)),
+    );
+    enc.write_all(frame).expect("writing to a Vec cannot fail");
+    enc.finish().expect("writing to a Vec cannot fail")
+}
+
 pub struct Hdf5Writer {
     file: File,
     data: Vec<Dataset>,
@@ -151,10 +166,34 @@ impl Hdf5Writer {
             .map_err(|e| Error::Internal(format!("channel {channel}: {e}")))
     }
 
-    /// Writes `rows` steps of an image channel starting at stored row `row`.
-    pub fn write_u8(&self, channel: usize, row: usize, rows: usize, values: &[u8]) -> Result<()> {
-        let view = self.view(channel, rows, values)?;
-        self.data[channel].write_slice(view, self.selection(channel, row, rows))?;
+    /// Writes already-compressed frames ([`compress_frame`]) of an image channel, one chunk per
+    /// frame, starting at stored row `row`.
+    pub fn write_frames(&self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+        let ds = &self.data[channel];
+        let rank = 1 + self.shapes[channel].len();
+        for (i, frame) in frames.iter().enumerate() {
+            let mut offset = vec![0 as hdf5_sys::h5::hsize_t; rank];
+            offset[0] = (row + i) as hdf5_sys::h5::hsize_t;
+            // SAFETY: the dataset id is valid while `ds` lives; `offset` has one entry per
+            // dimension and `frame` outlives the call. The global HDF5 lock is held by `sync`.
+            let status = hdf5::sync::sync(|| unsafe {
+                hdf5_sys::h5d::H5Dwrite_chunk(
+                    ds.id(),
+                    hdf5_sys::h5p::H5P_DEFAULT,
+                    0,
+                    offset.as_ptr(),
+                    frame.len(),
+                    frame.as_ptr().cast(),
+                )
+            });
+            if status < 0 {
+                return Err(Error::output(format!(
+                    "HDF5: writing frame {} of {} failed",
+                    row + i,
+                    ds.name()
+                )));
+            }
+        }
         Ok(())
     }
 

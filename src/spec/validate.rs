@@ -16,7 +16,10 @@ pub(crate) fn check(loaded: &LoadedSpec) -> Result<Vec<Profile>, Vec<Diagnostic>
     };
     c.top_level();
     c.source();
-    let profiles: Vec<Profile> = (loaded.spec.profiles.iter())
+    let profiles: Vec<Profile> = loaded
+        .spec
+        .profiles
+        .iter()
         .filter_map(|(name, profile)| c.profile(name, profile))
         .collect();
     if c.found.is_empty() {
@@ -90,8 +93,9 @@ impl Checker<'_> {
         // Exactly one `action` (the map's keys are unique); everything else an observation.
         let mut has_action = false;
         for name in source.channels.keys() {
-            let is_observation =
-                (name.strip_prefix("observation.")).is_some_and(|rest| !rest.is_empty());
+            let is_observation = name
+                .strip_prefix("observation.")
+                .is_some_and(|rest| !rest.is_empty());
             if name == "action" {
                 has_action = true;
             } else if !is_observation {
@@ -131,7 +135,12 @@ impl Checker<'_> {
             }
         }
 
-        let channels: Vec<&str> = (self.loaded.spec.source.channels.keys())
+        let channels: Vec<&str> = self
+            .loaded
+            .spec
+            .source
+            .channels
+            .keys()
             .map(String::as_str)
             .collect();
         for channel in profile.normalize.iter().flat_map(|n| n.keys()) {
@@ -179,7 +188,9 @@ fn channel_help(name: &str) -> String {
         return "did you mean `action`? The action channel is called exactly that".into();
     }
     // `obs.state`, `observations.state`, `state`: keep the user's last word.
-    let base = (name.rsplit('.').next())
+    let base = name
+        .rsplit('.')
+        .next()
         .filter(|s| !s.is_empty())
         .unwrap_or("name");
     format!(
