@@ -1,6 +1,6 @@
 //! The `chunkc` command line. Everything it does is a call into the library.
 
-use std::path::PathBuf;
+use std::path::{Component, Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
@@ -53,6 +53,23 @@ enum PlanFormat {
     Json,
 }
 
+/// `specs/../out/pusht` -> `out/pusht`, for messages only (ignores symlinks on purpose).
+fn tidy(path: &Path) -> PathBuf {
+    let mut out = PathBuf::new();
+    for part in path.components() {
+        match part {
+            Component::CurDir => {}
+            Component::ParentDir
+                if matches!(out.components().next_back(), Some(Component::Normal(_))) =>
+            {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    out
+}
+
 fn run(cli: Cli) -> Result<(), Error> {
     if let Some(n) = cli.threads {
         rayon::ThreadPoolBuilder::new()
@@ -96,13 +113,13 @@ fn run(cli: Cli) -> Result<(), Error> {
                 eprintln!(
                     "up to date: nothing to do ({} in {})",
                     report.up_to_date.join(", "),
-                    report.out_dir.display()
+                    tidy(&report.out_dir).display()
                 );
             } else {
                 eprintln!(
                     "built {} in {}",
                     report.built.join(", "),
-                    report.out_dir.display()
+                    tidy(&report.out_dir).display()
                 );
                 if !report.up_to_date.is_empty() {
                     eprintln!("up to date: {}", report.up_to_date.join(", "));

@@ -188,6 +188,14 @@ fn step_bytes(ch: &ChannelInfo) -> u64 {
     }
 }
 
+/// Entries per statistic: one per dimension, or one per colour channel for images.
+fn stats_dims(ch: &ChannelInfo) -> usize {
+    match ch.kind {
+        ChannelKind::Lowdim => ch.width(),
+        ChannelKind::Image => *ch.shape.last().unwrap_or(&1),
+    }
+}
+
 /// Builds the plan. `lock` is the previous build's lock, if any; `out_dir` is the resolved output
 /// directory (used to check the files the lock lists).
 pub fn resolve(
@@ -391,7 +399,7 @@ fn resolve_profile(
                 + manifest
                     .channels
                     .iter()
-                    .map(|c| 180 * c.width() as u64)
+                    .map(|c| 180 * stats_dims(c) as u64)
                     .sum::<u64>(),
         },
     ];

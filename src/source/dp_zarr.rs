@@ -200,6 +200,7 @@ impl DpZarrSource {
 
 /// `episode_ends` is int64 in every replay buffer seen so far; read it without a float detour.
 fn read_f32_exact_i64(array: &ZArray, n: u64) -> std::result::Result<Vec<i64>, String> {
+    #[allow(clippy::single_range_in_vec_init)] // one range per dimension, and this array has one
     let subset = ArraySubset::new_with_ranges(&[0..n]);
     match dtype_name(array).as_str() {
         "int64" => array
@@ -227,7 +228,9 @@ impl Source for DpZarrSource {
         let (start, end) = (self.bounds[index], self.bounds[index + 1]);
         let mut channels = Vec::with_capacity(self.arrays.len());
         for (ch, array) in self.manifest.channels.iter().zip(&self.arrays) {
-            let mut ranges = vec![start..end];
+            // One range per dimension: time first, then the whole of every other axis.
+            let mut ranges = Vec::with_capacity(1 + ch.shape.len());
+            ranges.push(start..end);
             ranges.extend(ch.shape.iter().map(|&d| 0..d as u64));
             let subset = ArraySubset::new_with_ranges(&ranges);
             let where_ = || {

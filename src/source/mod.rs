@@ -114,7 +114,7 @@ pub fn open(spec: &LoadedSpec) -> Result<Box<dyn Source>> {
 /// Decides a channel's kind from its per-step shape, or says why it cannot be used.
 pub fn kind_for_shape(shape: &[usize]) -> std::result::Result<ChannelKind, String> {
     match shape.len() {
-        0 | 1 | 2 => Ok(ChannelKind::Lowdim),
+        0..=2 => Ok(ChannelKind::Lowdim),
         3 if shape[2] == 1 || shape[2] == 3 || shape[2] == 4 => Ok(ChannelKind::Image),
         _ => Err(format!(
             "per-step shape {shape:?} is neither a vector nor an (H, W, C) image"
