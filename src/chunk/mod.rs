@@ -1,44 +1,79 @@
 //! The window index: which samples an episode yields, and which stored rows each sample reads.
 //!
-//! Alignment `current`: the sample at step `t` takes actions `t .. t+K` and observations
-//! `t-H+1 ..= t` (H = obs_history). Rows before the episode start repeat the first observation;
-//! rows past the end are padded according to [`Padding`]. Every row index stays inside its
-//! episode: this module is the only place that decides it, and the loader template mirrors it.
+//! A sample is `(t, limit, sub)` within an episode of `len` steps: `t` is its current step (the
+//! last observation frame), observations are rows `t-H+1 ..= t` with the first frame repeated
+//! before the episode start, and actions are rows `t - lead + k` for `k < K` where `lead` is 0
+//! (alignment `current`) or `H-1` (Diffusion Policy's alignment: actions start at the first
+//! observation frame). Action rows outside the episode, or at `k >= limit`, are padding.
+//! Segments and hierarchical chunks reuse the same row rules (`segment`, `hierarchy`).
+//!
+//! Every row index stays inside its episode: this module decides it, and the loader template
+//! mirrors it.
+
+pub mod hierarchy;
+pub mod segment;
 
 use crate::spec::Padding;
 
-/// The parameters that shape windows.
+/// One sample of an episode: the row of the window index (`episode` is added by the caller).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Sample {
+    /// Current step: the last observation frame.
+    pub t: usize,
+    /// Action steps that belong to the sample (K for plain windows; the segment length for
+    /// segments; the coarse length for hierarchical samples).
+    pub limit: usize,
+    /// Fine-chunk index within the coarse chunk (hierarchical samples), else 0.
+    pub sub: usize,
+}
+
+/// The parameters that shape fixed windows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub struct Window {
     pub chunk: usize,
     pub obs_history: usize,
+    /// Steps the action chunk starts before the current step.
+    pub lead: usize,
     pub padding: Padding,
     pub stride: usize,
+    /// At most this many padded action steps after the episode end (Diffusion Policy's
+    /// `pad_after = n_action_steps - 1`); unbounded when `None`.
+    pub max_pad_after: Option<usize>,
 }
 
 impl Window {
-    /// The steps `t` (within an episode of `len` steps) at which samples start.
-    pub fn starts(&self, len: usize) -> Vec<usize> {
-        let (first, last_exclusive) = match self.padding {
-            Padding::Truncate => {
-                let first = self.obs_history - 1;
-                // t + K <= len, so t < len - K + 1.
-                let end = (len + 1).saturating_sub(self.chunk);
-                (first, end)
-            }
-            _ => (0, len),
+    /// The range of current steps `[first, end)` an episode of `len` steps allows.
+    fn t_range(&self, len: usize) -> (usize, usize) {
+        let (k, lead) = (self.chunk, self.lead);
+        if self.padding == Padding::Truncate {
+            // No padding anywhere: t-H+1 >= 0, t-lead >= 0 and t-lead+K <= len.
+            let first = (self.obs_history - 1).max(lead);
+            return (first, (len + lead + 1).saturating_sub(k).min(len));
+        }
+        let end = match self.max_pad_after {
+            // t - lead + K - 1 <= len - 1 + pad_after
+            Some(p) => (len + p + lead + 1).saturating_sub(k).min(len),
+            None => len,
         };
-        (first..last_exclusive.max(first))
+        (0, end)
+    }
+
+    /// The samples an episode of `len` steps yields, in increasing `t`.
+    pub fn samples(&self, len: usize) -> Vec<Sample> {
+        let (first, end) = self.t_range(len);
+        (first..end.max(first))
             .step_by(self.stride)
+            .map(|t| Sample {
+                t,
+                limit: self.chunk,
+                sub: 0,
+            })
             .collect()
     }
 
     /// Number of samples an episode of `len` steps yields.
     pub fn count(&self, len: usize) -> usize {
-        let (first, end) = match self.padding {
-            Padding::Truncate => (self.obs_history - 1, (len + 1).saturating_sub(self.chunk)),
-            _ => (0, len),
-        };
+        let (first, end) = self.t_range(len);
         if end <= first {
             0
         } else {
@@ -46,10 +81,12 @@ impl Window {
         }
     }
 
-    /// Action rows (episode-relative) for the sample at `t`, with `None` where the chunk runs past
-    /// the episode (what fills it depends on the padding mode; `action_is_pad` is true there).
+    /// Action rows (episode-relative) of the sample at `t`, `None` where padded.
     pub fn action_rows(&self, t: usize, len: usize) -> impl Iterator<Item = Option<usize>> + '_ {
-        (t..t + self.chunk).map(move |r| (r < len).then_some(r))
+        (0..self.chunk).map(move |k| {
+            let r = (t + k).checked_sub(self.lead)?;
+            (r < len).then_some(r)
+        })
     }
 
     /// Observation rows (episode-relative) for the sample at `t`, oldest first; the first
@@ -60,8 +97,72 @@ impl Window {
     }
 }
 
-/// Row indices kept when converting from the source rate to a profile's rate by an integer
-/// factor: steps 0, f, 2f, ... of each episode.
+/// How a profile turns an episode into samples.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(tag = "mode", rename_all = "snake_case")]
+pub enum Sampling {
+    /// Fixed windows of `window.chunk` actions.
+    Window { window: Window },
+    /// One sample per segment, padded to `window.chunk` (= the maximum segment length).
+    Segment {
+        window: Window,
+        params: segment::SegmentParams,
+        /// Index of the watched channel in the manifest, and the dimensions watched.
+        channel: usize,
+        dims: Vec<usize>,
+    },
+    /// Fine chunks of `window.chunk` inside coarse chunks of `coarse` steps.
+    Hierarchy { window: Window, coarse: usize },
+}
+
+impl Sampling {
+    pub fn window(&self) -> &Window {
+        match self {
+            Sampling::Window { window }
+            | Sampling::Segment { window, .. }
+            | Sampling::Hierarchy { window, .. } => window,
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Sampling::Window { .. } => "window",
+            Sampling::Segment { .. } => "segment",
+            Sampling::Hierarchy { .. } => "hierarchy",
+        }
+    }
+
+    /// Samples of an episode of `len` steps; `watched` is the segmented channel's raw values
+    /// (row-major, with its width), needed only by `Segment`.
+    pub fn samples(&self, len: usize, watched: Option<(&[f32], usize)>) -> Vec<Sample> {
+        match self {
+            Sampling::Window { window } => window.samples(len),
+            Sampling::Hierarchy { window, coarse } => {
+                hierarchy::samples(len, *coarse, window.chunk, window.stride, window.padding)
+            }
+            Sampling::Segment { params, dims, .. } => {
+                let (values, width) = watched.expect("segmenting needs the watched channel");
+                let cuts = segment::breakpoints(values, width, dims, params);
+                segment::segments(len, &cuts, params)
+                    .into_iter()
+                    .map(|(t, limit)| Sample { t, limit, sub: 0 })
+                    .collect()
+            }
+        }
+    }
+
+    /// Number of samples, when it follows from the length alone.
+    pub fn count(&self, len: usize) -> Option<usize> {
+        match self {
+            Sampling::Window { window } => Some(window.count(len)),
+            Sampling::Hierarchy { .. } => Some(self.samples(len, None).len()),
+            Sampling::Segment { .. } => None,
+        }
+    }
+}
+
+/// Steps kept when converting from the source rate to a profile's rate by an integer factor:
+/// steps 0, f, 2f, ... of each episode.
 pub fn decimated_len(len: usize, factor: usize) -> usize {
     len.div_ceil(factor)
 }
@@ -74,33 +175,48 @@ mod tests {
         Window {
             chunk,
             obs_history: obs,
+            lead: 0,
             padding,
             stride,
+            max_pad_after: None,
         }
     }
 
     #[test]
-    fn starts_match_count_for_every_mode() {
+    fn samples_match_count_and_stay_inside_for_every_mode() {
         for padding in [
             Padding::Edge,
             Padding::Zero,
             Padding::Mask,
             Padding::Truncate,
         ] {
-            for len in 0..40 {
-                for chunk in 1..12 {
+            for len in 0..30 {
+                for chunk in 1..10 {
                     for obs in 1..4 {
-                        for stride in 1..5 {
-                            let win = w(chunk, obs, padding, stride);
-                            let starts = win.starts(len);
-                            assert_eq!(starts.len(), win.count(len), "{win:?} len {len}");
-                            for &t in &starts {
-                                assert!(t < len);
-                                if padding == Padding::Truncate {
-                                    assert!(t + chunk <= len && t + 1 >= obs);
+                        for stride in 1..4 {
+                            for (lead, pad_after) in [(0, None), (obs - 1, Some(chunk / 2))] {
+                                let win = Window {
+                                    lead,
+                                    max_pad_after: pad_after,
+                                    ..w(chunk, obs, padding, stride)
+                                };
+                                let samples = win.samples(len);
+                                assert_eq!(samples.len(), win.count(len), "{win:?} len {len}");
+                                for s in &samples {
+                                    assert!(s.t < len);
+                                    let rows: Vec<_> = win.action_rows(s.t, len).collect();
+                                    assert!(rows.iter().flatten().all(|&r| r < len));
+                                    assert!(win.obs_rows(s.t).all(|r| r <= s.t));
+                                    if padding == Padding::Truncate {
+                                        assert!(rows.iter().all(Option::is_some));
+                                        assert!(s.t + 1 >= obs);
+                                    }
+                                    if let Some(p) = pad_after {
+                                        let after =
+                                            (0..chunk).filter(|k| s.t + k >= len + lead).count();
+                                        assert!(after <= p, "{win:?} len {len} t {}", s.t);
+                                    }
                                 }
-                                assert!(win.obs_rows(t).all(|r| r <= t));
-                                assert!(win.action_rows(t, len).flatten().all(|r| r < len));
                             }
                         }
                     }
@@ -110,9 +226,25 @@ mod tests {
     }
 
     #[test]
+    fn diffusion_policy_window_count() {
+        // Diffusion Policy: L - horizon + pad_before + pad_after + 1 windows per episode.
+        let win = Window {
+            lead: 1,
+            max_pad_after: Some(7),
+            ..w(16, 2, Padding::Edge, 1)
+        };
+        for len in [8, 9, 50, 161] {
+            assert_eq!(win.count(len), len - 16 + 1 + 7 + 1, "len {len}");
+        }
+        assert_eq!(win.count(7), 0);
+        let rows: Vec<_> = win.action_rows(0, 50).take(2).collect();
+        assert_eq!(rows, vec![None, Some(0)]);
+    }
+
+    #[test]
     fn truncate_drops_short_episodes() {
         assert_eq!(w(16, 2, Padding::Truncate, 1).count(16), 0);
-        assert_eq!(w(16, 2, Padding::Truncate, 1).starts(17), vec![1]);
+        assert_eq!(w(16, 2, Padding::Truncate, 1).samples(17)[0].t, 1);
     }
 
     #[test]

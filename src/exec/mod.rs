@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
+use crate::chunk::Sampling;
 use crate::error::{Error, IoContext, Result};
 use crate::lock::{self, Lock, LockedProfile, LOCK_VERSION};
 use crate::plan::{self, Plan, ProfilePlan, DATA_FILE, LOADER_FILE, META_FILE, STATS_FILE};
@@ -367,20 +368,37 @@ fn run(
             }
             normalizers.insert(ch.name.clone(), n);
         }
-        let window = p.window();
         let mut train = Vec::new();
         let mut val = Vec::new();
+        let mut segments = Vec::new();
         for (e, ep) in p.episodes.iter().enumerate() {
+            let start = if e == 0 { 0 } else { rate.ends[e - 1] as usize };
+            let watched = match &p.sampling {
+                Sampling::Segment { channel, .. } => {
+                    let width = manifest.channels[*channel].width();
+                    let values = &rate.lowdim[*channel][start * width..(start + ep.len) * width];
+                    Some((values, width))
+                }
+                _ => None,
+            };
+            let samples = p.sampling.samples(ep.len, watched);
+            if matches!(p.sampling, Sampling::Segment { .. }) {
+                segments.push(
+                    samples
+                        .iter()
+                        .map(|s| [s.t, s.t + s.limit])
+                        .collect::<Vec<_>>(),
+                );
+            }
             let rows = if ep.split == "train" {
                 &mut train
             } else {
                 &mut val
             };
             rows.extend(
-                window
-                    .starts(ep.len)
+                samples
                     .into_iter()
-                    .map(|t| [e as i64, t as i64]),
+                    .map(|s| [e as i64, s.t as i64, s.limit as i64, s.sub as i64]),
             );
         }
         writer.write_index("train", &train)?;
@@ -393,7 +411,17 @@ fn run(
         };
         write(
             META_FILE,
-            documents::meta_json(plan, p, &rate.ends, &normalizers, DATA_FILE),
+            documents::meta_json(
+                plan,
+                p,
+                &documents::Built {
+                    episode_ends: &rate.ends,
+                    normalizers: &normalizers,
+                    num_samples: [train.len(), val.len()],
+                    segments: &segments,
+                },
+                DATA_FILE,
+            ),
         )?;
         write(STATS_FILE, documents::stats_json(stats))?;
         let hint = Path::new(&spec.spec.output.dir).join(&p.name);

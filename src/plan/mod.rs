@@ -19,7 +19,8 @@ use serde::Serialize;
 pub use split::Split;
 pub use text::render_text;
 
-use crate::chunk::{decimated_len, Window};
+use crate::chunk::segment::SegmentParams;
+use crate::chunk::{decimated_len, Sampling, Window};
 use crate::error::Result;
 use crate::lock::{self, Lock};
 use crate::source::{ChannelInfo, ChannelKind, Manifest};
@@ -86,6 +87,8 @@ pub struct ProfilePlan {
     pub fps: f64,
     pub rate_factor: usize,
     pub rate: String,
+    /// How episodes become samples (window parameters included).
+    pub sampling: Sampling,
     pub channels: Vec<ProfileChannel>,
     pub episodes: Vec<ProfileEpisode>,
     pub excluded: Vec<Excluded>,
@@ -112,7 +115,8 @@ pub struct ProfileEpisode {
     pub source_len: usize,
     /// Steps at the profile's rate.
     pub len: usize,
-    pub samples: usize,
+    /// `None` when it depends on the data (segments).
+    pub samples: Option<usize>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -121,10 +125,11 @@ pub struct Excluded {
     pub reason: String,
 }
 
+/// Sample counts per split; `None` when they depend on the data (segments).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct SplitCounts {
-    pub train: usize,
-    pub val: usize,
+    pub train: Option<usize>,
+    pub val: Option<usize>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -140,13 +145,8 @@ pub struct Status {
 }
 
 impl ProfilePlan {
-    pub fn window(&self) -> Window {
-        Window {
-            chunk: self.values.chunk as usize,
-            obs_history: self.values.obs_history as usize,
-            padding: self.values.padding,
-            stride: self.values.stride as usize,
-        }
+    pub fn window(&self) -> &Window {
+        self.sampling.window()
     }
 }
 
@@ -302,6 +302,9 @@ fn resolve_profile(
     for ch in &manifest.channels {
         let explicit = profile.normalize.get(&ch.name).copied();
         let normalize = match ch.kind {
+            ChannelKind::Lowdim if ch.shape.len() >= 2 => {
+                explicit.unwrap_or(profile.normalize_multidim)
+            }
             ChannelKind::Lowdim => explicit.unwrap_or(profile.normalize_lowdim),
             ChannelKind::Image => {
                 let mode = explicit.unwrap_or(NormalizeMode::None);
@@ -326,26 +329,25 @@ fn resolve_profile(
         });
     }
 
-    let window = Window {
-        chunk: profile.chunk as usize,
-        obs_history: profile.obs_history as usize,
-        padding: profile.padding,
-        stride: profile.stride as usize,
-    };
+    let sampling = sampling_of(spec, manifest, profile, fps)?;
     let mut episodes = Vec::new();
     let mut warnings = Vec::new();
-    let mut counts = SplitCounts::default();
+    let mut counts = SplitCounts {
+        train: Some(0),
+        val: Some(0),
+    };
     let mut steps = 0;
     for e in &manifest.episodes {
         let len = decimated_len(e.len, factor);
-        let samples = window.count(len);
+        let samples = sampling.count(len);
         let is_train = split.is_train(e.id);
-        if is_train {
-            counts.train += samples;
+        let slot = if is_train {
+            &mut counts.train
         } else {
-            counts.val += samples;
-        }
-        if samples == 0 {
+            &mut counts.val
+        };
+        *slot = slot.zip(samples).map(|(a, b)| a + b);
+        if samples == Some(0) {
             warnings.push(format!(
                 "episode {} has {len} steps at {fps} Hz and yields no samples with {} padding (chunk {}, obs_history {})",
                 e.id,
@@ -363,7 +365,7 @@ fn resolve_profile(
             samples,
         });
     }
-    if counts.train == 0 {
+    if counts.train == Some(0) {
         return Err(spec.error_at(
             &["profiles", name, "chunk"],
             format!(
@@ -378,7 +380,7 @@ fn resolve_profile(
         .iter()
         .map(|c| step_bytes(c) * steps as u64)
         .sum::<u64>()
-        + 16 * (counts.train + counts.val) as u64
+        + 32 * (counts.train.unwrap_or(steps) + counts.val.unwrap_or(0)) as u64
         + 16 * manifest.episodes.len() as u64;
     let files = vec![
         PlannedFile {
@@ -412,6 +414,7 @@ fn resolve_profile(
         fps,
         rate_factor: factor,
         rate,
+        sampling,
         channels,
         episodes,
         excluded: Vec::new(),
@@ -422,6 +425,106 @@ fn resolve_profile(
         fingerprint,
         status,
     })
+}
+
+/// The sampling of a profile: windows, segments or hierarchical chunks.
+fn sampling_of(
+    spec: &LoadedSpec,
+    manifest: &Manifest,
+    profile: &Profile,
+    fps: f64,
+) -> Result<Sampling> {
+    let name = &profile.name;
+    let lead = match profile.alignment {
+        crate::spec::Alignment::Current => 0,
+        crate::spec::Alignment::DiffusionPolicy => profile.obs_history as usize - 1,
+    };
+    let mut window = Window {
+        chunk: profile.chunk as usize,
+        obs_history: profile.obs_history as usize,
+        lead,
+        padding: profile.padding,
+        stride: profile.stride as usize,
+        max_pad_after: profile.executes.map(|e| e.saturating_sub(1) as usize),
+    };
+    if let Some(seg) = &profile.segment {
+        let at = |k: &str| {
+            [
+                "profiles".to_string(),
+                name.clone(),
+                "segment".into(),
+                k.into(),
+            ]
+        };
+        let Some(c) = manifest.channels.iter().position(|c| c.name == seg.channel) else {
+            let key = at("channel");
+            let key: Vec<&str> = key.iter().map(String::as_str).collect();
+            return Err(spec.error_at(&key, format!("no channel `{}`", seg.channel), None));
+        };
+        let ch = &manifest.channels[c];
+        if ch.kind != ChannelKind::Lowdim {
+            let key = at("channel");
+            let key: Vec<&str> = key.iter().map(String::as_str).collect();
+            return Err(spec.error_at(
+                &key,
+                format!(
+                    "`{}` is an image; segment on a low-dimensional channel",
+                    ch.name
+                ),
+                None,
+            ));
+        }
+        let width = ch.width();
+        let dims: Vec<usize> = match &seg.dims {
+            Some(d) => d.iter().map(|&d| d as usize).collect(),
+            None => (0..width).collect(),
+        };
+        if let Some(&bad) = dims.iter().find(|&&d| d >= width) {
+            let key = at("dims");
+            let key: Vec<&str> = key.iter().map(String::as_str).collect();
+            return Err(spec.error_at(
+                &key,
+                format!(
+                    "dimension {bad} is out of range: `{}` has {width} values per step",
+                    ch.name
+                ),
+                None,
+            ));
+        }
+        let max_length = seg.max_length.unwrap_or(profile.chunk) as usize;
+        window.chunk = max_length;
+        window.lead = 0;
+        window.max_pad_after = None;
+        return Ok(Sampling::Segment {
+            window,
+            params: SegmentParams {
+                method: seg.method,
+                smoothing: seg.smoothing as usize,
+                threshold: seg.threshold,
+                min_length: seg.min_length as usize,
+                max_length,
+            },
+            channel: c,
+            dims,
+        });
+    }
+    if let Some(h) = &profile.hierarchy {
+        let coarse = (h.coarse_seconds * fps).round() as usize;
+        if coarse < window.chunk {
+            return Err(spec.error_at(
+                &["profiles", name, "hierarchy", "coarse_seconds"],
+                format!(
+                    "{} s is {coarse} steps at {fps} Hz, shorter than the fine chunk ({} steps)",
+                    h.coarse_seconds, window.chunk
+                ),
+                None,
+            ));
+        }
+        window.lead = 0;
+        window.max_pad_after = None;
+        return Ok(Sampling::Hierarchy { window, coarse });
+    }
+    Ok(Sampling::Window { window })
 }
 
 /// Everything a profile's outputs depend on: the tool, the resolved profile, the source bytes,

@@ -83,7 +83,7 @@ pub fn render_text(plan: &Plan) -> String {
             "  preset {}  format {}  alignment {}",
             v.preset.map(|p| p.name()).unwrap_or("none"),
             v.format.name(),
-            v.alignment
+            v.alignment.name()
         );
         let _ = writeln!(s, "  rate   {}", p.rate);
         let _ = writeln!(
@@ -110,10 +110,13 @@ pub fn render_text(plan: &Plan) -> String {
         for e in &p.excluded {
             let _ = writeln!(s, "    excluded episode {}: {}", e.id, e.reason);
         }
+        let count = |n: Option<usize>| n.map_or("(set by the data)".to_string(), |n| n.to_string());
         let _ = writeln!(
             s,
-            "  samples {} train, {} val",
-            p.num_samples.train, p.num_samples.val
+            "  samples {} train, {} val ({} sampling)",
+            count(p.num_samples.train),
+            count(p.num_samples.val),
+            p.sampling.name()
         );
         for f in &p.files {
             let _ = writeln!(

@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 
 use serde_json::{json, Value};
 
+use crate::chunk::Sampling;
 use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
 use crate::source::ChannelKind;
 use crate::stats::normalize::Normalizer;
@@ -21,15 +22,39 @@ fn pretty(v: &Value) -> String {
     s
 }
 
+/// What the build found out that the plan could not know.
+pub struct Built<'a> {
+    pub episode_ends: &'a [u64],
+    pub normalizers: &'a BTreeMap<String, Normalizer>,
+    /// Samples in the train and val index.
+    pub num_samples: [usize; 2],
+    /// Per episode, the `[start, end)` steps of its segments (segment sampling only).
+    pub segments: &'a [Vec<[usize; 2]>],
+}
+
 /// `meta.json`: everything the loader needs, and the provenance of the dataset.
-pub fn meta_json(
-    plan: &Plan,
-    profile: &ProfilePlan,
-    episode_ends: &[u64],
-    normalizers: &BTreeMap<String, Normalizer>,
-    data_file: &str,
-) -> String {
+pub fn meta_json(plan: &Plan, profile: &ProfilePlan, built: &Built, data_file: &str) -> String {
     let v = &profile.values;
+    let window = profile.window();
+    let mut sampling = serde_json::Map::new();
+    sampling.insert("mode".into(), json!(profile.sampling.name()));
+    match &profile.sampling {
+        Sampling::Segment { params, dims, .. } => {
+            let seg = v
+                .segment
+                .as_ref()
+                .expect("segment sampling has a segment spec");
+            sampling.insert("channel".into(), json!(seg.channel));
+            sampling.insert("dims".into(), json!(dims));
+            sampling.insert("params".into(), json!(params));
+            sampling.insert("segments".into(), json!(built.segments));
+        }
+        Sampling::Hierarchy { coarse, .. } => {
+            sampling.insert("coarse_chunk".into(), json!(coarse));
+            sampling.insert("fine_chunk".into(), json!(window.chunk));
+        }
+        Sampling::Window { .. } => {}
+    }
     let mut channels = serde_json::Map::new();
     for (ch, src) in profile.channels.iter().zip(&plan.source.channels) {
         channels.insert(
@@ -44,7 +69,7 @@ pub fn meta_json(
         );
     }
     let mut normalization = serde_json::Map::new();
-    for (name, n) in normalizers {
+    for (name, n) in built.normalizers {
         normalization.insert(
             name.clone(),
             json!({ "mode": n.mode, "center": n.center, "scale": n.scale, "clip": n.clip }),
@@ -56,19 +81,23 @@ pub fn meta_json(
         "chunkc_version": TOOL_VERSION,
         "profile": profile.name,
         "preset": v.preset.map(|p| p.name()),
-        "chunk_size": v.chunk,
+        "chunk_size": window.chunk,
         "obs_history": v.obs_history,
         "padding": v.padding.name(),
         "stride": v.stride,
         "fps": profile.fps,
-        "alignment": v.alignment,
+        "alignment": v.alignment.name(),
+        "action_lead": window.lead,
+        "executes": v.executes,
+        "max_pad_after": window.max_pad_after,
+        "sampling": sampling,
         "layout": "index",
         "data_file": data_file,
         "rate": { "source_fps": plan.source.fps, "factor": profile.rate_factor },
-        "episode_ends": episode_ends,
+        "episode_ends": built.episode_ends,
         "episodes": ids,
         "split": { "train": plan.split.train, "val": plan.split.val },
-        "num_samples": { "train": profile.num_samples.train, "val": profile.num_samples.val },
+        "num_samples": { "train": built.num_samples[0], "val": built.num_samples[1] },
         "channels": channels,
         "normalization": normalization,
         "excluded": profile.excluded,

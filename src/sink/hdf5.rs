@@ -4,8 +4,8 @@
 //! /data/<channel>      (N, ...) float32 (normalized low-dim) or uint8 (images, HWC)
 //! /meta/episode_ends   (E,) int64  exclusive ends of each episode in /data
 //! /meta/episode_ids    (E,) int64  source episode ids, in stored order
-//! /index/train         (S, 2) int64 rows of (episode position, start step t)
-//! /index/val           (S, 2) int64
+//! /index/train         (S, 4) int64 rows of (episode position, current step t, limit, sub)
+//! /index/val           (S, 4) int64
 //! ```
 //! Attributes on `/` name the window parameters. Object time tracking is off everywhere, and
 //! data is written in a fixed order, so the file's bytes depend only on its contents.
@@ -90,7 +90,7 @@ impl Hdf5Writer {
             .write_scalar(&text(v.padding.name())?)?;
         root.new_attr::<VarLenUnicode>()
             .create("alignment")?
-            .write_scalar(&text(v.alignment)?)?;
+            .write_scalar(&text(v.alignment.name())?)?;
         root.new_attr::<VarLenUnicode>()
             .create("layout")?
             .write_scalar(&text("index")?)?;
@@ -205,14 +205,15 @@ impl Hdf5Writer {
         Ok(())
     }
 
-    /// Writes one split's window index: rows of (episode position, start step).
-    pub fn write_index(&self, split: &str, rows: &[[i64; 2]]) -> Result<()> {
+    /// Writes one split's window index: rows of (episode position, current step, limit, sub);
+    /// see `chunk::Sample`.
+    pub fn write_index(&self, split: &str, rows: &[[i64; 4]]) -> Result<()> {
         let flat: Vec<i64> = rows.iter().flatten().copied().collect();
         let ds = self
             .file
             .group("index")?
             .new_dataset::<i64>()
-            .shape([rows.len(), 2])
+            .shape([rows.len(), 4])
             .obj_track_times(false)
             .create(split)?;
         if !rows.is_empty() {

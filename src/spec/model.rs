@@ -103,23 +103,35 @@ pub struct OutputSpec {
     pub dir: String,
 }
 
-/// `[profiles.<name>]`: one training-ready dataset. Every value left out comes from the preset
-/// (or the defaults when there is no preset).
+/// `[profiles.<name>]`: one training-ready dataset. Every value left out comes from the profile it
+/// `extends`, then from the preset, then from the defaults.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ProfileSpec {
     /// Start from a target architecture's conventions.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub preset: Option<Preset>,
+    /// Start from another profile of this spec (its values, and its preset); anything set here
+    /// overrides it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub extends: Option<String>,
     /// Control rate in Hz. Must divide the source rate by an integer (every n-th step is kept).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fps: Option<f64>,
     /// Action chunk length K, in steps at the profile's rate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub chunk: Option<u32>,
-    /// Number of observation frames per sample, ending at the chunk's first step.
+    /// Number of observation frames per sample, ending at the sample's current step.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub obs_history: Option<u32>,
+    /// Action steps the policy executes before replanning (Diffusion Policy's `n_action_steps`).
+    /// With `alignment = "diffusion_policy"` it bounds the padding after the episode end
+    /// (`pad_after = executes - 1`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub executes: Option<u32>,
+    /// Where the action chunk starts relative to the observation history.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alignment: Option<Alignment>,
     /// What fills an action chunk that runs past the end of its episode.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub padding: Option<Padding>,
@@ -132,39 +144,91 @@ pub struct ProfileSpec {
     /// Output container format.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub format: Option<OutputFormat>,
+    /// Variable-length chunks cut at natural breakpoints instead of fixed windows.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub segment: Option<SegmentSpec>,
+    /// Two-level chunks: a coarse chunk of several seconds and fine chunks inside it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hierarchy: Option<HierarchySpec>,
 }
 
-/// Target-architecture presets.
+/// Target-architecture presets (values and sources in the book's presets chapter).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Preset {
-    /// ACT: K=100 at 50 Hz, one observation, edge padding, z-score.
+    /// ACT: K=100 at 50 Hz, one observation, edge padding + mask, z-score (unbiased std >= 1e-2).
     Act,
-    /// Diffusion Policy: K=16 at 10 Hz, two observations, edge padding, percentile min-max.
+    /// Diffusion Policy: K=16 at 10 Hz, two observations, executes 8, its window alignment and
+    /// `limits` normalization.
     DiffusionPolicy,
+    /// 3D Diffusion Policy: as `diffusion_policy`, point clouds passed through unnormalized.
+    Dp3,
+    /// High-frequency Diffusion Policy: K=32 at 20 Hz, three observations, zero padding + mask.
+    DiffusionPolicyHighfreq,
+    /// LeRobot's ACT: K=100 at the dataset rate, indices clamped, MEAN_STD.
+    LerobotAct,
+    /// LeRobot's Diffusion: horizon 64, two observations, executes 32, MIN_MAX low-dim.
+    LerobotDiffusion,
+    /// openpi (pi0): K=50 at the dataset rate, quantile normalization.
+    Openpi,
 }
 
 impl Preset {
+    pub const ALL: [Preset; 7] = [
+        Preset::Act,
+        Preset::DiffusionPolicy,
+        Preset::Dp3,
+        Preset::DiffusionPolicyHighfreq,
+        Preset::LerobotAct,
+        Preset::LerobotDiffusion,
+        Preset::Openpi,
+    ];
+
     pub fn name(self) -> &'static str {
         match self {
             Preset::Act => "act",
             Preset::DiffusionPolicy => "diffusion_policy",
+            Preset::Dp3 => "dp3",
+            Preset::DiffusionPolicyHighfreq => "diffusion_policy_highfreq",
+            Preset::LerobotAct => "lerobot_act",
+            Preset::LerobotDiffusion => "lerobot_diffusion",
+            Preset::Openpi => "openpi",
         }
     }
 }
 
-/// How an action chunk that runs past its episode's last step is filled.
+/// Where a sample's action chunk starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Alignment {
+    /// Actions start at the current step t (the last observation frame).
+    Current,
+    /// Diffusion Policy's: one window `[t-(To-1), t-(To-1)+K)` for observations and actions, so
+    /// the actions start at the FIRST observation frame.
+    DiffusionPolicy,
+}
+
+impl Alignment {
+    pub fn name(self) -> &'static str {
+        match self {
+            Alignment::Current => "current",
+            Alignment::DiffusionPolicy => "diffusion_policy",
+        }
+    }
+}
+
+/// How an action chunk that runs past either end of its episode is filled.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Padding {
-    /// Repeat the episode's last action.
+    /// Repeat the episode's first/last action (indices clamped to the episode).
     Edge,
     /// Zeros in raw (physical) units, as ACT's original code pads.
     Zero,
     /// Zeros in normalized units, for losses that mask padded steps with `action_is_pad`.
     Mask,
-    /// Drop every sample that would need padding (actions past the end, or observation history
-    /// before the start).
+    /// Drop every sample that would need padding (actions past either end, or observation
+    /// history before the start).
     Truncate,
 }
 
@@ -179,7 +243,8 @@ impl Padding {
     }
 }
 
-/// Normalization applied to a channel's stored values (and inverted by the loader).
+/// Normalization applied to a channel's stored values (and inverted by the loader). Every mode
+/// is stored as `y = (x - center) / scale`, optionally clipped to [-1, 1].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum NormalizeMode {
@@ -188,6 +253,15 @@ pub enum NormalizeMode {
     /// Maps the 0.1th..99.9th percentile range to [-1, 1], then clips. A dimension whose range is
     /// below 1e-4 maps to 0.
     Minmax,
+    /// Diffusion Policy's `limits`: maps [min, max] to [-1, 1]; a dimension whose range is below
+    /// 1e-4 gets scale 1 and maps its minimum to 0.
+    Limits,
+    /// openpi's quantile normalization: `(x - q01) / (q99 - q01 + 1e-6) * 2 - 1`, not clipped.
+    Quantile,
+    /// LeRobot's MEAN_STD: `(x - mean) / (std + 1e-8)` with the population std.
+    LerobotMeanStd,
+    /// LeRobot's MIN_MAX: `(x - min) / (max - min + 1e-8) * 2 - 1`.
+    LerobotMinMax,
     /// Stored as read.
     None,
 }
@@ -197,9 +271,62 @@ impl NormalizeMode {
         match self {
             NormalizeMode::Zscore => "zscore",
             NormalizeMode::Minmax => "minmax",
+            NormalizeMode::Limits => "limits",
+            NormalizeMode::Quantile => "quantile",
+            NormalizeMode::LerobotMeanStd => "lerobot_mean_std",
+            NormalizeMode::LerobotMinMax => "lerobot_min_max",
             NormalizeMode::None => "none",
         }
     }
+}
+
+/// `[profiles.<name>.segment]`: cut each episode at natural breakpoints. Each segment becomes one
+/// sample whose actions are padded to `max_length` with a mask.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SegmentSpec {
+    /// What marks a breakpoint.
+    pub method: SegmentMethod,
+    /// The channel watched (`action` or `observation.<name>`).
+    pub channel: String,
+    /// Dimensions of that channel to watch; all when left out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dims: Option<Vec<u32>>,
+    /// Trailing moving-average window, in steps, applied before looking for breakpoints.
+    #[serde(default = "one")]
+    pub smoothing: u32,
+    /// Values (or velocities) within ±threshold do not change the sign that is tracked.
+    #[serde(default)]
+    pub threshold: f64,
+    /// Breakpoints closer than this to the previous one are dropped.
+    #[serde(default = "one")]
+    pub min_length: u32,
+    /// Longer segments are split; also the padded length of every sample. Defaults to `chunk`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_length: Option<u32>,
+}
+
+fn one() -> u32 {
+    1
+}
+
+/// Breakpoint detectors.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SegmentMethod {
+    /// Zero crossings of the velocity (first difference) of the watched dimensions.
+    Velocity,
+    /// Sign changes of the watched values themselves (a gripper command, a contact flag).
+    SignChange,
+}
+
+/// `[profiles.<name>.hierarchy]`: coarse chunks of `coarse_seconds`, cut into fine chunks of
+/// `chunk` steps. Each sample is one fine chunk with its coarse chunk.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct HierarchySpec {
+    /// Length of the coarse chunk in seconds (rounded to whole steps at the profile's rate).
+    pub coarse_seconds: f64,
 }
 
 /// Output container formats.

@@ -1,95 +1,299 @@
-//! Preset expansion: turns a [`ProfileSpec`] as written into a fully explicit [`Profile`].
+//! Preset expansion: turns a [`ProfileSpec`] as written (and the chain of profiles it `extends`)
+//! into a fully explicit [`Profile`], remembering where every value came from.
 //!
-//! The values and where they come from are documented in the book's presets chapter and in
-//! `TARGETS.md` ("Default chunk parameters").
+//! Precedence, highest first: the profile's own keys, the profiles it extends (nearest first),
+//! the preset (the nearest one in that chain), the defaults. The values and their sources are
+//! documented in the book's presets chapter and in `TARGETS.md`.
 
 use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use super::model::{NormalizeMode, OutputFormat, Padding, Preset, ProfileSpec};
+use super::model::{
+    Alignment, HierarchySpec, NormalizeMode, OutputFormat, Padding, Preset, ProfileSpec,
+    SegmentSpec,
+};
 
 /// A profile with every value decided. Later stages never look at presets again.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Profile {
     pub name: String,
     pub preset: Option<Preset>,
+    pub extends: Option<String>,
     /// Control rate in Hz; `None` means "the source's rate".
     pub fps: Option<f64>,
     pub chunk: u32,
     pub obs_history: u32,
+    /// Steps executed per chunk; bounds the padding after the episode end to `executes - 1`.
+    pub executes: Option<u32>,
+    pub alignment: Alignment,
     pub padding: Padding,
     pub stride: u32,
-    /// Window alignment convention. Only `current` (actions start at the sample's step t, the
-    /// observation history ends at t) exists so far.
-    pub alignment: &'static str,
-    /// Mode for low-dimensional channels not named in `normalize`.
+    /// Mode for low-dimensional channels with one value vector per step, when not in `normalize`.
     pub normalize_lowdim: NormalizeMode,
-    /// Explicit per-channel modes from the spec.
+    /// Mode for low-dimensional channels with a matrix per step (point clouds, keypoints).
+    pub normalize_multidim: NormalizeMode,
+    /// Explicit per-channel modes from the spec (merged along the `extends` chain).
     pub normalize: BTreeMap<String, NormalizeMode>,
     pub format: OutputFormat,
+    pub segment: Option<SegmentSpec>,
+    pub hierarchy: Option<HierarchySpec>,
+    /// Where each value came from: `profiles.<name>`, `preset <name>` or `default`.
+    pub origins: BTreeMap<&'static str, String>,
 }
 
-/// The values a preset supplies.
+/// The values a preset supplies (see TARGETS.md, "Default chunk parameters").
 struct PresetValues {
     fps: Option<f64>,
     chunk: Option<u32>,
     obs_history: u32,
+    executes: Option<u32>,
+    alignment: Alignment,
     padding: Padding,
     normalize_lowdim: NormalizeMode,
+    normalize_multidim: NormalizeMode,
 }
 
-fn preset_values(preset: Option<Preset>) -> PresetValues {
+fn preset_values(preset: Preset) -> PresetValues {
+    use NormalizeMode as N;
+    let base = PresetValues {
+        fps: None,
+        chunk: None,
+        obs_history: 1,
+        executes: None,
+        alignment: Alignment::Current,
+        padding: Padding::Edge,
+        normalize_lowdim: N::None,
+        normalize_multidim: N::None,
+    };
+    let dp = PresetValues {
+        fps: Some(10.0),
+        chunk: Some(16),
+        obs_history: 2,
+        executes: Some(8),
+        alignment: Alignment::DiffusionPolicy,
+        normalize_lowdim: N::Limits,
+        normalize_multidim: N::Limits,
+        ..base
+    };
     match preset {
-        // ACT: K=100 at 50 Hz, the current observation only, z-score (TARGETS.md).
-        Some(Preset::Act) => PresetValues {
+        // ACT: K=100 at 50 Hz, the current observation only, z-score (get_norm_stats).
+        Preset::Act => PresetValues {
             fps: Some(50.0),
             chunk: Some(100),
-            obs_history: 1,
-            padding: Padding::Edge,
-            normalize_lowdim: NormalizeMode::Zscore,
+            normalize_lowdim: N::Zscore,
+            normalize_multidim: N::Zscore,
+            ..base
         },
-        // Diffusion Policy: K=16 at 10 Hz, two observations, percentile min-max.
-        Some(Preset::DiffusionPolicy) => PresetValues {
-            fps: Some(10.0),
-            chunk: Some(16),
+        // Diffusion Policy: horizon 16, n_obs_steps 2, n_action_steps 8, LinearNormalizer limits.
+        Preset::DiffusionPolicy => dp,
+        // 3D Diffusion Policy: the same, with point clouds (matrix-valued channels) unnormalized.
+        Preset::Dp3 => PresetValues {
+            normalize_multidim: N::None,
+            ..dp
+        },
+        // High-frequency Diffusion Policy: K=32 at 20 Hz, three observations, zero + mask.
+        Preset::DiffusionPolicyHighfreq => PresetValues {
+            fps: Some(20.0),
+            chunk: Some(32),
+            obs_history: 3,
+            executes: Some(16),
+            padding: Padding::Zero,
+            ..dp
+        },
+        // LeRobot ACT: chunk_size 100, n_obs_steps 1, MEAN_STD, every frame a sample.
+        Preset::LerobotAct => PresetValues {
+            chunk: Some(100),
+            normalize_lowdim: N::LerobotMeanStd,
+            normalize_multidim: N::LerobotMeanStd,
+            ..base
+        },
+        // LeRobot Diffusion: horizon 64, n_obs_steps 2, actions from the first observation
+        // frame (delta indices start at 1 - n_obs_steps), MIN_MAX, every frame a sample.
+        Preset::LerobotDiffusion => PresetValues {
+            chunk: Some(64),
             obs_history: 2,
-            padding: Padding::Edge,
-            normalize_lowdim: NormalizeMode::Minmax,
+            alignment: Alignment::DiffusionPolicy,
+            normalize_lowdim: N::LerobotMinMax,
+            normalize_multidim: N::LerobotMinMax,
+            ..base
         },
-        None => PresetValues {
-            fps: None,
-            chunk: None,
-            obs_history: 1,
-            padding: Padding::Edge,
-            normalize_lowdim: NormalizeMode::None,
+        // openpi pi0: action horizon 50 at the dataset rate, quantile normalization.
+        Preset::Openpi => PresetValues {
+            chunk: Some(50),
+            normalize_lowdim: N::Quantile,
+            normalize_multidim: N::Quantile,
+            ..base
         },
     }
 }
 
-/// Expands one profile. Returns the name of the missing key when neither the spec nor the preset
-/// gives a value that has no default (only `chunk`).
-pub fn expand(name: &str, spec: &ProfileSpec) -> Result<Profile, &'static str> {
-    let base = preset_values(spec.preset);
-    let chunk = spec.chunk.or(base.chunk).ok_or("chunk")?;
+/// Why a profile cannot be expanded.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ExpandError {
+    /// A value with no default that neither the chain nor the preset gives.
+    Missing(&'static str),
+    /// `extends` names a profile that does not exist.
+    UnknownParent(String),
+    /// `extends` goes round in a circle (the names in order).
+    Cycle(Vec<String>),
+}
+
+/// The profile and the profiles it extends, nearest first.
+fn chain<'a>(
+    name: &'a str,
+    profiles: &'a BTreeMap<String, ProfileSpec>,
+) -> Result<Vec<(&'a str, &'a ProfileSpec)>, ExpandError> {
+    let mut out: Vec<(&str, &ProfileSpec)> = Vec::new();
+    let mut current = name;
+    loop {
+        if out.iter().any(|(n, _)| *n == current) {
+            let mut names: Vec<String> = out.iter().map(|(n, _)| n.to_string()).collect();
+            names.push(current.to_string());
+            return Err(ExpandError::Cycle(names));
+        }
+        let spec = profiles
+            .get(current)
+            .ok_or_else(|| ExpandError::UnknownParent(current.to_string()))?;
+        out.push((current, spec));
+        match &spec.extends {
+            Some(parent) => current = parent,
+            None => return Ok(out),
+        }
+    }
+}
+
+/// Expands the profile `name` of `profiles`.
+pub fn expand(
+    name: &str,
+    profiles: &BTreeMap<String, ProfileSpec>,
+) -> Result<Profile, ExpandError> {
+    let chain = chain(name, profiles)?;
+    let mut origins = BTreeMap::new();
+
+    // The nearest profile in the chain that sets a key wins.
+    macro_rules! pick {
+        ($field:ident) => {{
+            let found = chain
+                .iter()
+                .find_map(|(n, p)| p.$field.clone().map(|v| (v, format!("profiles.{n}"))));
+            if let Some((_, from)) = &found {
+                origins.insert(stringify!($field), from.clone());
+            }
+            found.map(|(v, _)| v)
+        }};
+    }
+
+    let preset = pick!(preset);
+    let from_preset = preset.map(|p| format!("preset {}", p.name()));
+    let base = preset.map(preset_values);
+
+    // A value from the chain, else from the preset, else a default.
+    macro_rules! resolve {
+        ($field:ident, $preset_value:expr, $default:expr, $wrap:expr) => {{
+            match pick!($field) {
+                Some(v) => $wrap(v),
+                None => match base.as_ref().and_then($preset_value) {
+                    Some(v) => {
+                        origins.insert(stringify!($field), from_preset.clone().unwrap());
+                        v
+                    }
+                    None => {
+                        origins.insert(stringify!($field), "default".to_string());
+                        $default
+                    }
+                },
+            }
+        }};
+    }
+
+    let fps = resolve!(fps, |b: &PresetValues| b.fps.map(Some), None, Some);
+    let chunk = match resolve!(chunk, |b: &PresetValues| b.chunk.map(Some), None, Some) {
+        Some(c) => c,
+        None => return Err(ExpandError::Missing("chunk")),
+    };
+    let obs_history = resolve!(
+        obs_history,
+        |b: &PresetValues| Some(b.obs_history),
+        1,
+        std::convert::identity
+    );
+    let executes = resolve!(
+        executes,
+        |b: &PresetValues| b.executes.map(Some),
+        None,
+        Some
+    );
+    let alignment = resolve!(
+        alignment,
+        |b: &PresetValues| Some(b.alignment),
+        Alignment::Current,
+        std::convert::identity
+    );
+    let padding = resolve!(
+        padding,
+        |b: &PresetValues| Some(b.padding),
+        Padding::Edge,
+        std::convert::identity
+    );
+    let stride = resolve!(stride, |_: &PresetValues| None, 1, std::convert::identity);
+    let format = resolve!(
+        format,
+        |_: &PresetValues| None,
+        OutputFormat::Hdf5,
+        std::convert::identity
+    );
+    let segment = pick!(segment);
+    let hierarchy = pick!(hierarchy);
+    let extends = profiles[name].extends.clone();
+
+    // Per-channel modes merge along the chain: farthest first, so nearer profiles override.
+    let mut normalize = BTreeMap::new();
+    for (_, p) in chain.iter().rev() {
+        if let Some(map) = &p.normalize {
+            normalize.extend(map.iter().map(|(k, v)| (k.clone(), *v)));
+        }
+    }
+    let (normalize_lowdim, normalize_multidim) = base
+        .as_ref()
+        .map(|b| (b.normalize_lowdim, b.normalize_multidim))
+        .unwrap_or((NormalizeMode::None, NormalizeMode::None));
+    origins.insert(
+        "normalize",
+        from_preset.clone().unwrap_or_else(|| "default".into()),
+    );
+
     Ok(Profile {
         name: name.to_string(),
-        preset: spec.preset,
-        fps: spec.fps.or(base.fps),
+        preset,
+        extends,
+        fps,
         chunk,
-        obs_history: spec.obs_history.unwrap_or(base.obs_history),
-        padding: spec.padding.unwrap_or(base.padding),
-        stride: spec.stride.unwrap_or(1),
-        alignment: "current",
-        normalize_lowdim: base.normalize_lowdim,
-        normalize: spec.normalize.clone().unwrap_or_default(),
-        format: spec.format.unwrap_or(OutputFormat::Hdf5),
+        obs_history,
+        executes,
+        alignment,
+        padding,
+        stride,
+        normalize_lowdim,
+        normalize_multidim,
+        normalize,
+        format,
+        segment,
+        hierarchy,
+        origins,
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn profiles(items: &[(&str, ProfileSpec)]) -> BTreeMap<String, ProfileSpec> {
+        items
+            .iter()
+            .map(|(n, p)| (n.to_string(), p.clone()))
+            .collect()
+    }
 
     #[test]
     fn override_wins_over_preset() {
@@ -99,13 +303,67 @@ mod tests {
             chunk: Some(20),
             ..Default::default()
         };
-        let p = expand("act", &spec).unwrap();
+        let p = expand("act", &profiles(&[("act", spec)])).unwrap();
         assert_eq!((p.fps, p.chunk, p.obs_history), (Some(10.0), 20, 1));
         assert_eq!(p.normalize_lowdim, NormalizeMode::Zscore);
+        assert_eq!(p.origins["chunk"], "profiles.act");
+        assert_eq!(p.origins["obs_history"], "preset act");
+        assert_eq!(p.origins["stride"], "default");
     }
 
     #[test]
     fn no_preset_needs_chunk() {
-        assert_eq!(expand("x", &ProfileSpec::default()), Err("chunk"));
+        let all = profiles(&[("x", ProfileSpec::default())]);
+        assert_eq!(expand("x", &all), Err(ExpandError::Missing("chunk")));
+    }
+
+    #[test]
+    fn extends_inherits_and_overrides() {
+        let base = ProfileSpec {
+            preset: Some(Preset::DiffusionPolicy),
+            chunk: Some(24),
+            normalize: Some([("action".to_string(), NormalizeMode::Minmax)].into()),
+            ..Default::default()
+        };
+        let child = ProfileSpec {
+            extends: Some("base".into()),
+            stride: Some(4),
+            ..Default::default()
+        };
+        let all = profiles(&[("base", base), ("child", child)]);
+        let p = expand("child", &all).unwrap();
+        assert_eq!((p.chunk, p.stride, p.obs_history), (24, 4, 2));
+        assert_eq!(p.preset, Some(Preset::DiffusionPolicy));
+        assert_eq!(p.alignment, Alignment::DiffusionPolicy);
+        assert_eq!(p.normalize["action"], NormalizeMode::Minmax);
+        assert_eq!(p.origins["chunk"], "profiles.base");
+        assert_eq!(p.origins["stride"], "profiles.child");
+        assert_eq!(p.origins["obs_history"], "preset diffusion_policy");
+    }
+
+    #[test]
+    fn extends_cycles_and_unknown_parents_are_errors() {
+        let a = ProfileSpec {
+            extends: Some("b".into()),
+            ..Default::default()
+        };
+        let b = ProfileSpec {
+            extends: Some("a".into()),
+            ..Default::default()
+        };
+        let all = profiles(&[("a", a), ("b", b)]);
+        assert_eq!(
+            expand("a", &all),
+            Err(ExpandError::Cycle(vec!["a".into(), "b".into(), "a".into()]))
+        );
+        let orphan = ProfileSpec {
+            extends: Some("nope".into()),
+            ..Default::default()
+        };
+        let all = profiles(&[("x", orphan)]);
+        assert_eq!(
+            expand("x", &all),
+            Err(ExpandError::UnknownParent("nope".into()))
+        );
     }
 }

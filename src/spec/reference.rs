@@ -324,7 +324,7 @@ mod tests {
         let values: Vec<_> = padding.allowed.iter().map(|(v, _)| v.as_str()).collect();
         assert_eq!(values, ["edge", "zero", "mask", "truncate"]);
         let mode = lookup(&["profiles", "act", "normalize", "action"]).unwrap();
-        assert_eq!(mode.allowed.len(), 3);
+        assert_eq!(mode.allowed.len(), 7);
         let path = lookup(&["source", "path"]).unwrap();
         assert!(path.required);
         assert_eq!(path.ty, "string");
@@ -344,6 +344,8 @@ mod tests {
                 "[output]",
                 "[profiles.<name>]",
                 "[profiles.<name>.normalize]",
+                "[profiles.<name>.segment]",
+                "[profiles.<name>.hierarchy]",
             ]
         );
     }

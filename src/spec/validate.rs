@@ -6,7 +6,7 @@
 use super::diagnostic::{backticked, did_you_mean, suggest, Diagnostic};
 use super::load::{dotted, LoadedSpec, Target};
 use super::model::{OutputFormat, Preset, ProfileSpec, SourceFormat};
-use super::preset::{self, Profile};
+use super::preset::{self, ExpandError, Profile};
 
 /// Checks the spec and expands its profiles (in name order).
 pub(crate) fn check(loaded: &LoadedSpec) -> Result<Vec<Profile>, Vec<Diagnostic>> {
@@ -160,14 +160,75 @@ impl Checker<'_> {
             self.value(&key("format"), message, "not supported yet", help);
         }
 
-        match preset::expand(name, profile) {
+        if let Some(segment) = &profile.segment {
+            if !channels.contains(&segment.channel.as_str()) {
+                let message = format!(
+                    "`segment.channel` names `{}`, which is not a channel in `[source.channels]`",
+                    segment.channel
+                );
+                let help = did_you_mean(&segment.channel, &channels, "channel");
+                let at = ["profiles", name, "segment", "channel"];
+                self.value(&at, message, "unknown channel", help);
+            }
+            for (k, value) in [
+                ("smoothing", Some(segment.smoothing)),
+                ("min_length", Some(segment.min_length)),
+                ("max_length", segment.max_length),
+            ] {
+                if value == Some(0) {
+                    let at = ["profiles", name, "segment", k];
+                    let message = format!("`{}` must be at least 1", dotted(&at));
+                    self.value(&at, message, "must be at least 1", None);
+                }
+            }
+            if !(segment.threshold.is_finite() && segment.threshold >= 0.0) {
+                let at = ["profiles", name, "segment", "threshold"];
+                let message = format!("`{}` must be a finite number >= 0", dotted(&at));
+                self.value(&at, message, "must be >= 0", None);
+            }
+            if profile.hierarchy.is_some() {
+                let at = ["profiles", name, "hierarchy"];
+                let message =
+                    format!("profile `{name}` has both `segment` and `hierarchy`; choose one");
+                self.key(&at, message, "conflicts with `segment`", None);
+            }
+        }
+        if let Some(h) = &profile.hierarchy {
+            if !(h.coarse_seconds.is_finite() && h.coarse_seconds > 0.0) {
+                let at = ["profiles", name, "hierarchy", "coarse_seconds"];
+                let message = format!("`{}` must be a positive number of seconds", dotted(&at));
+                self.value(&at, message, "must be > 0", None);
+            }
+        }
+
+        match preset::expand(name, &self.loaded.spec.profiles) {
             Ok(expanded) => Some(expanded),
-            Err(missing) => {
+            Err(ExpandError::Missing(missing)) => {
                 let message =
                     format!("profile `{name}` has no `{missing}` and no preset to take it from");
-                let presets = [Preset::Act, Preset::DiffusionPolicy].map(Preset::name);
+                let presets = Preset::ALL.map(Preset::name);
                 let help = format!("set `{missing} = …` or a preset: {}", backticked(&presets));
                 self.value(&key(missing), message, "", Some(help));
+                None
+            }
+            Err(ExpandError::UnknownParent(parent)) => {
+                let message = format!(
+                    "profile `{name}` extends `{parent}`, which is not a profile of this spec"
+                );
+                let names: Vec<&str> = self
+                    .loaded
+                    .spec
+                    .profiles
+                    .keys()
+                    .map(String::as_str)
+                    .collect();
+                let help = did_you_mean(&parent, &names, "profile");
+                self.value(&key("extends"), message, "unknown profile", help);
+                None
+            }
+            Err(ExpandError::Cycle(names)) => {
+                let message = format!("`extends` goes round in a circle: {}", names.join(" -> "));
+                self.value(&key("extends"), message, "circular", None);
                 None
             }
         }

@@ -19,7 +19,8 @@ use serde::Serialize;
 
 /// The numbers `stats.json` holds for one channel. Vectors have one entry per dimension
 /// (per colour channel for images, in stored 0..255 units). `std` is the population standard
-/// deviation (ddof = 0); `p001`/`p999` are the 0.1th and 99.9th percentiles.
+/// deviation (ddof = 0); `p001`/`p999` are the 0.1th and 99.9th percentiles, `q01`/`q99` the 1st
+/// and 99th (openpi's quantile normalization uses those).
 #[derive(Debug, Clone, Serialize)]
 pub struct ChannelStats {
     pub mean: Vec<f64>,
@@ -28,6 +29,8 @@ pub struct ChannelStats {
     pub max: Vec<f64>,
     pub p001: Vec<f64>,
     pub p999: Vec<f64>,
+    pub q01: Vec<f64>,
+    pub q99: Vec<f64>,
     /// Number of timesteps the statistics cover.
     pub count: u64,
     /// Kept for normalization modes that need another ddof; not serialized.
@@ -43,23 +46,22 @@ pub fn lowdim<'a>(blocks: impl Iterator<Item = &'a [f32]> + Clone, dims: usize) 
         m.merge(&Moments::of_rows(block, dims));
     }
     let rows = m.count as usize;
-    let mut p001 = Vec::with_capacity(dims);
-    let mut p999 = Vec::with_capacity(dims);
+    let mut pct = vec![Vec::with_capacity(dims); PERCENTILES.len()];
     let mut column = Vec::with_capacity(rows);
     for d in 0..dims {
         column.clear();
         for block in blocks.clone() {
             column.extend(block.iter().skip(d).step_by(dims));
         }
-        if column.is_empty() {
-            p001.push(f64::NAN);
-            p999.push(f64::NAN);
-        } else {
-            p001.push(percentile(&mut column, 0.1));
-            p999.push(percentile(&mut column, 99.9));
+        for (out, q) in pct.iter_mut().zip(PERCENTILES) {
+            out.push(if column.is_empty() {
+                f64::NAN
+            } else {
+                percentile(&mut column, q)
+            });
         }
     }
-    finish(m, p001, p999, rows as u64)
+    finish(m, pct, rows as u64)
 }
 
 /// Per-episode partial statistics of an image channel (per colour channel).
@@ -127,24 +129,30 @@ impl ImagePartial {
 
     pub fn finish(self) -> ChannelStats {
         let has = self.moments.count > 0;
-        let pct = |q| {
-            self.hist
-                .iter()
-                .map(|h| {
-                    if has {
-                        percentile_of_histogram(h, q)
-                    } else {
-                        f64::NAN
-                    }
-                })
-                .collect()
-        };
-        let (p001, p999) = (pct(0.1), pct(99.9));
-        finish(self.moments, p001, p999, self.frames)
+        let pct = PERCENTILES
+            .iter()
+            .map(|&q| {
+                self.hist
+                    .iter()
+                    .map(|h| {
+                        if has {
+                            percentile_of_histogram(h, q)
+                        } else {
+                            f64::NAN
+                        }
+                    })
+                    .collect::<Vec<f64>>()
+            })
+            .collect();
+        finish(self.moments, pct, self.frames)
     }
 }
 
-fn finish(m: Moments, p001: Vec<f64>, p999: Vec<f64>, count: u64) -> ChannelStats {
+/// The percentiles every channel gets, in the order `finish` expects.
+const PERCENTILES: [f64; 4] = [0.1, 99.9, 1.0, 99.0];
+
+fn finish(m: Moments, pct: Vec<Vec<f64>>, count: u64) -> ChannelStats {
+    let [p001, p999, q01, q99]: [Vec<f64>; 4] = pct.try_into().expect("one vector per percentile");
     let empty = m.count == 0;
     let fix = |v: &Vec<f64>| -> Vec<f64> {
         if empty {
@@ -160,6 +168,8 @@ fn finish(m: Moments, p001: Vec<f64>, p999: Vec<f64>, count: u64) -> ChannelStat
         max: fix(&m.max),
         p001,
         p999,
+        q01,
+        q99,
         count,
         moments: m,
     }

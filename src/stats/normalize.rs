@@ -8,9 +8,13 @@ use crate::spec::NormalizeMode;
 
 /// ACT clips its (unbiased) standard deviation to at least this (`get_norm_stats`).
 pub const ZSCORE_STD_FLOOR: f64 = 1e-2;
-/// Below this percentile range a dimension is treated as constant and mapped to 0 (Diffusion
-/// Policy's `limits` normalizer uses the same threshold when fitting).
+/// Below this range a dimension is treated as constant and mapped to 0 (Diffusion Policy's
+/// `limits` normalizer uses the same threshold when fitting).
 pub const MINMAX_RANGE_EPS: f64 = 1e-4;
+/// LeRobot adds this to `std` (MEAN_STD) and to `max - min` (MIN_MAX).
+pub const LEROBOT_EPS: f64 = 1e-8;
+/// openpi adds this to `q99 - q01`.
+pub const OPENPI_EPS: f64 = 1e-6;
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Normalizer {
@@ -22,44 +26,68 @@ pub struct Normalizer {
 }
 
 impl Normalizer {
+    fn new(mode: NormalizeMode, center: Vec<f64>, scale: Vec<f64>, clip: bool) -> Self {
+        Normalizer {
+            mode,
+            center,
+            scale,
+            clip,
+        }
+    }
+
+    /// Maps `[lo, hi]` per dimension onto [-1, 1] (center and half-width).
+    fn range(mode: NormalizeMode, lo: &[f64], hi: &[f64], eps: f64, clip: bool) -> Self {
+        let center = lo
+            .iter()
+            .zip(hi)
+            .map(|(l, h)| l + (h - l + eps) / 2.0)
+            .collect();
+        let scale = lo
+            .iter()
+            .zip(hi)
+            .map(|(l, h)| (h - l + eps) / 2.0)
+            .collect();
+        Normalizer::new(mode, center, scale, clip)
+    }
+
     pub fn fit(mode: NormalizeMode, stats: &ChannelStats) -> Self {
         let dims = stats.mean.len();
         match mode {
-            NormalizeMode::None => Normalizer {
-                mode,
-                center: vec![0.0; dims],
-                scale: vec![1.0; dims],
-                clip: false,
-            },
-            NormalizeMode::Zscore => Normalizer {
-                mode,
-                center: stats.mean.clone(),
-                scale: stats
-                    .moments
-                    .std(1)
-                    .into_iter()
-                    .map(|s| s.max(ZSCORE_STD_FLOOR))
-                    .collect(),
-                clip: false,
-            },
-            NormalizeMode::Minmax => {
+            NormalizeMode::None => Normalizer::new(mode, vec![0.0; dims], vec![1.0; dims], false),
+            NormalizeMode::Zscore => {
+                let std = stats.moments.std(1);
+                let scale = std.into_iter().map(|s| s.max(ZSCORE_STD_FLOOR)).collect();
+                Normalizer::new(mode, stats.mean.clone(), scale, false)
+            }
+            NormalizeMode::LerobotMeanStd => {
+                let scale = stats.std.iter().map(|s| s + LEROBOT_EPS).collect();
+                Normalizer::new(mode, stats.mean.clone(), scale, false)
+            }
+            NormalizeMode::LerobotMinMax => {
+                Normalizer::range(mode, &stats.min, &stats.max, LEROBOT_EPS, false)
+            }
+            NormalizeMode::Quantile => {
+                Normalizer::range(mode, &stats.q01, &stats.q99, OPENPI_EPS, false)
+            }
+            NormalizeMode::Minmax | NormalizeMode::Limits => {
+                let (lo, hi, clip) = if mode == NormalizeMode::Minmax {
+                    (&stats.p001, &stats.p999, true)
+                } else {
+                    (&stats.min, &stats.max, false)
+                };
                 let mut center = Vec::with_capacity(dims);
                 let mut scale = Vec::with_capacity(dims);
-                for (&lo, &hi) in stats.p001.iter().zip(&stats.p999) {
+                for (&lo, &hi) in lo.iter().zip(hi) {
                     if hi - lo < MINMAX_RANGE_EPS {
-                        center.push(0.5 * (lo + hi));
+                        // Diffusion Policy: scale 1, and the minimum maps to 0.
+                        center.push(lo);
                         scale.push(1.0);
                     } else {
                         center.push(0.5 * (lo + hi));
                         scale.push(0.5 * (hi - lo));
                     }
                 }
-                Normalizer {
-                    mode,
-                    center,
-                    scale,
-                    clip: true,
-                }
+                Normalizer::new(mode, center, scale, clip)
             }
         }
     }
@@ -105,6 +133,28 @@ mod tests {
         assert!((n.forward(0, stats.p001[0]) + 1.0).abs() < 1e-12);
         assert!((n.forward(0, stats.p999[0]) - 1.0).abs() < 1e-12);
         assert_eq!(n.forward(1, 3.0), 0.0);
+    }
+
+    #[test]
+    fn limits_use_true_min_max_and_map_constant_min_to_zero() {
+        let values: Vec<f32> = (0..11).flat_map(|i| [i as f32, 7.0]).collect();
+        let stats = lowdim(std::iter::once(&values[..]), 2);
+        let n = Normalizer::fit(NormalizeMode::Limits, &stats);
+        assert_eq!((n.forward(0, 0.0), n.forward(0, 10.0)), (-1.0, 1.0));
+        assert_eq!(n.forward(1, 7.0), 0.0);
+        assert!(!n.clip);
+    }
+
+    #[test]
+    fn quantile_matches_openpi_formula() {
+        let values: Vec<f32> = (0..201).map(|i| i as f32).collect();
+        let stats = lowdim(std::iter::once(&values[..]), 1);
+        let n = Normalizer::fit(NormalizeMode::Quantile, &stats);
+        let (q01, q99) = (stats.q01[0], stats.q99[0]);
+        for x in [0.0, 17.0, 150.0, 200.0] {
+            let want = (x - q01) / (q99 - q01 + OPENPI_EPS) * 2.0 - 1.0;
+            assert!((n.forward(0, x) - want).abs() < 1e-12);
+        }
     }
 
     #[test]

@@ -22,6 +22,25 @@ def norm_params(mode, train_values):
         center = (lo + hi) / 2
         scale = np.where(hi - lo < 1e-4, 1.0, (hi - lo) / 2)
         return center, scale, True
+    if mode == "limits":
+        # Diffusion Policy's LinearNormalizer "limits" fit, written as its scale/offset and
+        # converted: y = x*scale + offset  <=>  y = (x - center)/s with s = 1/scale.
+        lo, hi = x.min(axis=0), x.max(axis=0)
+        rng = hi - lo
+        ignore = rng < 1e-4
+        rng = np.where(ignore, 2.0, rng)
+        dp_scale = 2.0 / rng
+        dp_offset = np.where(ignore, 0.0 - lo, -1.0 - dp_scale * lo)
+        return -dp_offset / dp_scale, 1.0 / dp_scale, False
+    if mode == "quantile":
+        q01, q99 = np.percentile(x, 1, axis=0), np.percentile(x, 99, axis=0)
+        r = q99 - q01 + 1e-6
+        return q01 + r / 2, r / 2, False
+    if mode == "lerobot_mean_std":
+        return x.mean(axis=0), x.std(axis=0) + 1e-8, False
+    if mode == "lerobot_min_max":
+        r = x.max(axis=0) - x.min(axis=0) + 1e-8
+        return x.min(axis=0) + r / 2, r / 2, False
     raise ValueError(mode)
 
 
@@ -31,20 +50,23 @@ def normalize(x, params):
     return np.clip(y, -1, 1) if clip else y
 
 
-def expected_starts(length, chunk, obs_history, padding, stride):
+def expected_starts(length, chunk, obs_history, padding, stride, lead=0, max_pad_after=None):
+    """Current steps t of the samples of one episode (see the book's windows chapter)."""
     if padding == "truncate":
-        first, end = obs_history - 1, length - chunk + 1
+        first, end = max(obs_history - 1, lead), min(length - chunk + lead + 1, length)
     else:
         first, end = 0, length
+        if max_pad_after is not None:
+            end = min(end, length + max_pad_after + lead - chunk + 1)
     return list(range(first, end, stride)) if end > first else []
 
 
-def action_window(actions, t, chunk, padding, params):
+def action_window(actions, t, chunk, padding, params, lead=0):
     """Normalized action chunk and pad mask for the sample at step t of one episode."""
     length = len(actions)
-    rows = np.arange(t, t + chunk)
-    is_pad = rows >= length
-    raw = actions[np.minimum(rows, length - 1)].astype(np.float64)  # edge repetition
+    rows = np.arange(t - lead, t - lead + chunk)
+    is_pad = (rows < 0) | (rows >= length)
+    raw = actions[np.clip(rows, 0, length - 1)].astype(np.float64)  # edge repetition
     out = normalize(raw, params)
     if padding == "zero":
         out[is_pad] = normalize(np.zeros((1, actions.shape[1])), params)[0]

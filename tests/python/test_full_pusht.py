@@ -47,11 +47,12 @@ def test_full_pusht_builds_and_matches_numpy(tmp_path):
     import loader
 
     ds = loader.ChunkedDataset(str(tmp_path / "out" / "dp"))
-    params = norm_params("minmax", train)
+    params = norm_params(meta["normalization"]["action"]["mode"], train)
+    lead = meta["action_lead"]
     for i in range(0, len(ds), 997):
         s = ds[i]
         e, t = s["episode_index"], s["frame_index"]
-        want, pad = action_window(raw.episode("action", e), t, 16, "edge", params)
+        want, pad = action_window(raw.episode("action", e), t, 16, "edge", params, lead)
         np.testing.assert_allclose(s["action"], want, rtol=1e-6, atol=1e-6)
         np.testing.assert_array_equal(s["action_is_pad"], pad)
         img = raw.episode("img", e)[max(t - 1, 0) : t + 1]

@@ -55,6 +55,8 @@ def test_lowdim_stats_match_numpy(built, raw, profile):
         rel_close(s["max"], x.max(axis=0))
         rel_close(s["p001"], np.percentile(x, 0.1, axis=0))
         rel_close(s["p999"], np.percentile(x, 99.9, axis=0))
+        rel_close(s["q01"], np.percentile(x, 1, axis=0))
+        rel_close(s["q99"], np.percentile(x, 99, axis=0))
 
 
 def test_image_stats_match_numpy(built, raw):

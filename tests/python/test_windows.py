@@ -73,6 +73,7 @@ def test_every_training_window_matches_numpy(built, raw, profile):
     meta = json.loads((root / "meta.json").read_text())
     k, h = meta["chunk_size"], meta["obs_history"]
     padding, stride = meta["padding"], meta["stride"]
+    lead, max_pad_after = meta["action_lead"], meta["max_pad_after"]
     factor = meta["rate"]["factor"]
     train_ids = set(meta["split"]["train"])
     episodes = meta["episodes"]
@@ -102,8 +103,9 @@ def test_every_training_window_matches_numpy(built, raw, profile):
     for pos, e in enumerate(episodes):
         if e in train_ids:
             length = ends[pos] - starts[pos]
-            want_index += [(pos, t) for t in expected_starts(length, k, h, padding, stride)]
-    np.testing.assert_array_equal(index, np.array(want_index).reshape(-1, 2))
+            starts_ = expected_starts(length, k, h, padding, stride, lead, max_pad_after)
+            want_index += [(pos, t, k, 0) for t in starts_]
+    np.testing.assert_array_equal(index, np.array(want_index).reshape(-1, 4))
     lengths = ends - starts
     assert np.all(index[:, 1] < lengths[index[:, 0]])
     assert meta["num_samples"]["train"] == len(index)
@@ -112,17 +114,18 @@ def test_every_training_window_matches_numpy(built, raw, profile):
     loader = load_loader(root)
     ds = loader.ChunkedDataset(str(root), "train")
     assert len(ds) == len(index)
-    for i, (pos, t) in enumerate(index):
+    for i, (pos, t, _, _) in enumerate(index):
         e = episodes[pos]
         s = ds[i]
         assert s["episode_index"] == e and s["frame_index"] == t
         actions = raw.episode("action", e, factor)
-        want_a, want_pad = action_window(actions, t, k, padding, params["action"])
+        want_a, want_pad = action_window(actions, t, k, padding, params["action"], lead)
         np.testing.assert_array_equal(s["action_is_pad"], want_pad)
         np.testing.assert_allclose(s["action"], want_a, rtol=1e-6, atol=1e-6)
         assert s["action"].shape == (k, 2) and s["action"].dtype == np.float32
         state = normalize(raw.episode("state", e, factor), params["observation.state"])
         np.testing.assert_allclose(s["observation.state"], obs_window(state, t, h), rtol=1e-6, atol=1e-6)
+        np.testing.assert_array_equal(s["observation.state_is_pad"], np.arange(t - h + 1, t + 1) < 0)
         if i % 17 == 0:  # images are large: check a regular subset of samples
             img = raw.episode("img", e, factor)
             np.testing.assert_array_equal(s["observation.image"], obs_window(img, t, h).astype(np.uint8))

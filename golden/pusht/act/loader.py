@@ -10,11 +10,14 @@ Works with numpy and h5py alone; when torch is installed, ChunkedDataset is a
 torch.utils.data.Dataset and can go straight into a DataLoader (any num_workers: the HDF5 file
 is opened lazily in each worker process).
 
-Windows (alignment `current`): the sample at step t of an episode takes actions
-t .. t+K-1 and observations t-n_obs+1 .. t; the first observation repeats before the episode
-start. Action steps past the episode end are marked in `action_is_pad` and filled per the
-profile's padding: `edge` repeats the last action, `zero` is 0 in raw units, `mask` is 0 in
-normalized units. A window never crosses an episode boundary.
+Samples: the sample at current step t of an episode has observations t-n_obs+1 .. t (the first
+frame repeated before the episode start, marked in `<name>_is_pad`) and actions starting at
+t - action_lead (0 for alignment `current`; n_obs-1 for `diffusion_policy`, whose actions start
+at the first observation frame). `frame_index` is t. Action steps outside the episode (or past a
+segment's end) are marked in `action_is_pad` and filled per the profile's padding: `edge`
+repeats the nearest action, `zero` is 0 in raw units, `mask` is 0 in normalized units.
+Hierarchical profiles add `coarse_action`, `coarse_action_is_pad`, `fine_index` and
+`coarse_frame_index`. A window never crosses an episode boundary.
 """
 
 import json
@@ -49,8 +52,10 @@ class ChunkedDataset(_DatasetBase):
         self.episode_ends = np.asarray(self.meta["episode_ends"], dtype=np.int64)
         self.episode_starts = np.concatenate([[0], self.episode_ends[:-1]]).astype(np.int64)
         self.episode_ids = np.asarray(self.meta["episodes"], dtype=np.int64)
+        self.action_lead = int(self.meta["action_lead"])
+        self.sampling = self.meta["sampling"]["mode"]
         with h5py.File(self.path, "r") as f:
-            self.index = f["index"][split][()].reshape(-1, 2)
+            self.index = f["index"][split][()].reshape(-1, 4)
         self._norm = {
             name: (
                 np.asarray(p["center"], dtype=np.float64),
@@ -97,42 +102,69 @@ class ChunkedDataset(_DatasetBase):
             return np.zeros_like(last_row)
         return last_row
 
+    def _actions(self, f, start, first, k, stop, length):
+        """K action rows from episode step `first` (may be negative), valid below `stop`."""
+        lo = min(max(first, 0), length - 1)
+        hi = max(min(stop, length), lo + 1)
+        valid = f["data/action"][start + lo : start + hi]
+        n_before = lo - first
+        n_valid = min(len(valid), k - n_before)
+        valid = valid[:n_valid]
+        n_after = k - n_before - n_valid
+        is_pad = np.zeros(k, dtype=bool)
+        is_pad[:n_before] = True
+        is_pad[k - n_after :] = True
+        parts = []
+        if n_before:
+            parts.append(np.repeat(self._pad_value("action", valid[0])[None], n_before, axis=0))
+        parts.append(valid)
+        if n_after:
+            parts.append(np.repeat(self._pad_value("action", valid[-1])[None], n_after, axis=0))
+        action = np.concatenate(parts) if len(parts) > 1 else valid
+        return action.astype(np.float32, copy=False), is_pad
+
     def __getitem__(self, i):
         if i < 0:
             i += len(self)
         if not 0 <= i < len(self):
             raise IndexError(i)
-        ep, t = (int(v) for v in self.index[i])
+        ep, t, limit, sub = (int(v) for v in self.index[i])
         start, end = int(self.episode_starts[ep]), int(self.episode_ends[ep])
         length = end - start
         k, h = self.chunk_size, self.obs_history
         f = self._h5()
 
         sample = {}
-        # Actions t .. t+K-1, padded past the episode end.
-        stop = min(t + k, length)
-        action = f["data/action"][start + t : start + stop]
-        is_pad = np.zeros(k, dtype=bool)
-        if stop - t < k:
-            is_pad[stop - t :] = True
-            fill = self._pad_value("action", action[-1])
-            action = np.concatenate([action, np.repeat(fill[None], k - (stop - t), axis=0)])
-        sample["action"] = action.astype(np.float32, copy=False)
-        sample["action_is_pad"] = is_pad
+        if self.sampling == "hierarchy":
+            # `limit` is the coarse chunk; the fine chunk `sub` lies inside it.
+            fine_start = t + sub * k
+            coarse_stop = min(t + limit, length)
+            sample["action"], sample["action_is_pad"] = self._actions(f, start, fine_start, k, coarse_stop, length)
+            sample["coarse_action"], sample["coarse_action_is_pad"] = self._actions(
+                f, start, t, limit, coarse_stop, length
+            )
+            sample["fine_index"] = sub
+            sample["coarse_frame_index"] = t
+            current = fine_start
+        else:
+            first = t - self.action_lead
+            sample["action"], sample["action_is_pad"] = self._actions(f, start, first, k, first + limit, length)
+            current = t
 
-        # Observations t-h+1 .. t, the first frame repeated before the episode start.
-        first = max(t - h + 1, 0)
+        # Observations current-h+1 .. current, the first frame repeated before the episode start.
+        oldest = current - h + 1
         for name in CHANNELS:
             if name == "action":
                 continue
-            obs = f["data/" + name][start + first : start + t + 1]
+            obs = f["data/" + name][start + max(oldest, 0) : start + current + 1]
             missing = h - len(obs)
             if missing:
                 obs = np.concatenate([np.repeat(obs[:1], missing, axis=0), obs])
             sample[name] = obs
+            sample[name + "_is_pad"] = np.arange(oldest, current + 1) < 0
 
         sample["episode_index"] = int(self.episode_ids[ep])
-        sample["frame_index"] = t
+        sample["frame_index"] = current
         return sample
 
 
