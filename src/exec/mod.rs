@@ -14,6 +14,7 @@ mod staging;
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
@@ -43,6 +44,9 @@ pub struct BuildReport {
     pub out_dir: PathBuf,
     pub built: Vec<String>,
     pub up_to_date: Vec<String>,
+    /// How many times each source episode was read (manifest order): 1 each when anything was
+    /// built, whatever the number of profiles and rates; empty when nothing was.
+    pub episode_reads: Vec<usize>,
 }
 
 /// Opens the source and resolves the plan against the lock (what `chunkc plan` shows).
@@ -91,6 +95,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
             out_dir,
             built: Vec::new(),
             up_to_date,
+            episode_reads: Vec::new(),
         });
     }
     if opts.locked {
@@ -105,7 +110,8 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     }
 
     let staging = staging::Staging::new(&out_dir)?;
-    let hashes = run(spec, &plan, &stale, source.as_ref(), &staging, opts)?;
+    let reads: Vec<AtomicUsize> = (0..plan.source.episodes).map(|_| AtomicUsize::new(0)).collect();
+    let hashes = run(spec, &plan, &stale, source.as_ref(), &staging, opts, &reads)?;
     let built: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
     staging.commit(&built)?;
 
@@ -133,6 +139,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         out_dir,
         built,
         up_to_date,
+        episode_reads: reads.into_iter().map(AtomicUsize::into_inner).collect(),
     })
 }
 
@@ -218,6 +225,7 @@ fn run(
     source: &dyn Source,
     staging: &staging::Staging,
     opts: &BuildOptions,
+    reads: &[AtomicUsize],
 ) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
     let manifest = source.manifest();
     let mut factors: Vec<usize> = stale.iter().map(|p| p.rate_factor).collect();
@@ -284,6 +292,7 @@ fn run(
             .map(|&i| {
                 let id = manifest.episodes[i].id;
                 let train = plan.split.is_train(id);
+                reads[i].fetch_add(1, Ordering::Relaxed);
                 catch_unwind(AssertUnwindSafe(|| {
                     source
                         .read_episode(i)

@@ -73,3 +73,14 @@ class RawSource:
 @pytest.fixture(scope="session")
 def raw():
     return RawSource()
+
+
+def make_replay_buffer(path: Path, episodes):
+    """A Diffusion Policy zarr replay buffer from a list of {key: (T, ...) array} episodes."""
+    root = zarr.open_group(str(path), mode="w")
+    lengths = [len(next(iter(e.values()))) for e in episodes]
+    root.create_group("meta").array("episode_ends", np.cumsum(lengths).astype(np.int64))
+    data = root.create_group("data")
+    for key in episodes[0]:
+        data.array(key, np.concatenate([e[key] for e in episodes]), chunks=(64,) + episodes[0][key].shape[1:])
+    return path
