@@ -41,7 +41,8 @@ fps = 5
 #[test]
 fn five_profiles_at_three_rates_read_each_episode_once() {
     let dir = tempfile::tempdir().unwrap();
-    let source = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/pusht_subset.zarr");
+    let source =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/pusht_subset.zarr");
     let text = spec_text(&source.to_string_lossy());
     let spec_path = dir.path().join("spec.toml");
     std::fs::write(&spec_path, &text).unwrap();
@@ -76,7 +77,8 @@ fn five_profiles_at_three_rates_read_each_episode_once() {
 #[test]
 fn extends_shows_resolved_values_and_origins_in_the_plan() {
     let dir = tempfile::tempdir().unwrap();
-    let source = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/pusht_subset.zarr");
+    let source =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/pusht_subset.zarr");
     let spec_path = dir.path().join("spec.toml");
     std::fs::write(&spec_path, spec_text(&source.to_string_lossy())).unwrap();
     let spec = LoadedSpec::load(&spec_path).unwrap();
@@ -88,5 +90,8 @@ fn extends_shows_resolved_values_and_origins_in_the_plan() {
     assert_eq!(p.values.origins["preset"], "profiles.dp");
     assert_eq!(p.values.origins["obs_history"], "preset diffusion_policy");
     let text = chunkc::plan::render_text(&plan);
-    assert!(text.contains("obs_history 2 (preset diffusion_policy)"), "{text}");
+    assert!(
+        text.contains("obs_history 2 (preset diffusion_policy)"),
+        "{text}"
+    );
 }

@@ -21,7 +21,7 @@ pub struct SegmentParams {
 /// Steps (in `1..len`) where a new segment starts, from row-major `values` with `width` values
 /// per step, watching the dimensions `dims`.
 pub fn breakpoints(values: &[f32], width: usize, dims: &[usize], p: &SegmentParams) -> Vec<usize> {
-    let len = if width == 0 { 0 } else { values.len() / width };
+    let len = values.len().checked_div(width).unwrap_or(0);
     let mut out = Vec::new();
     for &d in dims {
         let series: Vec<f64> = (0..len).map(|t| f64::from(values[t * width + d])).collect();

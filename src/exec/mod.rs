@@ -21,10 +21,10 @@ use rayon::prelude::*;
 use crate::chunk::Sampling;
 use crate::error::{Error, IoContext, Result};
 use crate::lock::{self, Lock, LockedProfile, LOCK_VERSION};
-use crate::plan::{self, Plan, ProfilePlan, DATA_FILE, LOADER_FILE, META_FILE, STATS_FILE};
+use crate::plan::{self, Plan, ProfilePlan, LOADER_FILE, META_FILE, STATS_FILE};
 use crate::render;
 use crate::sink::documents;
-use crate::sink::hdf5::{compress_frame, Hdf5Writer};
+use crate::sink::{self, encode_frame, FrameEncoding, Sink, SinkContext};
 use crate::source::{self, ChannelData, ChannelKind, Episode, Source};
 use crate::spec::LoadedSpec;
 use crate::stats::{self, normalize::Normalizer, ChannelStats, ImagePartial};
@@ -110,7 +110,9 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     }
 
     let staging = staging::Staging::new(&out_dir)?;
-    let reads: Vec<AtomicUsize> = (0..plan.source.episodes).map(|_| AtomicUsize::new(0)).collect();
+    let reads: Vec<AtomicUsize> = (0..plan.source.episodes)
+        .map(|_| AtomicUsize::new(0))
+        .collect();
     let hashes = run(spec, &plan, &stale, source.as_ref(), &staging, opts, &reads)?;
     let built: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
     staging.commit(&built)?;
@@ -158,8 +160,8 @@ struct RateState {
 /// One episode's channel after the parallel part of the work.
 enum Prepared {
     Lowdim(Vec<f32>),
-    /// Compressed frames, ready to be written as HDF5 chunks.
-    Frames(Vec<Vec<u8>>),
+    /// The frames in every encoding a sink at this rate asked for.
+    Frames(Vec<(FrameEncoding, Vec<Vec<u8>>)>),
 }
 
 /// One episode after the parallel part of the work: decimated per rate, images compressed,
@@ -183,11 +185,19 @@ fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
         .collect()
 }
 
-fn process(episode: Episode, source: &dyn Source, factors: &[usize], train: bool) -> Processed {
+/// Decimates an episode to every rate, encodes its frames for every sink, and computes the image
+/// statistics partials of a training episode. Runs in parallel over episodes.
+fn process(
+    episode: Episode,
+    source: &dyn Source,
+    rates: &[(usize, Vec<FrameEncoding>)],
+    train: bool,
+) -> Processed {
     let channels = &source.manifest().channels;
-    let mut data = Vec::with_capacity(factors.len());
-    let mut partials = Vec::with_capacity(factors.len());
-    for &factor in factors {
+    let mut data = Vec::with_capacity(rates.len());
+    let mut partials = Vec::with_capacity(rates.len());
+    for (factor, encodings) in rates {
+        let factor = *factor;
         let mut per_channel = Vec::with_capacity(channels.len());
         let mut per_partial = Vec::with_capacity(channels.len());
         for (ch, values) in channels.iter().zip(&episode.channels) {
@@ -202,8 +212,17 @@ fn process(episode: Episode, source: &dyn Source, factors: &[usize], train: bool
                     let frames = d.len() / width.max(1);
                     let colors = *ch.shape.last().unwrap_or(&1);
                     per_partial.push(train.then(|| ImagePartial::of_frames(&d, frames, colors)));
-                    let compressed = d.par_chunks(width.max(1)).map(compress_frame).collect();
-                    per_channel.push(Prepared::Frames(compressed));
+                    let encoded = encodings
+                        .iter()
+                        .map(|&enc| {
+                            let frames = d
+                                .par_chunks(width.max(1))
+                                .map(|f| encode_frame(enc, f))
+                                .collect();
+                            (enc, frames)
+                        })
+                        .collect();
+                    per_channel.push(Prepared::Frames(encoded));
                 }
             }
         }
@@ -265,7 +284,7 @@ fn run(
         .collect();
 
     let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
-    let mut writers = Vec::with_capacity(stale.len());
+    let mut sinks: Vec<(usize, Box<dyn Sink>)> = Vec::with_capacity(stale.len());
     let mut dirs = Vec::with_capacity(stale.len());
     for p in stale {
         let dir = staging.profile_dir(&p.name)?;
@@ -273,12 +292,30 @@ fn run(
             .iter()
             .position(|r| r.factor == p.rate_factor)
             .unwrap();
-        writers.push((
-            rate,
-            Hdf5Writer::create(&dir.join(DATA_FILE), p, &rates[rate].ends, &ids)?,
-        ));
+        let sink = sink::create(&SinkContext {
+            profile: p,
+            dir: &dir,
+            episode_ends: &rates[rate].ends,
+            episode_ids: &ids,
+        })?;
+        sinks.push((rate, sink));
         dirs.push(dir);
     }
+    // Frames are encoded once per rate and encoding, however many sinks share them.
+    let jobs: Vec<(usize, Vec<FrameEncoding>)> = rates
+        .iter()
+        .enumerate()
+        .map(|(r, rate)| {
+            let mut encodings: Vec<FrameEncoding> = sinks
+                .iter()
+                .filter(|(sr, _)| *sr == r)
+                .map(|(_, s)| s.frame_encoding())
+                .collect();
+            encodings.sort();
+            encodings.dedup();
+            (rate.factor, encodings)
+        })
+        .collect();
 
     let bar = progress::bar(
         opts.progress,
@@ -296,7 +333,7 @@ fn run(
                 catch_unwind(AssertUnwindSafe(|| {
                     source
                         .read_episode(i)
-                        .map(|ep| process(ep, source, &factors, train))
+                        .map(|ep| process(ep, source, &jobs, train))
                 }))
                 .unwrap_or_else(|panic| {
                     let what = panic
@@ -321,11 +358,14 @@ fn run(
                 for (c, (values, partial)) in data.into_iter().zip(partials).enumerate() {
                     match values {
                         Prepared::Lowdim(v) => rate.lowdim[c].extend_from_slice(&v),
-                        Prepared::Frames(frames) => {
-                            for (wr, writer) in &writers {
-                                if *wr == r {
-                                    writer.write_frames(c, row, &frames)?;
-                                }
+                        Prepared::Frames(encoded) => {
+                            for (_, sink) in sinks.iter_mut().filter(|(sr, _)| *sr == r) {
+                                let enc = sink.frame_encoding();
+                                let (_, frames) = encoded
+                                    .iter()
+                                    .find(|(e, _)| *e == enc)
+                                    .expect("frames encoded for every sink");
+                                sink.write_frames(c, row, frames)?;
                             }
                             if let (Some(acc), Some(p)) = (rate.images[c].as_mut(), partial) {
                                 acc.merge(&p);
@@ -364,16 +404,14 @@ fn run(
     }
 
     let mut hashes = BTreeMap::new();
-    for ((p, (r, writer)), dir) in stale.iter().zip(writers).zip(&dirs) {
+    for ((p, (r, mut sink)), dir) in stale.iter().zip(sinks).zip(&dirs) {
         let rate = &rates[r];
         let stats = &stats_by_rate[r];
         let mut normalizers = BTreeMap::new();
         for (c, ch) in p.channels.iter().enumerate() {
             let n = Normalizer::fit(ch.normalize, &stats[&ch.name]);
             if ch.kind == ChannelKind::Lowdim {
-                let mut values = rate.lowdim[c].clone();
-                n.apply(&mut values);
-                writer.write_f32(c, &values)?;
+                sink.write_lowdim(c, &rate.lowdim[c], &n)?;
             }
             normalizers.insert(ch.name.clone(), n);
         }
@@ -410,9 +448,9 @@ fn run(
                     .map(|s| [e as i64, s.t as i64, s.limit as i64, s.sub as i64]),
             );
         }
-        writer.write_index("train", &train)?;
-        writer.write_index("val", &val)?;
-        writer.close()?;
+        sink.write_index(&train, &val)?;
+        let data_file = sink.data_file().to_string();
+        sink.finish()?;
 
         let write = |name: &str, text: String| -> Result<()> {
             let path = dir.join(name);
@@ -429,7 +467,7 @@ fn run(
                     num_samples: [train.len(), val.len()],
                     segments: &segments,
                 },
-                DATA_FILE,
+                &data_file,
             ),
         )?;
         write(STATS_FILE, documents::stats_json(stats))?;
@@ -437,8 +475,9 @@ fn run(
         write(LOADER_FILE, render::loader(p, &hint.to_string_lossy())?)?;
 
         let mut files = BTreeMap::new();
-        for name in [DATA_FILE, LOADER_FILE, META_FILE, STATS_FILE] {
-            files.insert(name.to_string(), lock::hash_file(&dir.join(name))?);
+        for rel in source::fingerprint::list_files(dir)? {
+            let name = rel.to_string_lossy().replace('\\', "/");
+            files.insert(name, lock::hash_file(&dir.join(&rel))?);
         }
         hashes.insert(p.name.clone(), files);
     }

@@ -10,35 +10,20 @@
 //! Attributes on `/` name the window parameters. Object time tracking is off everywhere, and
 //! data is written in a fixed order, so the file's bytes depend only on its contents.
 
-use std::path::Path;
-
 use hdf5::types::VarLenUnicode;
 use hdf5::{Dataset, File, Group};
 use ndarray::{ArrayViewD, IxDyn};
 
+use super::{FrameEncoding, Sink, SinkContext};
 use crate::error::{Error, Result};
-use crate::plan::ProfilePlan;
+use crate::plan::DATA_FILE;
 use crate::source::ChannelKind;
+use crate::stats::normalize::Normalizer;
 
 /// Chunks of low-dimensional data hold about this many bytes (a few windows' worth).
 const LOWDIM_CHUNK_BYTES: usize = 64 * 1024;
 /// Image frames are compressed with deflate at this level (fast, and lossless).
 const IMAGE_DEFLATE_LEVEL: u8 = 1;
-
-/// One image frame compressed exactly as HDF5's deflate filter stores a chunk (a zlib stream).
-///
-/// Frames are compressed by the caller, in parallel and once per rate however many profiles
-/// share it, and handed to [`Hdf5Writer::write_frames`], which writes the chunks directly: HDF5
-/// itself compresses on one thread under its global lock.
-pub fn compress_frame(frame: &[u8]) -> Vec<u8> {
-    use std::io::Write;
-    let mut enc = flate2::write::ZlibEncoder::new(
-        Vec::with_capacity(frame.len() / 2),
-        flate2::Compression::new(u32::from(IMAGE_DEFLATE_LEVEL)),
-    );
-    enc.write_all(frame).expect("writing to a Vec cannot fail");
-    enc.finish().expect("writing to a Vec cannot fail")
-}
 
 pub struct Hdf5Writer {
     file: File,
@@ -59,12 +44,9 @@ fn text(s: &str) -> Result<VarLenUnicode> {
 }
 
 impl Hdf5Writer {
-    pub fn create(
-        path: &Path,
-        plan: &ProfilePlan,
-        episode_ends: &[u64],
-        ids: &[u64],
-    ) -> Result<Self> {
+    pub fn create(ctx: &SinkContext) -> Result<Self> {
+        let path = &ctx.dir.join(DATA_FILE);
+        let (plan, episode_ends, ids) = (ctx.profile, ctx.episode_ends, ctx.episode_ids);
         let file = File::with_options()
             .with_fcpl(|p| p.obj_track_times(false))
             .create(path)
@@ -166,9 +148,9 @@ impl Hdf5Writer {
             .map_err(|e| Error::Internal(format!("channel {channel}: {e}")))
     }
 
-    /// Writes already-compressed frames ([`compress_frame`]) of an image channel, one chunk per
-    /// frame, starting at stored row `row`.
-    pub fn write_frames(&self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+    /// Writes frames already compressed as HDF5's deflate filter stores a chunk, directly as
+    /// chunks: HDF5 would compress them on one thread under its global lock.
+    fn write_chunks(&self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
         let ds = &self.data[channel];
         let rank = 1 + self.shapes[channel].len();
         for (i, frame) in frames.iter().enumerate() {
@@ -198,7 +180,7 @@ impl Hdf5Writer {
     }
 
     /// Writes the whole of a low-dimensional channel.
-    pub fn write_f32(&self, channel: usize, values: &[f32]) -> Result<()> {
+    fn write_f32(&self, channel: usize, values: &[f32]) -> Result<()> {
         let rows = values.len() / self.shapes[channel].iter().product::<usize>().max(1);
         let view = self.view(channel, rows, values)?;
         self.data[channel].write_slice(view, self.selection(channel, 0, rows))?;
@@ -207,7 +189,7 @@ impl Hdf5Writer {
 
     /// Writes one split's window index: rows of (episode position, current step, limit, sub);
     /// see `chunk::Sample`.
-    pub fn write_index(&self, split: &str, rows: &[[i64; 4]]) -> Result<()> {
+    fn write_index_of(&self, split: &str, rows: &[[i64; 4]]) -> Result<()> {
         let flat: Vec<i64> = rows.iter().flatten().copied().collect();
         let ds = self
             .file
@@ -221,10 +203,37 @@ impl Hdf5Writer {
         }
         Ok(())
     }
+}
 
-    pub fn close(self) -> Result<()> {
-        drop(self.data);
-        self.file.close()?;
+impl Sink for Hdf5Writer {
+    fn data_file(&self) -> &str {
+        DATA_FILE
+    }
+
+    fn frame_encoding(&self) -> FrameEncoding {
+        FrameEncoding::Zlib(IMAGE_DEFLATE_LEVEL)
+    }
+
+    fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+        self.write_chunks(channel, row, frames)
+    }
+
+    /// chunkc's own layout stores normalized values; the loader inverts them.
+    fn write_lowdim(&mut self, channel: usize, raw: &[f32], normalizer: &Normalizer) -> Result<()> {
+        let mut values = raw.to_vec();
+        normalizer.apply(&mut values);
+        self.write_f32(channel, &values)
+    }
+
+    fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()> {
+        self.write_index_of("train", train)?;
+        self.write_index_of("val", val)
+    }
+
+    fn finish(self: Box<Self>) -> Result<()> {
+        let Hdf5Writer { file, data, .. } = *self;
+        drop(data);
+        file.close()?;
         Ok(())
     }
 }

@@ -1,4 +1,9 @@
-//! Stage 5b, write: the container writers and the JSON documents beside them.
+//! Stage 5b, write: the container writers behind one [`Sink`] trait, and the JSON documents
+//! beside them.
+//!
+//! `exec` drives every sink the same way and in the same order: image frames episode by episode
+//! (already encoded the way the sink asked, in parallel, once per rate and encoding), then every
+//! low-dimensional channel whole, then the window index, then `finish`.
 //!
 //! - `hdf5`: chunkc's own `index` layout in HDF5.
 //! - `documents`: `meta.json` and `stats.json`.
@@ -7,3 +12,73 @@
 pub mod documents;
 pub mod dump;
 pub mod hdf5;
+
+use std::path::Path;
+
+use crate::error::Result;
+use crate::plan::ProfilePlan;
+use crate::spec::OutputFormat;
+use crate::stats::normalize::Normalizer;
+
+/// How a sink wants image frames handed to it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum FrameEncoding {
+    /// The frame's bytes as they are (HWC `u8`).
+    Raw,
+    /// A zlib stream at this level: what HDF5's deflate filter stores as a chunk.
+    Zlib(u8),
+}
+
+/// Encodes one HWC `u8` frame.
+pub fn encode_frame(encoding: FrameEncoding, frame: &[u8]) -> Vec<u8> {
+    match encoding {
+        FrameEncoding::Raw => frame.to_vec(),
+        FrameEncoding::Zlib(level) => {
+            use std::io::Write;
+            let mut enc = flate2::write::ZlibEncoder::new(
+                Vec::with_capacity(frame.len() / 2),
+                flate2::Compression::new(u32::from(level)),
+            );
+            enc.write_all(frame).expect("writing to a Vec cannot fail");
+            enc.finish().expect("writing to a Vec cannot fail")
+        }
+    }
+}
+
+/// What a sink needs to lay out its container.
+pub struct SinkContext<'a> {
+    pub profile: &'a ProfilePlan,
+    /// The profile's staging directory.
+    pub dir: &'a Path,
+    /// Exclusive ends of each episode in the stored per-step arrays.
+    pub episode_ends: &'a [u64],
+    /// Source episode ids, in stored order.
+    pub episode_ids: &'a [u64],
+}
+
+/// One output container being written.
+pub trait Sink {
+    /// The file `meta.json` names as the data (relative to the profile directory).
+    fn data_file(&self) -> &str;
+    fn frame_encoding(&self) -> FrameEncoding;
+    /// Encoded frames of image channel `channel` for one episode, from stored row `row`.
+    fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()>;
+    /// A whole low-dimensional channel in raw units, and the profile's normalizer for it: the
+    /// sink decides whether it stores normalized or raw values.
+    fn write_lowdim(&mut self, channel: usize, raw: &[f32], normalizer: &Normalizer) -> Result<()>;
+    /// The window index of both splits: rows of (episode position, t, limit, sub).
+    fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()>;
+    /// Completes the container.
+    fn finish(self: Box<Self>) -> Result<()>;
+}
+
+/// The sink for a profile's output format.
+pub fn create(ctx: &SinkContext) -> Result<Box<dyn Sink>> {
+    match ctx.profile.values.format {
+        OutputFormat::Hdf5 => Ok(Box::new(hdf5::Hdf5Writer::create(ctx)?)),
+        other => Err(crate::Error::output(format!(
+            "output format `{}` is not supported yet",
+            other.name()
+        ))),
+    }
+}
