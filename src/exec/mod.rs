@@ -471,6 +471,27 @@ fn run(
             ),
         )?;
         write(STATS_FILE, documents::stats_json(stats))?;
+        if !p.values.stats_formats.is_empty() {
+            // ACT's `example_qpos`: the state of the first training episode, in raw units.
+            let example_state = render::codebase::state_channel(p).and_then(|state| {
+                let c = p.channels.iter().position(|ch| ch.name == state.name)?;
+                let e = p.episodes.iter().position(|ep| ep.split == "train")?;
+                let width = manifest.channels[c].width();
+                let start = if e == 0 { 0 } else { rate.ends[e - 1] as usize };
+                let end = rate.ends[e] as usize;
+                Some((&rate.lowdim[c][start * width..end * width], width))
+            });
+            let inputs = render::codebase::Inputs {
+                profile: p,
+                stats,
+                normalizers: &normalizers,
+                example_state,
+            };
+            for (name, bytes) in render::codebase::files(&p.values.stats_formats, &inputs) {
+                let path = dir.join(&name);
+                std::fs::write(&path, bytes).at("write", &path)?;
+            }
+        }
         let hint = Path::new(&spec.spec.output.dir).join(&p.name);
         write(LOADER_FILE, render::loader(p, &hint.to_string_lossy())?)?;
 

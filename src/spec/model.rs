@@ -144,6 +144,9 @@ pub struct ProfileSpec {
     /// Output container format.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub format: Option<OutputFormat>,
+    /// Statistics files in target codebases' own formats, written beside `stats.json`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stats_formats: Option<Vec<StatsFormat>>,
     /// Variable-length chunks cut at natural breakpoints instead of fixed windows.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub segment: Option<SegmentSpec>,
@@ -327,6 +330,37 @@ pub enum SegmentMethod {
 pub struct HierarchySpec {
     /// Length of the coarse chunk in seconds (rounded to whole steps at the profile's rate).
     pub coarse_seconds: f64,
+}
+
+/// Codebase-specific statistics files.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize, JsonSchema,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum StatsFormat {
+    /// ACT's `dataset_stats.pkl` (and `dataset_stats.json`).
+    Act,
+    /// Diffusion Policy's `LinearNormalizer` parameters (`dp_normalizer.json`, `dp_normalizer.py`).
+    DiffusionPolicy,
+    /// LeRobot's `meta/stats.json` layout (`lerobot_stats.json`).
+    Lerobot,
+    /// openpi's `norm_stats.json`.
+    Openpi,
+    /// robomimic's normalization stats, v0.5 `offset`/`scale` and v0.4 `mean`/`std`
+    /// (`robomimic_stats.json`).
+    Robomimic,
+}
+
+impl StatsFormat {
+    pub fn name(self) -> &'static str {
+        match self {
+            StatsFormat::Act => "act",
+            StatsFormat::DiffusionPolicy => "diffusion_policy",
+            StatsFormat::Lerobot => "lerobot",
+            StatsFormat::Openpi => "openpi",
+            StatsFormat::Robomimic => "robomimic",
+        }
+    }
 }
 
 /// Output container formats.

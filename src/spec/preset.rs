@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use super::model::{
     Alignment, HierarchySpec, NormalizeMode, OutputFormat, Padding, Preset, ProfileSpec,
-    SegmentSpec,
+    SegmentSpec, StatsFormat,
 };
 
 /// A profile with every value decided. Later stages never look at presets again.
@@ -36,6 +36,7 @@ pub struct Profile {
     /// Explicit per-channel modes from the spec (merged along the `extends` chain).
     pub normalize: BTreeMap<String, NormalizeMode>,
     pub format: OutputFormat,
+    pub stats_formats: Vec<StatsFormat>,
     pub segment: Option<SegmentSpec>,
     pub hierarchy: Option<HierarchySpec>,
     /// Where each value came from: `profiles.<name>`, `preset <name>` or `default`.
@@ -52,6 +53,7 @@ struct PresetValues {
     padding: Padding,
     normalize_lowdim: NormalizeMode,
     normalize_multidim: NormalizeMode,
+    stats_formats: &'static [StatsFormat],
 }
 
 fn preset_values(preset: Preset) -> PresetValues {
@@ -65,6 +67,7 @@ fn preset_values(preset: Preset) -> PresetValues {
         padding: Padding::Edge,
         normalize_lowdim: N::None,
         normalize_multidim: N::None,
+        stats_formats: &[],
     };
     let dp = PresetValues {
         fps: Some(10.0),
@@ -74,6 +77,7 @@ fn preset_values(preset: Preset) -> PresetValues {
         alignment: Alignment::DiffusionPolicy,
         normalize_lowdim: N::Limits,
         normalize_multidim: N::Limits,
+        stats_formats: &[StatsFormat::DiffusionPolicy],
         ..base
     };
     match preset {
@@ -83,6 +87,7 @@ fn preset_values(preset: Preset) -> PresetValues {
             chunk: Some(100),
             normalize_lowdim: N::Zscore,
             normalize_multidim: N::Zscore,
+            stats_formats: &[StatsFormat::Act],
             ..base
         },
         // Diffusion Policy: horizon 16, n_obs_steps 2, n_action_steps 8, LinearNormalizer limits.
@@ -106,6 +111,7 @@ fn preset_values(preset: Preset) -> PresetValues {
             chunk: Some(100),
             normalize_lowdim: N::LerobotMeanStd,
             normalize_multidim: N::LerobotMeanStd,
+            stats_formats: &[StatsFormat::Lerobot],
             ..base
         },
         // LeRobot Diffusion: horizon 64, n_obs_steps 2, actions from the first observation
@@ -116,6 +122,7 @@ fn preset_values(preset: Preset) -> PresetValues {
             alignment: Alignment::DiffusionPolicy,
             normalize_lowdim: N::LerobotMinMax,
             normalize_multidim: N::LerobotMinMax,
+            stats_formats: &[StatsFormat::Lerobot],
             ..base
         },
         // openpi pi0: action horizon 50 at the dataset rate, quantile normalization.
@@ -123,6 +130,7 @@ fn preset_values(preset: Preset) -> PresetValues {
             chunk: Some(50),
             normalize_lowdim: N::Quantile,
             normalize_multidim: N::Quantile,
+            stats_formats: &[StatsFormat::Openpi],
             ..base
         },
     }
@@ -243,6 +251,12 @@ pub fn expand(
         OutputFormat::Hdf5,
         std::convert::identity
     );
+    let stats_formats = resolve!(
+        stats_formats,
+        |b: &PresetValues| Some(b.stats_formats.to_vec()),
+        Vec::new(),
+        std::convert::identity
+    );
     let segment = pick!(segment);
     let hierarchy = pick!(hierarchy);
     let extends = profiles[name].extends.clone();
@@ -278,6 +292,7 @@ pub fn expand(
         normalize_multidim,
         normalize,
         format,
+        stats_formats,
         segment,
         hierarchy,
         origins,

@@ -20,7 +20,7 @@ use serde::Serialize;
 /// The numbers `stats.json` holds for one channel. Vectors have one entry per dimension
 /// (per colour channel for images, in stored 0..255 units). `std` is the population standard
 /// deviation (ddof = 0); `p001`/`p999` are the 0.1th and 99.9th percentiles, `q01`/`q99` the 1st
-/// and 99th (openpi's quantile normalization uses those).
+/// and 99th (openpi's quantile normalization uses those), `q10`/`q50`/`q90` for LeRobot.
 #[derive(Debug, Clone, Serialize)]
 pub struct ChannelStats {
     pub mean: Vec<f64>,
@@ -31,6 +31,10 @@ pub struct ChannelStats {
     pub p999: Vec<f64>,
     pub q01: Vec<f64>,
     pub q99: Vec<f64>,
+    /// 10th, 50th and 90th percentiles (LeRobot's `q10`, `q50`, `q90`).
+    pub q10: Vec<f64>,
+    pub q50: Vec<f64>,
+    pub q90: Vec<f64>,
     /// Number of timesteps the statistics cover.
     pub count: u64,
     /// Kept for normalization modes that need another ddof; not serialized.
@@ -149,10 +153,11 @@ impl ImagePartial {
 }
 
 /// The percentiles every channel gets, in the order `finish` expects.
-const PERCENTILES: [f64; 4] = [0.1, 99.9, 1.0, 99.0];
+const PERCENTILES: [f64; 7] = [0.1, 99.9, 1.0, 99.0, 10.0, 50.0, 90.0];
 
 fn finish(m: Moments, pct: Vec<Vec<f64>>, count: u64) -> ChannelStats {
-    let [p001, p999, q01, q99]: [Vec<f64>; 4] = pct.try_into().expect("one vector per percentile");
+    let [p001, p999, q01, q99, q10, q50, q90]: [Vec<f64>; 7] =
+        pct.try_into().expect("one vector per percentile");
     let empty = m.count == 0;
     let fix = |v: &Vec<f64>| -> Vec<f64> {
         if empty {
@@ -170,6 +175,9 @@ fn finish(m: Moments, pct: Vec<Vec<f64>>, count: u64) -> ChannelStats {
         p999,
         q01,
         q99,
+        q10,
+        q50,
+        q90,
         count,
         moments: m,
     }

@@ -1,0 +1,241 @@
+//! Statistics files in the target codebases' own formats (keys and math in TARGETS.md), written
+//! beside chunkc's `stats.json` so each codebase trains from numbers computed exactly its way.
+
+use std::collections::BTreeMap;
+
+use serde_json::{json, Value};
+
+use super::pickle::{self, Array};
+use crate::plan::{ProfileChannel, ProfilePlan};
+use crate::source::ChannelKind;
+use crate::spec::StatsFormat;
+use crate::stats::normalize::{Normalizer, ZSCORE_STD_FLOOR};
+use crate::stats::ChannelStats;
+
+/// ACT's action_min/action_max margin (act-plus-plus).
+const ACT_MINMAX_EPS: f64 = 1e-4;
+/// robomimic adds this to the observation std.
+const ROBOMIMIC_STD_EPS: f64 = 1e-3;
+/// robomimic's min_max action range and the threshold under which a dimension is constant.
+const ROBOMIMIC_OUT: f64 = 0.999999;
+const ROBOMIMIC_RANGE_EPS: f64 = 1e-4;
+
+/// What the codebase files are made from.
+pub struct Inputs<'a> {
+    pub profile: &'a ProfilePlan,
+    pub stats: &'a BTreeMap<String, ChannelStats>,
+    pub normalizers: &'a BTreeMap<String, Normalizer>,
+    /// Raw values (row-major, width) of the state channel over the first training episode.
+    pub example_state: Option<(&'a [f32], usize)>,
+}
+
+/// The channel ACT calls `qpos` and openpi calls `state`: `observation.qpos`, else
+/// `observation.state`, else the first vector-valued observation.
+pub fn state_channel(profile: &ProfilePlan) -> Option<&ProfileChannel> {
+    let lowdim = |c: &&ProfileChannel| c.kind == ChannelKind::Lowdim && c.shape.len() <= 1;
+    let obs = || {
+        profile
+            .channels
+            .iter()
+            .filter(lowdim)
+            .filter(|c| c.name != "action")
+    };
+    obs()
+        .find(|c| c.name == "observation.qpos")
+        .or_else(|| obs().find(|c| c.name == "observation.state"))
+        .or_else(|| obs().next())
+}
+
+fn pretty(v: &Value) -> Vec<u8> {
+    let mut s = serde_json::to_string_pretty(v).expect("JSON serializes");
+    s.push('\n');
+    s.into_bytes()
+}
+
+/// The files for every requested format: (file name, contents).
+pub fn files(formats: &[StatsFormat], inputs: &Inputs) -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    for f in formats {
+        match f {
+            StatsFormat::Act => out.extend(act(inputs)),
+            StatsFormat::DiffusionPolicy => out.extend(diffusion_policy(inputs)),
+            StatsFormat::Lerobot => out.push(("lerobot_stats.json".into(), lerobot(inputs))),
+            StatsFormat::Openpi => out.push(("norm_stats.json".into(), openpi(inputs))),
+            StatsFormat::Robomimic => out.push(("robomimic_stats.json".into(), robomimic(inputs))),
+        }
+    }
+    out
+}
+
+/// ACT's `get_norm_stats`: mean, unbiased std clipped to >= 1e-2; act-plus-plus adds min/max
+/// with a 1e-4 margin; `example_qpos` is one episode's qpos.
+fn act(inputs: &Inputs) -> Vec<(String, Vec<u8>)> {
+    let mut items: Vec<(String, Array)> = Vec::new();
+    let vector = |v: Vec<f64>| Array {
+        shape: vec![v.len()],
+        values: v,
+    };
+    let mut add = |prefix: &str, s: &ChannelStats, minmax: bool| {
+        let std = s
+            .moments
+            .std(1)
+            .into_iter()
+            .map(|x| x.max(ZSCORE_STD_FLOOR))
+            .collect();
+        items.push((format!("{prefix}_mean"), vector(s.mean.clone())));
+        items.push((format!("{prefix}_std"), vector(std)));
+        if minmax {
+            let lo = s.min.iter().map(|x| x - ACT_MINMAX_EPS).collect();
+            let hi = s.max.iter().map(|x| x + ACT_MINMAX_EPS).collect();
+            items.push((format!("{prefix}_min"), vector(lo)));
+            items.push((format!("{prefix}_max"), vector(hi)));
+        }
+    };
+    add("action", &inputs.stats["action"], true);
+    if let Some(state) = state_channel(inputs.profile) {
+        add("qpos", &inputs.stats[&state.name], false);
+    }
+    if let Some((values, width)) = inputs.example_state {
+        let rows = values.len() / width.max(1);
+        items.push((
+            "example_qpos".into(),
+            Array {
+                shape: vec![rows, width],
+                values: values.iter().map(|&v| f64::from(v)).collect(),
+            },
+        ));
+    }
+    let json: serde_json::Map<String, Value> = items
+        .iter()
+        .map(|(k, a)| {
+            let v = if a.shape.len() == 2 {
+                json!(a.values.chunks(a.shape[1].max(1)).collect::<Vec<_>>())
+            } else {
+                json!(a.values)
+            };
+            (k.clone(), v)
+        })
+        .collect();
+    vec![
+        ("dataset_stats.pkl".into(), pickle::dict_of_arrays(&items)),
+        ("dataset_stats.json".into(), pretty(&Value::Object(json))),
+    ]
+}
+
+/// Diffusion Policy's key for a channel: `action`, or the observation's own name.
+fn dp_key(name: &str) -> &str {
+    name.strip_prefix("observation.").unwrap_or(name)
+}
+
+/// `LinearNormalizer` parameters: forward `x * scale + offset`, the same map as the profile's
+/// normalizer (`(x - center) / s`), so `scale = 1/s`, `offset = -center/s`. Images use Diffusion
+/// Policy's image range normalizer (scale 2, offset -1 on [0, 1] input).
+fn diffusion_policy(inputs: &Inputs) -> Vec<(String, Vec<u8>)> {
+    let mut params = serde_json::Map::new();
+    for ch in &inputs.profile.channels {
+        let entry = if ch.kind == ChannelKind::Image {
+            json!({
+                "scale": [2.0], "offset": [-1.0],
+                "input_stats": { "min": [0.0], "max": [1.0], "mean": [0.5], "std": [(1.0f64 / 12.0).sqrt()] },
+            })
+        } else {
+            let n = &inputs.normalizers[&ch.name];
+            let s = &inputs.stats[&ch.name];
+            let scale: Vec<f64> = n.scale.iter().map(|s| 1.0 / s).collect();
+            let offset: Vec<f64> = n.center.iter().zip(&n.scale).map(|(c, s)| -c / s).collect();
+            json!({
+                "scale": scale, "offset": offset,
+                "input_stats": { "min": s.min, "max": s.max, "mean": s.mean, "std": s.std },
+            })
+        };
+        params.insert(dp_key(&ch.name).to_string(), entry);
+    }
+    let helper = super::render_template(
+        "dp_normalizer.py",
+        minijinja::context! { profile => inputs.profile.name },
+    );
+    vec![
+        ("dp_normalizer.json".into(), pretty(&Value::Object(params))),
+        ("dp_normalizer.py".into(), helper.into_bytes()),
+    ]
+}
+
+/// LeRobot's `meta/stats.json`: per feature min, max, mean, std, count and quantiles. Images are
+/// per colour channel with shape (3, 1, 1), in [0, 1] units.
+fn lerobot(inputs: &Inputs) -> Vec<u8> {
+    let mut doc = serde_json::Map::new();
+    for ch in &inputs.profile.channels {
+        let s = &inputs.stats[&ch.name];
+        let entry = if ch.kind == ChannelKind::Image {
+            let img = |v: &Vec<f64>, div: f64| -> Value {
+                json!(v.iter().map(|x| vec![vec![x / div]]).collect::<Vec<_>>())
+            };
+            json!({
+                "min": img(&s.min, 255.0), "max": img(&s.max, 255.0), "mean": img(&s.mean, 255.0),
+                "std": img(&s.std, 255.0), "count": [s.count],
+                "q01": img(&s.q01, 255.0), "q10": img(&s.q10, 255.0), "q50": img(&s.q50, 255.0),
+                "q90": img(&s.q90, 255.0), "q99": img(&s.q99, 255.0),
+            })
+        } else {
+            json!({
+                "min": s.min, "max": s.max, "mean": s.mean, "std": s.std, "count": [s.count],
+                "q01": s.q01, "q10": s.q10, "q50": s.q50, "q90": s.q90, "q99": s.q99,
+            })
+        };
+        doc.insert(ch.name.clone(), entry);
+    }
+    pretty(&Value::Object(doc))
+}
+
+/// openpi's `norm_stats.json`: `state` and `actions`, each mean, std, q01, q99.
+fn openpi(inputs: &Inputs) -> Vec<u8> {
+    let entry =
+        |s: &ChannelStats| json!({ "mean": s.mean, "std": s.std, "q01": s.q01, "q99": s.q99 });
+    let mut norm = serde_json::Map::new();
+    if let Some(state) = state_channel(inputs.profile) {
+        norm.insert("state".into(), entry(&inputs.stats[&state.name]));
+    }
+    norm.insert("actions".into(), entry(&inputs.stats["action"]));
+    pretty(&json!({ "norm_stats": norm }))
+}
+
+/// robomimic: v0.5 `{offset, scale}` of shape (1, D) with `(x - offset) / scale` (observations:
+/// mean and population std + 1e-3; actions: min_max to ±0.999999), and the v0.4 `{mean, std}`.
+fn robomimic(inputs: &Inputs) -> Vec<u8> {
+    let row = |v: Vec<f64>| json!([v]);
+    let mut obs_v05 = serde_json::Map::new();
+    let mut obs_v04 = serde_json::Map::new();
+    for ch in &inputs.profile.channels {
+        if ch.name == "action" || ch.kind != ChannelKind::Lowdim {
+            continue;
+        }
+        let s = &inputs.stats[&ch.name];
+        let std: Vec<f64> = s.std.iter().map(|x| x + ROBOMIMIC_STD_EPS).collect();
+        let key = dp_key(&ch.name).to_string();
+        obs_v05.insert(
+            key.clone(),
+            json!({ "offset": row(s.mean.clone()), "scale": row(std.clone()) }),
+        );
+        obs_v04.insert(key, json!({ "mean": row(s.mean.clone()), "std": row(std) }));
+    }
+    let a = &inputs.stats["action"];
+    let (mut offset, mut scale) = (Vec::new(), Vec::new());
+    for (&lo, &hi) in a.min.iter().zip(&a.max) {
+        let range = hi - lo;
+        if range < ROBOMIMIC_RANGE_EPS {
+            scale.push(1.0);
+            offset.push(lo);
+        } else {
+            let s = range / (2.0 * ROBOMIMIC_OUT);
+            scale.push(s);
+            offset.push(lo + s * ROBOMIMIC_OUT);
+        }
+    }
+    pretty(&json!({
+        "v0.5": {
+            "obs_normalization_stats": obs_v05,
+            "action_normalization_stats": { "actions": { "offset": row(offset), "scale": row(scale) } },
+        },
+        "v0.4": { "obs_normalization_stats": obs_v04 },
+    }))
+}
