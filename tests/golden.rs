@@ -1,5 +1,6 @@
 //! Every example spec in `specs/` is built, and its outputs are compared with `golden/<spec>/`:
-//! text files verbatim, HDF5 files as canonical dumps (`<file>.txt`). A missing or an extra file
+//! text files verbatim, HDF5 files as canonical dumps (`<file>.txt`), other binary files as
+//! size and hash. A missing or an extra file
 //! fails. The same builds with 1 and 2 threads must give byte-identical files.
 //!
 //! Regenerate after an intended change with `CHUNKC_BLESS=1 cargo test --release --test golden`.
@@ -82,7 +83,25 @@ fn canonical(out_dir: &Path) -> BTreeMap<PathBuf, String> {
             name.push(".txt");
             files.insert(PathBuf::from(name), dump::hdf5_text(&path).unwrap());
         } else {
-            files.insert(rel, std::fs::read_to_string(&path).unwrap());
+            let bytes = std::fs::read(&path).unwrap();
+            match String::from_utf8(bytes) {
+                Ok(text) => {
+                    files.insert(rel, text);
+                }
+                Err(e) => {
+                    // Other binary files (ACT's pickle): size and hash; their JSON twins carry
+                    // the numbers.
+                    let bytes = e.into_bytes();
+                    let mut name = rel.clone().into_os_string();
+                    name.push(".txt");
+                    let text = format!(
+                        "binary {} bytes blake3 {}\n",
+                        bytes.len(),
+                        blake3::hash(&bytes)
+                    );
+                    files.insert(PathBuf::from(name), text);
+                }
+            }
         }
     }
     files
