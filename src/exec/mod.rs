@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use crate::chunk::Sampling;
 use crate::error::{Error, IoContext, Result};
 use crate::lock::{self, Lock, LockedProfile, LOCK_VERSION};
-use crate::plan::{self, Plan, ProfilePlan, LOADER_FILE, META_FILE, STATS_FILE};
+use crate::plan::{self, Plan, ProfilePlan, META_FILE, STATS_FILE};
 use crate::render;
 use crate::sink::documents;
 use crate::sink::{self, encode_frame, FrameEncoding, Sink, SinkContext};
@@ -247,6 +247,13 @@ fn run(
     reads: &[AtomicUsize],
 ) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
     let manifest = source.manifest();
+    let overrides = spec
+        .spec
+        .output
+        .templates
+        .as_deref()
+        .map(|t| spec.resolve(t));
+    let renderer = &render::Renderer::new(overrides.as_deref())?;
     let mut factors: Vec<usize> = stale.iter().map(|p| p.rate_factor).collect();
     factors.sort_unstable();
     factors.dedup();
@@ -471,6 +478,7 @@ fn run(
             ),
         )?;
         write(STATS_FILE, documents::stats_json(stats))?;
+        let mut stats_files = Vec::new();
         if !p.values.stats_formats.is_empty() {
             // ACT's `example_qpos`: the state of the first training episode, in raw units.
             let example_state = render::codebase::state_channel(p).and_then(|state| {
@@ -486,14 +494,30 @@ fn run(
                 stats,
                 normalizers: &normalizers,
                 example_state,
+                renderer,
             };
-            for (name, bytes) in render::codebase::files(&p.values.stats_formats, &inputs) {
-                let path = dir.join(&name);
-                std::fs::write(&path, bytes).at("write", &path)?;
+            for f in render::codebase::files(&p.values.stats_formats, &inputs)? {
+                let path = dir.join(&f.name);
+                std::fs::write(&path, f.bytes).at("write", &path)?;
+                stats_files.push((f.name, f.what));
             }
         }
         let hint = Path::new(&spec.spec.output.dir).join(&p.name);
-        write(LOADER_FILE, render::loader(p, &hint.to_string_lossy())?)?;
+        let generated = render::profile_files(
+            renderer,
+            &render::ProfileContext {
+                plan,
+                profile: p,
+                spec_file: &spec.file.file_name().unwrap_or_default().to_string_lossy(),
+                output_hint: &hint.to_string_lossy(),
+                data_file: &data_file,
+                num_samples: [train.len(), val.len()],
+                stats_files: &stats_files,
+            },
+        )?;
+        for (name, text) in generated {
+            write(name, text)?;
+        }
 
         let mut files = BTreeMap::new();
         for rel in source::fingerprint::list_files(dir)? {

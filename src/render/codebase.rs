@@ -27,6 +27,7 @@ pub struct Inputs<'a> {
     pub normalizers: &'a BTreeMap<String, Normalizer>,
     /// Raw values (row-major, width) of the state channel over the first training episode.
     pub example_state: Option<(&'a [f32], usize)>,
+    pub renderer: &'a super::Renderer,
 }
 
 /// The channel ACT calls `qpos` and openpi calls `state`: `observation.qpos`, else
@@ -52,24 +53,51 @@ fn pretty(v: &Value) -> Vec<u8> {
     s.into_bytes()
 }
 
-/// The files for every requested format: (file name, contents).
-pub fn files(formats: &[StatsFormat], inputs: &Inputs) -> Vec<(String, Vec<u8>)> {
+/// A generated file: name, contents, and what it is (for the dataset card).
+pub struct File {
+    pub name: String,
+    pub bytes: Vec<u8>,
+    pub what: String,
+}
+
+fn file(name: &str, bytes: Vec<u8>, what: &str) -> File {
+    File {
+        name: name.into(),
+        bytes,
+        what: what.into(),
+    }
+}
+
+/// The files for every requested format.
+pub fn files(formats: &[StatsFormat], inputs: &Inputs) -> crate::Result<Vec<File>> {
     let mut out = Vec::new();
     for f in formats {
         match f {
             StatsFormat::Act => out.extend(act(inputs)),
-            StatsFormat::DiffusionPolicy => out.extend(diffusion_policy(inputs)),
-            StatsFormat::Lerobot => out.push(("lerobot_stats.json".into(), lerobot(inputs))),
-            StatsFormat::Openpi => out.push(("norm_stats.json".into(), openpi(inputs))),
-            StatsFormat::Robomimic => out.push(("robomimic_stats.json".into(), robomimic(inputs))),
+            StatsFormat::DiffusionPolicy => out.extend(diffusion_policy(inputs)?),
+            StatsFormat::Lerobot => out.push(file(
+                "lerobot_stats.json",
+                lerobot(inputs),
+                "LeRobot `meta/stats.json` layout",
+            )),
+            StatsFormat::Openpi => out.push(file(
+                "norm_stats.json",
+                openpi(inputs),
+                "openpi `norm_stats.json`",
+            )),
+            StatsFormat::Robomimic => out.push(file(
+                "robomimic_stats.json",
+                robomimic(inputs),
+                "robomimic normalization stats (v0.5 and v0.4)",
+            )),
         }
     }
-    out
+    Ok(out)
 }
 
 /// ACT's `get_norm_stats`: mean, unbiased std clipped to >= 1e-2; act-plus-plus adds min/max
 /// with a 1e-4 margin; `example_qpos` is one episode's qpos.
-fn act(inputs: &Inputs) -> Vec<(String, Vec<u8>)> {
+fn act(inputs: &Inputs) -> Vec<File> {
     let mut items: Vec<(String, Array)> = Vec::new();
     let vector = |v: Vec<f64>| Array {
         shape: vec![v.len()],
@@ -117,8 +145,16 @@ fn act(inputs: &Inputs) -> Vec<(String, Vec<u8>)> {
         })
         .collect();
     vec![
-        ("dataset_stats.pkl".into(), pickle::dict_of_arrays(&items)),
-        ("dataset_stats.json".into(), pretty(&Value::Object(json))),
+        file(
+            "dataset_stats.pkl",
+            pickle::dict_of_arrays(&items),
+            "ACT `dataset_stats.pkl` (pickle of numpy arrays)",
+        ),
+        file(
+            "dataset_stats.json",
+            pretty(&Value::Object(json)),
+            "the same numbers as JSON",
+        ),
     ]
 }
 
@@ -130,7 +166,7 @@ fn dp_key(name: &str) -> &str {
 /// `LinearNormalizer` parameters: forward `x * scale + offset`, the same map as the profile's
 /// normalizer (`(x - center) / s`), so `scale = 1/s`, `offset = -center/s`. Images use Diffusion
 /// Policy's image range normalizer (scale 2, offset -1 on [0, 1] input).
-fn diffusion_policy(inputs: &Inputs) -> Vec<(String, Vec<u8>)> {
+fn diffusion_policy(inputs: &Inputs) -> crate::Result<Vec<File>> {
     let mut params = serde_json::Map::new();
     for ch in &inputs.profile.channels {
         let entry = if ch.kind == ChannelKind::Image {
@@ -150,14 +186,22 @@ fn diffusion_policy(inputs: &Inputs) -> Vec<(String, Vec<u8>)> {
         };
         params.insert(dp_key(&ch.name).to_string(), entry);
     }
-    let helper = super::render_template(
+    let helper = inputs.renderer.render(
         "dp_normalizer.py",
         minijinja::context! { profile => inputs.profile.name },
-    );
-    vec![
-        ("dp_normalizer.json".into(), pretty(&Value::Object(params))),
-        ("dp_normalizer.py".into(), helper.into_bytes()),
-    ]
+    )?;
+    Ok(vec![
+        file(
+            "dp_normalizer.json",
+            pretty(&Value::Object(params)),
+            "Diffusion Policy LinearNormalizer parameters",
+        ),
+        file(
+            "dp_normalizer.py",
+            helper.into_bytes(),
+            "builds the LinearNormalizer state dict",
+        ),
+    ])
 }
 
 /// LeRobot's `meta/stats.json`: per feature min, max, mean, std, count and quantiles. Images are

@@ -1,4 +1,6 @@
-//! Stage 6, render: generated files from minijinja templates embedded in the binary.
+//! Stage 6, render: generated files from minijinja templates embedded in the binary, each
+//! overridable by a file of the same name (plus `.j2`) in the spec's `[output] templates`
+//! directory.
 //!
 //! - `codebase`: statistics files in each target codebase's own format.
 //! - `pickle`: the minimal pickle writer behind ACT's `dataset_stats.pkl`.
@@ -6,59 +8,197 @@
 pub mod codebase;
 pub mod pickle;
 
-use minijinja::{context, Environment};
+use std::path::Path;
 
-use crate::error::{Error, Result};
-use crate::plan::{ProfilePlan, TOOL_VERSION};
+use minijinja::{context, Environment, Value};
+
+use crate::error::{Error, IoContext, Result};
+use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
 
 /// Every embedded template, by the name of the file it renders.
-const TEMPLATES: &[(&str, &str)] = &[
+pub const TEMPLATES: &[(&str, &str)] = &[
     ("loader.py", include_str!("../../templates/loader.py.j2")),
+    (
+        "validate.py",
+        include_str!("../../templates/validate.py.j2"),
+    ),
+    (
+        "smoke_train.py",
+        include_str!("../../templates/smoke_train.py.j2"),
+    ),
+    ("README.md", include_str!("../../templates/README.md.j2")),
     (
         "dp_normalizer.py",
         include_str!("../../templates/dp_normalizer.py.j2"),
     ),
 ];
 
-fn env() -> Environment<'static> {
-    let mut env = Environment::new();
-    env.set_keep_trailing_newline(true);
-    for (name, source) in TEMPLATES {
-        env.add_template(name, source)
-            .expect("embedded templates parse");
+/// The template environment: the embedded templates, with the user's overrides applied.
+pub struct Renderer {
+    env: Environment<'static>,
+}
+
+impl Renderer {
+    /// `overrides`: a directory holding `<file>.j2` for any generated file to replace.
+    pub fn new(overrides: Option<&Path>) -> Result<Self> {
+        let mut env = Environment::new();
+        env.set_keep_trailing_newline(true);
+        for (name, source) in TEMPLATES {
+            env.add_template(name, source)
+                .expect("embedded templates parse");
+        }
+        if let Some(dir) = overrides {
+            let known: Vec<&str> = TEMPLATES.iter().map(|(n, _)| *n).collect();
+            for entry in std::fs::read_dir(dir).at("read templates directory", dir)? {
+                let path = entry.at("read templates directory", dir)?.path();
+                let file = path
+                    .file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .to_string();
+                let Some(name) = file.strip_suffix(".j2").filter(|n| known.contains(n)) else {
+                    return Err(Error::Spec(format!(
+                        "{}: not a chunkc template; overridable templates are {}",
+                        path.display(),
+                        known
+                            .iter()
+                            .map(|n| format!("{n}.j2"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )));
+                };
+                let source = std::fs::read_to_string(&path).at("read template", &path)?;
+                env.add_template_owned(name.to_string(), source)
+                    .map_err(|e| Error::Spec(format!("{}: {e}", path.display())))?;
+            }
+        }
+        Ok(Renderer { env })
     }
-    env
+
+    pub fn render(&self, name: &str, ctx: Value) -> Result<String> {
+        self.env
+            .get_template(name)
+            .and_then(|t| t.render(ctx))
+            .map_err(|e| Error::output(format!("rendering {name}: {e:#}")))
+    }
 }
 
-/// Renders an embedded template that takes no user input (cannot fail at run time).
-pub(crate) fn render_template(name: &str, ctx: minijinja::Value) -> String {
-    env()
-        .get_template(name)
-        .and_then(|t| t.render(ctx))
-        .unwrap_or_else(|e| panic!("embedded template {name} failed to render: {e}"))
+/// What the generated files of one profile are rendered from.
+pub struct ProfileContext<'a> {
+    pub plan: &'a Plan,
+    pub profile: &'a ProfilePlan,
+    pub spec_file: &'a str,
+    pub output_hint: &'a str,
+    pub data_file: &'a str,
+    pub num_samples: [usize; 2],
+    /// (file name, what it is) of the codebase statistics files written.
+    pub stats_files: &'a [(String, String)],
 }
 
-/// `loader.py` for one profile.
-pub fn loader(profile: &ProfilePlan, output_hint: &str) -> Result<String> {
-    let channels: Vec<&str> = profile.channels.iter().map(|c| c.name.as_str()).collect();
+/// `loader.py`, `validate.py`, `smoke_train.py` and the dataset card `README.md`.
+pub fn profile_files(r: &Renderer, c: &ProfileContext) -> Result<Vec<(&'static str, String)>> {
+    let p = c.profile;
+    let v = &p.values;
     let channels_py = format!(
         "[{}]",
-        channels
+        p.channels
             .iter()
-            .map(|c| format!("{c:?}"))
+            .map(|ch| format!("{:?}", ch.name))
             .collect::<Vec<_>>()
             .join(", ")
     );
-    env()
-        .get_template("loader.py")
-        .and_then(|t| {
-            t.render(context! {
-                profile => profile.name,
-                version => TOOL_VERSION,
-                alignment => profile.values.alignment,
-                output_hint => output_hint,
-                channels => channels_py,
-            })
+    let base = context! {
+        profile => p.name,
+        version => TOOL_VERSION,
+        alignment => v.alignment.name(),
+        output_hint => c.output_hint,
+        channels => channels_py,
+    };
+    let opt = |x: Option<String>| x.unwrap_or_else(|| "none".into());
+    let values: Vec<Value> = [
+        ("preset", opt(v.preset.map(|p| p.name().to_string()))),
+        ("fps", p.fps.to_string()),
+        ("chunk", p.window().chunk.to_string()),
+        ("obs_history", v.obs_history.to_string()),
+        ("executes", opt(v.executes.map(|e| e.to_string()))),
+        ("alignment", v.alignment.name().to_string()),
+        ("padding", v.padding.name().to_string()),
+        ("stride", v.stride.to_string()),
+        ("format", v.format.name().to_string()),
+    ]
+    .into_iter()
+    .map(|(key, value)| {
+        let origin = v
+            .origins
+            .get(key)
+            .cloned()
+            .unwrap_or_else(|| "default".into());
+        context! { key, value, origin }
+    })
+    .collect();
+    let channels: Vec<Value> = p
+        .channels
+        .iter()
+        .map(|ch| {
+            context! {
+                name => ch.name,
+                kind => format!("{:?}", ch.kind).to_lowercase(),
+                shape => format!("{:?}", ch.shape),
+                normalize => ch.normalize.name(),
+            }
         })
-        .map_err(|e| Error::Internal(format!("rendering loader.py: {e}")))
+        .collect();
+    let stats_files: Vec<Value> = c
+        .stats_files
+        .iter()
+        .map(|(name, what)| context! { name, what })
+        .collect();
+    let stats_hints: Vec<&str> = v
+        .stats_formats
+        .iter()
+        .map(|f| match f {
+            crate::spec::StatsFormat::Act => {
+                "ACT: copy `dataset_stats.pkl` into the checkpoint directory; `imitate_episodes.py` reads it"
+            }
+            crate::spec::StatsFormat::DiffusionPolicy => {
+                "Diffusion Policy: `dp_normalizer.load_state_dict()` gives the policy's LinearNormalizer state"
+            }
+            crate::spec::StatsFormat::Lerobot => {
+                "LeRobot: `lerobot_stats.json` has the layout of `meta/stats.json`"
+            }
+            crate::spec::StatsFormat::Openpi => {
+                "openpi: `norm_stats.json` goes in the assets directory of the training config"
+            }
+            crate::spec::StatsFormat::Robomimic => {
+                "robomimic: `robomimic_stats.json` holds `obs_normalization_stats` (v0.5 and v0.4 forms)"
+            }
+        })
+        .collect();
+    let card = context! {
+        profile => p.name,
+        version => TOOL_VERSION,
+        spec_file => c.spec_file,
+        spec_hash => c.plan.spec_hash,
+        source => c.plan.source,
+        values,
+        rate => p.rate,
+        sampling => p.sampling.name(),
+        train_episodes => p.episodes.iter().filter(|e| e.split == "train").count(),
+        val_episodes => p.episodes.iter().filter(|e| e.split == "val").count(),
+        num_samples => context! { train => c.num_samples[0], val => c.num_samples[1] },
+        warnings => p.warnings,
+        channels,
+        audit => "no timing audit was run for this build.",
+        data_file => c.data_file,
+        stats_files,
+        stats_hints,
+        output_hint => c.output_hint,
+        chunk => p.window().chunk,
+    };
+    Ok(vec![
+        ("loader.py", r.render("loader.py", base.clone())?),
+        ("validate.py", r.render("validate.py", base.clone())?),
+        ("smoke_train.py", r.render("smoke_train.py", base)?),
+        ("README.md", r.render("README.md", card)?),
+    ])
 }

@@ -101,6 +101,10 @@ impl Default for SplitSpec {
 pub struct OutputSpec {
     /// Output directory, relative to the spec file. Each profile writes a subdirectory.
     pub dir: String,
+    /// A directory of template overrides, relative to the spec file: `<file>.j2` replaces the
+    /// built-in template of that generated file (`loader.py.j2`, `README.md.j2`, ...).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub templates: Option<String>,
 }
 
 /// `[profiles.<name>]`: one training-ready dataset. Every value left out comes from the profile it

@@ -61,6 +61,7 @@ def test_torch_dataloader_full_epoch_with_workers(built, profile):
     ds = loader.ChunkedDataset(str(built / profile), "train")
     assert isinstance(ds, torch.utils.data.Dataset)
     dl = loader.make_dataloader(str(built / profile), "train", batch_size=128, shuffle=False, num_workers=2)
+    assert dl.prefetch_factor == 2
     seen = 0
     frames = []
     for batch in dl:
@@ -74,3 +75,24 @@ def test_torch_dataloader_full_epoch_with_workers(built, profile):
     # The workers saw every sample once, in order (no shuffle).
     want = np.array([ds.index[i][1] for i in range(len(ds))])
     np.testing.assert_array_equal(np.concatenate(frames), want)
+
+
+def test_in_memory_and_float_images_match_lazy_reads(built):
+    sys.path.insert(0, str(built / "dp"))
+    try:
+        import importlib
+
+        import loader
+
+        importlib.reload(loader)
+    finally:
+        sys.path.pop(0)
+    lazy = loader.ChunkedDataset(str(built / "dp"), "val")
+    memory = loader.ChunkedDataset(str(built / "dp"), "val", in_memory=True, image_dtype="float32")
+    assert len(lazy) == len(memory)
+    for i in range(0, len(lazy), 7):
+        a, b = lazy[i], memory[i]
+        np.testing.assert_array_equal(a["action"], b["action"])
+        np.testing.assert_array_equal(a["observation.state"], b["observation.state"])
+        assert b["observation.image"].dtype == np.float32
+        np.testing.assert_allclose(b["observation.image"], a["observation.image"] / 255.0, rtol=1e-7)

@@ -37,8 +37,13 @@ CHANNELS = ["action", "observation.image", "observation.state"]
 class ChunkedDataset(_DatasetBase):
     """Action-chunked samples of one split, read lazily from the profile's HDF5 file."""
 
-    def __init__(self, root=None, split="train"):
+    def __init__(self, root=None, split="train", in_memory=False, image_dtype="uint8"):
+        """`in_memory=True` reads every stored array once (for datasets that fit in RAM);
+        `image_dtype="float32"` returns images scaled to [0, 1] instead of uint8."""
         root = os.path.dirname(os.path.abspath(__file__)) if root is None else root
+        if image_dtype not in ("uint8", "float32"):
+            raise ValueError(f"image_dtype must be 'uint8' or 'float32', not {image_dtype!r}")
+        self.image_dtype = image_dtype
         with open(os.path.join(root, "meta.json")) as f:
             self.meta = json.load(f)
         if split not in ("train", "val"):
@@ -66,15 +71,23 @@ class ChunkedDataset(_DatasetBase):
         }
         self._file = None
         self._pid = None
+        self._memory = None
+        self._images = {n for n, c in self.meta["channels"].items() if c["kind"] == "image"}
+        if in_memory:
+            with h5py.File(self.path, "r") as f:
+                self._memory = {"data/" + n: f["data/" + n][()] for n in CHANNELS}
 
     def __len__(self):
         return len(self.index)
 
     def _h5(self):
-        # One handle per process: h5py handles must not cross a fork.
+        if self._memory is not None:
+            return self._memory
+        # One handle per process: h5py handles must not cross a fork. SWMR lets readers share a
+        # file that is still open elsewhere.
         pid = os.getpid()
         if self._file is None or self._pid != pid:
-            self._file = h5py.File(self.path, "r")
+            self._file = h5py.File(self.path, "r", swmr=True)
             self._pid = pid
         return self._file
 
@@ -160,6 +173,8 @@ class ChunkedDataset(_DatasetBase):
             missing = h - len(obs)
             if missing:
                 obs = np.concatenate([np.repeat(obs[:1], missing, axis=0), obs])
+            if name in self._images and self.image_dtype == "float32":
+                obs = obs.astype(np.float32) / 255.0
             sample[name] = obs
             sample[name + "_is_pad"] = np.arange(oldest, current + 1) < 0
 
@@ -168,15 +183,32 @@ class ChunkedDataset(_DatasetBase):
         return sample
 
 
-def make_dataloader(root=None, split="train", batch_size=64, shuffle=None, num_workers=0, **kwargs):
-    """A torch DataLoader over ChunkedDataset (requires torch)."""
+def make_dataloader(
+    root=None,
+    split="train",
+    batch_size=64,
+    num_workers=4,
+    pin_memory=True,
+    prefetch_factor=2,
+    shuffle=None,
+    **dataset_kwargs,
+):
+    """A torch DataLoader over ChunkedDataset (requires torch). Workers open the file lazily,
+    one handle each; `prefetch_factor` applies only with workers."""
+    import torch
     import torch.utils.data
 
-    ds = ChunkedDataset(root, split)
+    ds = ChunkedDataset(root, split, **dataset_kwargs)
     if shuffle is None:
         shuffle = split == "train"
+    extra = {"prefetch_factor": prefetch_factor, "persistent_workers": True} if num_workers > 0 else {}
     return torch.utils.data.DataLoader(
-        ds, batch_size=batch_size, shuffle=shuffle, num_workers=num_workers, **kwargs
+        ds,
+        batch_size=batch_size,
+        shuffle=shuffle,
+        num_workers=num_workers,
+        pin_memory=pin_memory and torch.cuda.is_available(),
+        **extra,
     )
 
 
