@@ -83,11 +83,11 @@ class ChunkedDataset(_DatasetBase):
     def _h5(self):
         if self._memory is not None:
             return self._memory
-        # One handle per process: h5py handles must not cross a fork. SWMR lets readers share a
-        # file that is still open elsewhere.
+        # One handle per process: h5py handles must not cross a fork. (No SWMR: the file never
+        # changes after the build, and SWMR handles clash with plain h5py opens in one process.)
         pid = os.getpid()
         if self._file is None or self._pid != pid:
-            self._file = h5py.File(self.path, "r", swmr=True)
+            self._file = h5py.File(self.path, "r")
             self._pid = pid
         return self._file
 
