@@ -16,6 +16,7 @@ pub mod reference;
 mod validate;
 
 pub use diagnostic::Diagnostic;
+pub(crate) use diagnostic::suggest as suggest_name;
 pub use load::LoadedSpec;
 pub use model::*;
 pub use preset::Profile;
