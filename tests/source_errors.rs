@@ -29,7 +29,10 @@ fn stem(path: &Path) -> String {
 #[test]
 fn bad_sources_fail_with_a_message_naming_file_and_key() {
     let files = cases();
-    assert!(files.len() >= 3, "expected the bad-source fixtures, found {files:?}");
+    assert!(
+        files.len() >= 3,
+        "expected the bad-source fixtures, found {files:?}"
+    );
     for path in files {
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
         // Relative paths in messages: run where the spec is.

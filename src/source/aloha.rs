@@ -70,9 +70,7 @@ impl AlohaSource {
             .collect();
         found.sort();
         if found.is_empty() {
-            return Err(Error::source(format!(
-                "{shown}: no episode_<i>.hdf5 files"
-            )));
+            return Err(Error::source(format!("{shown}: no episode_<i>.hdf5 files")));
         }
         if let Some(w) = found.windows(2).find(|w| w[0].0 == w[1].0) {
             return Err(Error::source(format!(
@@ -203,7 +201,8 @@ fn decode_rows(ds: &Dataset, size: (usize, usize), what: &str) -> Result<Vec<u8>
         .map_err(|e| Error::source(format!("{what}: cannot read: {e}")))?;
     let mut out = Vec::with_capacity(steps * size.0 * size.1 * 3);
     for (t, row) in bytes.chunks_exact(row_len.max(1)).enumerate() {
-        let frame = jpeg::decode(row).map_err(|e| Error::source(format!("{what} step {t}: {e}")))?;
+        let frame =
+            jpeg::decode(row).map_err(|e| Error::source(format!("{what} step {t}: {e}")))?;
         if (frame.height, frame.width) != size {
             return Err(Error::source(format!(
                 "{what} step {t}: the frame is {}x{}, but the camera's first frame is {}x{}",

@@ -216,7 +216,8 @@ impl Source for DpZarrSource {
         let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
             let array = &self.arrays[key];
             // One range per dimension: time first, then the whole of every other axis.
-            let mut ranges = vec![start..end];
+            let mut ranges = Vec::with_capacity(array.shape().len());
+            ranges.push(start..end);
             ranges.extend(array.shape()[1..].iter().map(|&d| 0..d));
             let subset = ArraySubset::new_with_ranges(&ranges);
             let fail = |e: String| Error::source(format!("{place}: data/{key}: {e}"));

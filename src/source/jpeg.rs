@@ -20,7 +20,8 @@ fn decoder(bytes: &[u8]) -> JpegDecoder<ZCursor<&[u8]>> {
 /// The (height, width) in a JPEG's header, without decoding the image.
 pub fn dimensions(bytes: &[u8]) -> Result<(usize, usize), String> {
     let mut d = decoder(bytes);
-    d.decode_headers().map_err(|e| format!("not a JPEG image: {e:?}"))?;
+    d.decode_headers()
+        .map_err(|e| format!("not a JPEG image: {e:?}"))?;
     let info = d.info().ok_or("JPEG header without dimensions")?;
     Ok((usize::from(info.height), usize::from(info.width)))
 }

@@ -46,6 +46,15 @@ pub struct LerobotSource {
     has_timestamp: bool,
 }
 
+/// One row of v3.0's `meta/episodes`: the episode, its length, its data file and its videos.
+struct EpisodeRow {
+    id: u64,
+    len: usize,
+    chunk: u64,
+    file: u64,
+    videos: BTreeMap<String, PathBuf>,
+}
+
 /// Python-style `{name}` / `{name:03d}` formatting of info.json's path templates.
 fn fill(template: &str, values: &[(&str, String)]) -> String {
     let mut out = template.to_string();
@@ -80,7 +89,12 @@ fn read_json(path: &Path) -> Result<Value> {
 fn feature_shape(feature: &Value) -> Vec<usize> {
     let shape: Vec<usize> = feature["shape"]
         .as_array()
-        .map(|a| a.iter().filter_map(|d| d.as_u64()).map(|d| d as usize).collect())
+        .map(|a| {
+            a.iter()
+                .filter_map(|d| d.as_u64())
+                .map(|d| d as usize)
+                .collect()
+        })
         .unwrap_or_default();
     if shape.is_empty() {
         vec![1]
@@ -120,7 +134,10 @@ impl LerobotSource {
             (Some(stored), Some(given)) if (stored - given).abs() > 1e-9 => {
                 return Err(spec.error_at(
                     &["source", "fps"],
-                    format!("`source.fps` is {given}, but {} says {stored}", info_path.display()),
+                    format!(
+                        "`source.fps` is {given}, but {} says {stored}",
+                        info_path.display()
+                    ),
                     Some("leave `source.fps` out: LeRobot datasets store their rate".into()),
                 ))
             }
@@ -164,7 +181,11 @@ impl LerobotSource {
                 let text = std::fs::read_to_string(&list)
                     .map_err(|e| Error::source(format!("{}: cannot read: {e}", list.display())))?;
                 let mut rows: Vec<(u64, usize)> = Vec::new();
-                for (n, line) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+                for (n, line) in text
+                    .lines()
+                    .enumerate()
+                    .filter(|(_, l)| !l.trim().is_empty())
+                {
                     let v: Value = serde_json::from_str(line).map_err(|e| {
                         Error::source(format!("{}:{}: invalid JSON: {e}", list.display(), n + 1))
                     })?;
@@ -226,11 +247,16 @@ impl LerobotSource {
                         meta_dir.display()
                     )));
                 }
-                let mut rows: Vec<(u64, usize, u64, u64, BTreeMap<String, PathBuf>)> = Vec::new();
+                let mut rows: Vec<EpisodeRow> = Vec::new();
                 for rel in &metas {
                     let path = meta_dir.join(rel);
                     read_files.push(Path::new("meta/episodes").join(rel));
-                    let mut names = vec!["episode_index", "length", "data/chunk_index", "data/file_index"];
+                    let mut names = vec![
+                        "episode_index",
+                        "length",
+                        "data/chunk_index",
+                        "data/file_index",
+                    ];
                     let video_cols: Vec<(String, String, String)> = media
                         .iter()
                         .map(|m| {
@@ -247,8 +273,12 @@ impl LerobotSource {
                     }
                     let cols = read_columns(&path, &names, None)?;
                     let ints = |i: usize| -> Result<Vec<u64>> {
-                        parquet_read::to_f64_rows(&cols[i], 1, &format!("{}: `{}`", path.display(), names[i]))
-                            .map(|v| v.into_iter().map(|x| x as u64).collect())
+                        parquet_read::to_f64_rows(
+                            &cols[i],
+                            1,
+                            &format!("{}: `{}`", path.display(), names[i]),
+                        )
+                        .map(|v| v.into_iter().map(|x| x as u64).collect())
                     };
                     let (ids, lens, chunk, file) = (ints(0)?, ints(1)?, ints(2)?, ints(3)?);
                     let video_ints: Vec<(Vec<u64>, Vec<u64>)> = (0..video_cols.len())
@@ -266,20 +296,33 @@ impl LerobotSource {
                                 videos.insert(key.clone(), PathBuf::from(fill(template, &v)));
                             }
                         }
-                        rows.push((ids[r], lens[r] as usize, chunk[r], file[r], videos));
+                        rows.push(EpisodeRow {
+                            id: ids[r],
+                            len: lens[r] as usize,
+                            chunk: chunk[r],
+                            file: file[r],
+                            videos,
+                        });
                     }
                 }
-                rows.sort_by_key(|r| r.0);
-                if let Some(w) = rows.windows(2).find(|w| w[0].0 == w[1].0) {
+                rows.sort_by_key(|r| r.id);
+                if let Some(w) = rows.windows(2).find(|w| w[0].id == w[1].id) {
                     return Err(Error::source(format!(
                         "{}: episode {} is listed twice",
                         meta_dir.display(),
-                        w[0].0
+                        w[0].id
                     )));
                 }
                 // Each data file once: where each episode's rows are in it.
                 let mut ranges: BTreeMap<PathBuf, BTreeMap<u64, Range<usize>>> = BTreeMap::new();
-                for (e, len, chunk, file, videos) in rows {
+                for EpisodeRow {
+                    id: e,
+                    len,
+                    chunk,
+                    file,
+                    videos,
+                } in rows
+                {
                     let values = [
                         ("chunk_index", chunk.to_string()),
                         ("file_index", file.to_string()),
@@ -316,45 +359,56 @@ impl LerobotSource {
             }
         }
         if episodes.is_empty() {
-            return Err(Error::source(format!("{shown}: the dataset lists no episodes")));
+            return Err(Error::source(format!(
+                "{shown}: the dataset lists no episodes"
+            )));
         }
         if let Some(e) = episodes.iter().find(|e| e.len == 0) {
             return Err(Error::source(format!("{shown}: episode {} is empty", e.id)));
         }
 
-        // Video and image features are not in the parquet files.
-        for m in &media {
-            let channel = mapped
+        // Video and image features are not in the parquet files: first a missing file, which the
+        // user can fix, then the decoding that is not there yet.
+        let channel_of = |key: &str| {
+            mapped
                 .channels
                 .iter()
-                .find(|c| c.key == m.key)
-                .map(|c| c.name.as_str())
-                .unwrap_or("?");
+                .find(|c| c.key == key)
+                .map(|c| c.name.clone())
+                .unwrap_or_default()
+        };
+        for m in &media {
             for (e, videos) in episodes.iter().zip(&video_files) {
-                if let Some(rel) = videos.get(&m.key) {
-                    if !root.join(rel).exists() {
-                        return Err(Error::source(format!(
-                            "{shown}: channel `{channel}` maps to the video feature `{}`, but episode {}'s video {} is missing",
-                            m.key,
-                            e.id,
-                            rel.display()
-                        )));
-                    }
+                if let Some(rel) = videos.get(&m.key).filter(|rel| !root.join(rel).exists()) {
+                    return Err(Error::source(format!(
+                        "{shown}: channel `{}` maps to the video feature `{}`, but episode {}'s video {} is missing",
+                        channel_of(&m.key),
+                        m.key,
+                        e.id,
+                        rel.display()
+                    )));
                 }
             }
+        }
+        if let Some(m) = media.first() {
             return Err(Error::source(format!(
-                "{shown}: channel `{channel}` maps to `{}`, a {} feature; reading LeRobot {}s is not supported yet",
-                m.key, m.dtype, m.dtype
+                "{shown}: channel `{}` maps to `{}`, a {} feature; reading LeRobot {}s is not supported yet",
+                channel_of(&m.key),
+                m.key,
+                m.dtype,
+                m.dtype
             )));
         }
 
-        let source_split = info["splits"].as_object().and_then(|splits| {
+        let source_split = info["splits"].as_object().map(|splits| {
             let ranges: Vec<(&String, Range<u64>)> = splits
                 .iter()
                 .filter_map(|(k, v)| Some((k, split_range(v.as_str()?)?)))
                 .collect();
             let in_split = |name: &str, id: u64| {
-                ranges.iter().any(|(k, r)| k.as_str() == name && r.contains(&id))
+                ranges
+                    .iter()
+                    .any(|(k, r)| k.as_str() == name && r.contains(&id))
             };
             let ids: Vec<u64> = episodes.iter().map(|e| e.id).collect();
             let val: Vec<u64> = ids
@@ -363,11 +417,11 @@ impl LerobotSource {
                 .filter(|&id| !in_split("train", id) && ranges.iter().any(|(_, r)| r.contains(&id)))
                 .collect();
             let train = ids.into_iter().filter(|id| !val.contains(id)).collect();
-            Some(SourceSplit {
+            SourceSplit {
                 origin: format!("{}: splits", info_path.display()),
                 train,
                 val,
-            })
+            }
         });
 
         read_files.sort();
@@ -449,7 +503,11 @@ impl Source for LerobotSource {
         let mut cols = read_columns(&path, &names, rows.clone())?;
         let timestamps = if self.has_timestamp {
             let t = cols.pop().expect("timestamp was asked for");
-            Some(parquet_read::to_f64_rows(&t, 1, &format!("{place}: `timestamp`"))?)
+            Some(parquet_read::to_f64_rows(
+                &t,
+                1,
+                &format!("{place}: `timestamp`"),
+            )?)
         } else {
             None
         };
@@ -462,7 +520,8 @@ impl Source for LerobotSource {
             .collect();
         let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
             let batches = by_key.remove(key).expect("every mapped key was read");
-            let values = parquet_read::to_f64_rows(&batches, widths[key], &format!("{place}: `{key}`"))?;
+            let values =
+                parquet_read::to_f64_rows(&batches, widths[key], &format!("{place}: `{key}`"))?;
             Ok(Raw::F32(values.into_iter().map(|v| v as f32).collect()))
         })?;
         Ok(Episode {
@@ -481,7 +540,10 @@ mod tests {
     #[test]
     fn fills_python_templates() {
         let t = "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet";
-        let v = [("episode_chunk", "0".into()), ("episode_index", "42".into())];
+        let v = [
+            ("episode_chunk", "0".into()),
+            ("episode_index", "42".into()),
+        ];
         assert_eq!(fill(t, &v), "data/chunk-000/episode_000042.parquet");
         let t = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4";
         let v = [
@@ -489,7 +551,10 @@ mod tests {
             ("chunk_index", "1".into()),
             ("file_index", "12".into()),
         ];
-        assert_eq!(fill(t, &v), "videos/observation.images.top/chunk-001/file-012.mp4");
+        assert_eq!(
+            fill(t, &v),
+            "videos/observation.images.top/chunk-001/file-012.mp4"
+        );
     }
 
     #[test]

@@ -105,8 +105,8 @@ pub fn resolve(spec: &LoadedSpec, place: &str, available: &[KeyInfo]) -> Result<
         for key in channel.keys() {
             let Some(info) = available.iter().find(|k| k.key == key) else {
                 let names: Vec<&str> = available.iter().map(|k| k.key.as_str()).collect();
-                let close = crate::spec::suggest_name(key, &names)
-                    .map(|s| format!("did you mean `{s}`?"));
+                let close =
+                    crate::spec::suggest_name(key, &names).map(|s| format!("did you mean `{s}`?"));
                 return Err(spec.error_at(
                     &at,
                     format!(
@@ -155,7 +155,10 @@ pub fn resolve(spec: &LoadedSpec, place: &str, available: &[KeyInfo]) -> Result<
             if name == "action" {
                 return Err(spec.error_at(
                     &at,
-                    format!("`action` maps to `{}`, which has no values per step", channel.describe()),
+                    format!(
+                        "`action` maps to `{}`, which has no values per step",
+                        channel.describe()
+                    ),
                     None,
                 ));
             }
@@ -173,9 +176,8 @@ pub fn resolve(spec: &LoadedSpec, place: &str, available: &[KeyInfo]) -> Result<
             match declared {
                 Some(ChannelKindSpec::Lowdim) => (ChannelKind::Lowdim, vec![width]),
                 Some(ChannelKindSpec::Image) | None => {
-                    let kind = kind_for_shape(&shape).map_err(|e| {
-                        Error::source(format!("{place}: `{}`: {e}", infos[0].key))
-                    })?;
+                    let kind = kind_for_shape(&shape)
+                        .map_err(|e| Error::source(format!("{place}: `{}`: {e}", infos[0].key)))?;
                     if declared == Some(ChannelKindSpec::Image) && kind != ChannelKind::Image {
                         return Err(spec.error_at(
                             &[&at[..], &["kind"]].concat(),
@@ -212,7 +214,10 @@ pub fn resolve(spec: &LoadedSpec, place: &str, available: &[KeyInfo]) -> Result<
         if name == "action" && kind != ChannelKind::Lowdim {
             return Err(spec.error_at(
                 &at,
-                format!("`action` must be a vector per step, but `{}` is {shape:?}", channel.describe()),
+                format!(
+                    "`action` must be a vector per step, but `{}` is {shape:?}",
+                    channel.describe()
+                ),
                 None,
             ));
         }

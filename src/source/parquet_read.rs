@@ -15,8 +15,8 @@ use parquet::arrow::ProjectionMask;
 use crate::error::{Error, Result};
 
 fn builder(path: &Path) -> Result<ParquetRecordBatchReaderBuilder<File>> {
-    let file =
-        File::open(path).map_err(|e| Error::source(format!("{}: cannot open: {e}", path.display())))?;
+    let file = File::open(path)
+        .map_err(|e| Error::source(format!("{}: cannot open: {e}", path.display())))?;
     ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| {
         Error::source(format!(
             "{}: cannot read as parquet (corrupt or not a parquet file): {e}",
@@ -83,7 +83,11 @@ pub fn read_columns(
 fn scalars(a: &dyn Array) -> Option<Vec<f64>> {
     macro_rules! prim {
         ($t:ty) => {
-            a.as_primitive::<$t>().values().iter().map(|&v| v as f64).collect()
+            a.as_primitive::<$t>()
+                .values()
+                .iter()
+                .map(|&v| v as f64)
+                .collect()
         };
     }
     Some(match a.data_type() {
@@ -118,7 +122,13 @@ pub fn to_f64_rows(batches: &[ArrayRef], width: usize, what: &str) -> Result<Vec
     Ok(out)
 }
 
-fn rows_of(a: &dyn Array, width: usize, what: &str, first: usize, out: &mut Vec<f64>) -> Result<()> {
+fn rows_of(
+    a: &dyn Array,
+    width: usize,
+    what: &str,
+    first: usize,
+    out: &mut Vec<f64>,
+) -> Result<()> {
     if a.null_count() > 0 {
         let t = (0..a.len()).find(|&i| a.is_null(i)).unwrap_or(0);
         return Err(Error::source(format!("{what}: step {} is null", first + t)));
@@ -138,7 +148,10 @@ fn rows_of(a: &dyn Array, width: usize, what: &str, first: usize, out: &mut Vec<
             )));
         }
         if v.null_count() > 0 {
-            return Err(Error::source(format!("{what}: step {} holds a null", first + i)));
+            return Err(Error::source(format!(
+                "{what}: step {} holds a null",
+                first + i
+            )));
         }
         scalars(v.as_ref()).ok_or_else(unsupported)
     };

@@ -102,12 +102,13 @@ impl RobomimicSource {
                     n as usize
                 }
                 None => {
-                    let (k0, d0) = arrays
-                        .iter()
-                        .find(|(k, _)| wanted.contains(k))
-                        .ok_or_else(|| {
-                            Error::source(format!("{here}: none of the mapped keys is present"))
-                        })?;
+                    let (k0, d0) =
+                        arrays
+                            .iter()
+                            .find(|(k, _)| wanted.contains(k))
+                            .ok_or_else(|| {
+                                Error::source(format!("{here}: none of the mapped keys is present"))
+                            })?;
                     for (key, ds) in arrays.iter().filter(|(k, _)| wanted.contains(k)) {
                         if h5::steps(ds) != h5::steps(d0) {
                             return Err(Error::source(format!(
@@ -148,9 +149,9 @@ impl RobomimicSource {
             let states = arrays.iter().find(|(k, _)| k == "states");
             match (g.group("obs").is_ok(), states) {
                 (false, Some((_, ds))) if h5::steps(ds) == len && ds.ndim() == 2 => {
-                    let all = ds.read_raw::<f64>().map_err(|e| {
-                        Error::source(format!("{here}: cannot read `states`: {e}"))
-                    })?;
+                    let all = ds
+                        .read_raw::<f64>()
+                        .map_err(|e| Error::source(format!("{here}: cannot read `states`: {e}")))?;
                     let cols = ds.shape()[1].max(1);
                     timestamps.push(all.iter().step_by(cols).copied().collect());
                 }

@@ -15,8 +15,8 @@ mod preset;
 pub mod reference;
 mod validate;
 
-pub use diagnostic::Diagnostic;
 pub(crate) use diagnostic::suggest as suggest_name;
+pub use diagnostic::Diagnostic;
 pub use load::LoadedSpec;
 pub use model::*;
 pub use preset::Profile;

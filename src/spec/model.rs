@@ -72,7 +72,10 @@ impl<'de> Deserialize<'de> for ChannelSpec {
             fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<ChannelSpec, E> {
                 Ok(ChannelSpec::Key(v.to_string()))
             }
-            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<ChannelSpec, A::Error> {
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> Result<ChannelSpec, A::Error> {
                 ChannelTable::deserialize(serde::de::value::MapAccessDeserializer::new(map))
                     .map(ChannelSpec::Table)
             }

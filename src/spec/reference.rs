@@ -59,7 +59,11 @@ fn resolve<'a>(node: &'a Value, root: &'a Value) -> &'a Value {
 fn variants<'a>(node: &'a Value, root: &'a Value) -> Vec<String> {
     node.get("anyOf")
         .and_then(Value::as_array)
-        .map(|any| any.iter().map(|v| type_name(resolve(v, root), root)).collect())
+        .map(|any| {
+            any.iter()
+                .map(|v| type_name(resolve(v, root), root))
+                .collect()
+        })
         .unwrap_or_default()
 }
 

@@ -124,7 +124,12 @@ impl Checker<'_> {
             (Some(_), Some(_)) => {
                 let message = format!("channel `{name}` has both `key` and `concat`");
                 let help = Some("read one key with `key = \"…\"`, or join several with `concat = [\"…\", \"…\"]`".into());
-                self.value(&[&at[..], &["concat"]].concat(), message, "give one of `key` and `concat`", help);
+                self.value(
+                    &[&at[..], &["concat"]].concat(),
+                    message,
+                    "give one of `key` and `concat`",
+                    help,
+                );
             }
             (None, None) => {
                 let message = format!("channel `{name}` names no source key");
@@ -133,21 +138,38 @@ impl Checker<'_> {
             }
             (None, Some(keys)) if keys.is_empty() => {
                 let message = format!("channel `{name}` concatenates nothing");
-                self.value(&[&at[..], &["concat"]].concat(), message, "empty list", None);
+                self.value(
+                    &[&at[..], &["concat"]].concat(),
+                    message,
+                    "empty list",
+                    None,
+                );
             }
             _ => {}
         }
         if let Some([a, b]) = table.columns {
             if a >= b {
-                let message = format!("channel `{name}` selects columns [{a}, {b}), which is empty");
+                let message =
+                    format!("channel `{name}` selects columns [{a}, {b}), which is empty");
                 let help = Some("columns are `[start, end)`, as Python's `x[:, start:end]`: end must exceed start".into());
-                self.value(&[&at[..], &["columns"]].concat(), message, "empty range", help);
+                self.value(
+                    &[&at[..], &["columns"]].concat(),
+                    message,
+                    "empty range",
+                    help,
+                );
             }
         }
         let sliced = table.columns.is_some() || table.concat.is_some();
         if sliced && table.kind == Some(ChannelKindSpec::Image) {
-            let message = format!("channel `{name}` slices or concatenates keys, so it cannot be an image");
-            self.value(&[&at[..], &["kind"]].concat(), message, "only whole keys are images", None);
+            let message =
+                format!("channel `{name}` slices or concatenates keys, so it cannot be an image");
+            self.value(
+                &[&at[..], &["kind"]].concat(),
+                message,
+                "only whole keys are images",
+                None,
+            );
         }
     }
 
