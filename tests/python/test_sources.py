@@ -8,6 +8,7 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 from PIL import Image
@@ -304,3 +305,66 @@ def test_aloha_gaps_are_reported(tmp_path):
     assert "no episode file for ids 2" in proc.stderr
     meta, _ = output(tmp_path)
     assert meta["episodes"] == [0, 1, 3]
+
+
+def test_variable_list_with_a_wrong_length_names_file_episode_and_step(tmp_path):
+    src = tmp_path / "v3"
+    fixtures.write_lerobot_v3(src, lengths=(5, 6), per_file=2)
+    path = src / "data/chunk-000/file-000.parquet"
+    table = pq.read_table(path)
+    states = table["observation.state"].to_pylist()
+    states[7] = states[7][:3]  # episode 1, step 2: one value short
+    table = table.set_column(table.schema.get_field_index("observation.state"), "observation.state",
+                             pa.array(states, pa.list_(pa.float32())))
+    pq.write_table(table, path)
+    proc = build(tmp_path, "lerobot", src, {"action": q("action"), "observation.state": q("observation.state")},
+                 check=False)
+    assert proc.returncode == 3
+    assert "file-000.parquet: episode 1: `observation.state`: step 2 has 3 values, expected 4" in proc.stderr
+
+
+# Every example spec, built as the golden test builds it, reads the episodes the reference
+# libraries see in the same files.
+
+def reference_lengths(fmt, path):
+    """{episode id: length} read with zarr-python, h5py or pyarrow, independently of chunkc."""
+    if fmt == "diffusion_policy_zarr":
+        import zarr
+        ends = zarr.open(str(path), mode="r")["meta/episode_ends"][:]
+        return dict(enumerate(np.diff(np.concatenate([[0], ends])).tolist()))
+    if fmt == "robomimic_hdf5":
+        with h5py.File(path, "r") as f:
+            return {int(d.split("_")[1]): len(f["data"][d]["actions"] if "actions" in f["data"][d]
+                                              else f["data"][d]["states"]) for d in f["data"]}
+    if fmt == "aloha_hdf5":
+        out = {}
+        for p in Path(path).glob("episode_*.hdf5"):
+            with h5py.File(p, "r") as f:
+                out[int(p.stem.split("_")[1])] = len(f["action"])
+        return out
+    if fmt == "lerobot":
+        rows = np.concatenate([pq.read_table(p, columns=["episode_index"])["episode_index"].to_numpy()
+                               for p in sorted((Path(path) / "data").rglob("*.parquet"))])
+        ids, counts = np.unique(rows, return_counts=True)
+        return dict(zip(ids.tolist(), counts.tolist()))
+    raise AssertionError(fmt)
+
+
+@pytest.mark.parametrize("spec", sorted(p.name for p in (REPO / "specs").glob("*.toml")))
+def test_example_spec_episodes_match_reference_readers(tmp_path, spec):
+    import tomllib
+    (tmp_path / "specs").mkdir()
+    (tmp_path / "tests").mkdir()
+    (tmp_path / "tests" / "data").symlink_to(DATA)
+    shutil.copy(REPO / "specs" / spec, tmp_path / "specs" / spec)
+    run_chunkc("build", "-q", tmp_path / "specs" / spec)
+    text = tomllib.loads((REPO / "specs" / spec).read_text())
+    source = (tmp_path / "specs" / text["source"]["path"]).resolve()
+    want = reference_lengths(text["source"]["format"], source)
+    out = (tmp_path / "specs" / text["output"]["dir"]).resolve()
+    for profile in text["profiles"]:
+        meta = json.loads((out / profile / "meta.json").read_text())
+        factor = meta["rate"]["factor"]
+        assert meta["episodes"] == sorted(want)
+        lengths = np.diff([0] + meta["episode_ends"]).tolist()
+        assert lengths == [-(-want[e] // factor) for e in sorted(want)]  # every factor-th step
