@@ -65,7 +65,11 @@ want=$("$venv/bin/python" -c 'import hashlib, sys
 print(hashlib.sha256(open(sys.argv[1], "rb").read()).hexdigest())' "$requirements")
 have=$(cat "$stamp" 2>/dev/null || true)
 if [ "$want" != "$have" ]; then
-    say "installing $requirements into $venv (first time: ~3 GB of downloads, torch included)"
+    if [ -z "$have" ]; then
+        say "installing $requirements into $venv (first time: ~3 GB of downloads, torch included)"
+    else
+        say "$requirements changed: updating $venv"
+    fi
     "$venv/bin/python" -m pip install "${quiet[@]}" --disable-pip-version-check -r "$requirements"
     # Written only after a successful install, so an interrupted install is retried next time.
     printf '%s\n' "$want" >"$stamp"

@@ -10,8 +10,10 @@
 //!
 //! 1. **Parse** ([`spec`]): TOML → [`spec::Spec`] → fully explicit [`spec::Profile`]s (presets
 //!    expanded). Errors point at `file:line:col` with "did you mean".
-//! 2. **Open** ([`source`]): an adapter per on-disk layout gives a [`source::Manifest`] (metadata
-//!    only) and reads [`source::Episode`]s one at a time.
+//! 2. **Open** ([`source`]): an adapter per on-disk layout (Diffusion Policy zarr, ALOHA,
+//!    robomimic/robosuite, LeRobot v2.1/v3.0) gives a [`source::Manifest`] (metadata only) and
+//!    reads [`source::Episode`]s one at a time; [`source::mapping`] applies `[source.channels]`
+//!    (rename, column slices, concatenation, kind) the same way for all of them.
 //! 3. **Resolve** ([`plan`]): spec + manifest + [`lock`] → [`plan::Plan`]: per profile the
 //!    episodes and split, rate conversion, window count, files, fingerprint and whether it must
 //!    run. Shared work (the source read, statistics per rate and channel) appears once.

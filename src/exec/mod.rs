@@ -26,7 +26,7 @@ use crate::render;
 use crate::sink::documents;
 use crate::sink::{self, encode_frame, FrameEncoding, Sink, SinkContext};
 use crate::source::{self, ChannelData, ChannelKind, Episode, Source};
-use crate::spec::LoadedSpec;
+use crate::spec::{LoadedSpec, SplitFrom};
 use crate::stats::{self, normalize::Normalizer, ChannelStats, ImagePartial};
 
 pub use staging::STAGING_DIR;
@@ -52,6 +52,16 @@ pub struct BuildReport {
 /// Opens the source and resolves the plan against the lock (what `chunkc plan` shows).
 pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
     let source = source::open(spec)?;
+    let manifest = source.manifest();
+    for warning in &manifest.warnings {
+        eprintln!("warning: {warning}");
+    }
+    if spec.spec.split.from == SplitFrom::Source && manifest.source_split.is_none() {
+        eprintln!(
+            "warning: `split.from = \"source\"`, but {} stores no split; using `val_fraction` and `seed`",
+            spec.spec.source.path
+        );
+    }
     let out_dir = spec.resolve(&spec.spec.output.dir);
     check_output_location(spec, &out_dir)?;
     let lock = Lock::read(&lock::path_for(&spec.file))?;

@@ -24,7 +24,7 @@ use crate::chunk::{decimated_len, Sampling, Window};
 use crate::error::Result;
 use crate::lock::{self, Lock};
 use crate::source::{ChannelInfo, ChannelKind, Manifest};
-use crate::spec::{LoadedSpec, NormalizeMode, Profile};
+use crate::spec::{LoadedSpec, NormalizeMode, Profile, SplitFrom};
 
 pub const PLAN_VERSION: u32 = 1;
 pub const TOOL_VERSION: &str = env!("CARGO_PKG_VERSION");
@@ -205,7 +205,16 @@ pub fn resolve(
     out_dir: &Path,
 ) -> Result<Plan> {
     let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
-    let split = split::split(&ids, spec.spec.split.val_fraction, spec.spec.split.seed);
+    let split = match (spec.spec.split.from, &manifest.source_split) {
+        (SplitFrom::Source, Some(stored)) => {
+            let mut train = stored.train.clone();
+            let mut val = stored.val.clone();
+            train.sort_unstable();
+            val.sort_unstable();
+            Split { train, val }
+        }
+        _ => split::split(&ids, spec.spec.split.val_fraction, spec.spec.split.seed),
+    };
     if split.train.is_empty() {
         return Err(spec.error_at(
             &["split", "val_fraction"],

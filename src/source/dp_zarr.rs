@@ -7,10 +7,8 @@ use std::sync::Arc;
 use zarrs::array::{Array, ArraySubset};
 use zarrs::filesystem::FilesystemStore;
 
-use super::{
-    fingerprint, image_to_u8, kind_for_shape, ChannelData, ChannelInfo, ChannelKind, Episode,
-    EpisodeInfo, Manifest, Source,
-};
+use super::mapping::{self, KeyInfo, Mapped, Raw};
+use super::{fingerprint, Episode, EpisodeInfo, Manifest, Source};
 use crate::error::{Error, Result};
 use crate::spec::{LoadedSpec, SourceFormat};
 
@@ -21,7 +19,9 @@ pub struct DpZarrSource {
     manifest: Manifest,
     /// Cumulative episode starts (len = episodes + 1).
     bounds: Vec<u64>,
-    arrays: Vec<ZArray>,
+    /// The arrays the channels read, by key.
+    arrays: std::collections::BTreeMap<String, ZArray>,
+    mapped: Mapped,
 }
 
 fn open_array(store: &Arc<FilesystemStore>, root: &Path, key: &str) -> Result<ZArray> {
@@ -121,58 +121,40 @@ impl DpZarrSource {
         }
         let total = *bounds.last().unwrap();
 
-        let available = data_keys(root);
-        let mut channels = Vec::new();
-        let mut arrays = Vec::new();
-        for (name, key) in &spec.spec.source.channels {
-            if !available.iter().any(|k| k == key) {
-                return Err(spec.error_at(
-                    &["source", "channels", name],
-                    format!(
-                        "no array `data/{key}` in {}; the source has: {}",
-                        root.display(),
-                        available.join(", ")
-                    ),
-                    None,
-                ));
-            }
+        let mut keys = Vec::new();
+        let mut arrays = std::collections::BTreeMap::new();
+        for key in data_keys(root) {
             let array = open_array(&store, root, &format!("data/{key}"))?;
             let shape: Vec<usize> = array.shape().iter().map(|&d| d as usize).collect();
-            if shape.first().copied().unwrap_or(0) as u64 != total {
+            keys.push(KeyInfo {
+                key: key.clone(),
+                shape: if shape.len() <= 1 {
+                    vec![1]
+                } else {
+                    shape[1..].to_vec()
+                },
+                dtype: dtype_name(&array),
+            });
+            arrays.insert(key, array);
+        }
+        let place = root.join("data").display().to_string();
+        let mapped = mapping::resolve(spec, &place, &keys)?;
+        for key in mapped.keys() {
+            let steps = arrays[&key].shape().first().copied().unwrap_or(0);
+            if steps != total {
                 return Err(Error::source(format!(
-                    "{}: data/{key} has {} steps but meta/episode_ends ends at {total}",
+                    "{}: data/{key} has {steps} steps but meta/episode_ends ends at {total}",
                     root.display(),
-                    shape.first().copied().unwrap_or(0)
                 )));
             }
-            let step_shape = shape[1..].to_vec();
-            let kind = kind_for_shape(&step_shape)
-                .map_err(|e| Error::source(format!("{}: data/{key}: {e}", root.display())))?;
-            if name == "action" && kind != ChannelKind::Lowdim {
-                return Err(spec.error_at(
-                    &["source", "channels", name],
-                    format!("`action` must be a vector per step, but data/{key} is {step_shape:?}"),
-                    None,
-                ));
-            }
-            channels.push(ChannelInfo {
-                name: name.clone(),
-                key: key.clone(),
-                kind,
-                shape: step_shape,
-                source_dtype: dtype_name(&array),
-            });
-            arrays.push(array);
         }
+        arrays.retain(|k, _| mapped.keys().contains(k));
 
         let mut files = fingerprint::list_files(&root.join("meta"))?
             .into_iter()
             .map(|p| Path::new("meta").join(p))
             .collect::<Vec<_>>();
-        let mut keys: Vec<&String> = spec.spec.source.channels.values().collect();
-        keys.sort();
-        keys.dedup();
-        for key in keys {
+        for key in mapped.keys() {
             let dir = Path::new("data").join(key);
             files.extend(
                 fingerprint::list_files(&root.join(&dir))?
@@ -189,11 +171,15 @@ impl DpZarrSource {
                 format: SourceFormat::DiffusionPolicyZarr,
                 fps,
                 episodes,
-                channels,
+                channels: mapped.channels.clone(),
                 fingerprint,
+                timestamps: false,
+                source_split: None,
+                warnings: mapped.warnings.clone(),
             },
             bounds,
             arrays,
+            mapped,
         })
     }
 }
@@ -226,56 +212,28 @@ impl Source for DpZarrSource {
     fn read_episode(&self, index: usize) -> Result<Episode> {
         let info = &self.manifest.episodes[index];
         let (start, end) = (self.bounds[index], self.bounds[index + 1]);
-        let mut channels = Vec::with_capacity(self.arrays.len());
-        for (ch, array) in self.manifest.channels.iter().zip(&self.arrays) {
+        let place = format!("{}: episode {}", self.root.display(), info.id);
+        let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
+            let array = &self.arrays[key];
             // One range per dimension: time first, then the whole of every other axis.
-            let mut ranges = Vec::with_capacity(1 + ch.shape.len());
+            let mut ranges = Vec::with_capacity(array.shape().len());
             ranges.push(start..end);
-            ranges.extend(ch.shape.iter().map(|&d| 0..d as u64));
+            ranges.extend(array.shape()[1..].iter().map(|&d| 0..d));
             let subset = ArraySubset::new_with_ranges(&ranges);
-            let where_ = || {
-                format!(
-                    "{}: episode {} channel `{}` (data/{})",
-                    self.root.display(),
-                    info.id,
-                    ch.name,
-                    ch.key
-                )
-            };
-            let data = if ch.kind == ChannelKind::Image && ch.source_dtype == "uint8" {
+            let fail = |e: String| Error::source(format!("{place}: data/{key}: {e}"));
+            if dtype_name(array) == "uint8" {
                 array
                     .retrieve_array_subset::<Vec<u8>>(&subset)
-                    .map(ChannelData::Image)
-                    .map_err(|e| Error::source(format!("{}: {e}", where_())))?
+                    .map(Raw::U8)
+                    .map_err(|e| fail(e.to_string()))
             } else {
-                let values = read_f32(array, &subset)
-                    .map_err(|e| Error::source(format!("{}: {e}", where_())))?;
-                match ch.kind {
-                    ChannelKind::Lowdim => {
-                        let width = ch.width().max(1);
-                        if let Some(bad) = values.iter().position(|v| !v.is_finite()) {
-                            return Err(Error::source(format!(
-                                "{}: step {} holds a non-finite value ({})",
-                                where_(),
-                                bad / width,
-                                values[bad]
-                            )));
-                        }
-                        ChannelData::Lowdim(values)
-                    }
-                    ChannelKind::Image => {
-                        let per_step = ch.width();
-                        ChannelData::Image(image_to_u8(&values, |i| {
-                            format!("{} step {}", where_(), i / per_step)
-                        })?)
-                    }
-                }
-            };
-            channels.push(data);
-        }
+                read_f32(array, &subset).map(Raw::F32).map_err(fail)
+            }
+        })?;
         Ok(Episode {
             id: info.id,
             len: info.len,
+            timestamps: None,
             channels,
         })
     }

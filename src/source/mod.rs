@@ -4,11 +4,31 @@
 //! read) and [`Episode`]s read one at a time. Low-dimensional channels arrive as `f32`, images as
 //! `u8` (HWC); the time axis is always first.
 //!
+//! Adapters, one per `[source] format`:
 //! - `dp_zarr`: Diffusion Policy zarr ReplayBuffer (`data/<key>`, `meta/episode_ends`).
+//! - `aloha`: ACT / ALOHA, one `episode_<i>.hdf5` per episode, raw or JPEG-compressed images.
+//! - `robomimic`: robomimic `data/demo_<i>` groups, and robosuite's older files of that shape.
+//! - `lerobot`: LeRobot v2.1 (one parquet per episode) and v3.0 (many per file).
+//!
+//! Shared pieces:
+//! - `mapping`: `[source.channels]` (rename, column slices, concatenation, kind) resolved
+//!   against the keys a source offers, and applied to the arrays read.
+//! - `h5`: HDF5 reading helpers (key listing, typed reads, clear errors).
+//! - `jpeg`: decoding JPEG frames.
+//! - `parquet_read`: parquet columns (scalars, fixed- and variable-size lists) as rows of numbers.
+//! - `subset`: `[source] episodes = […]`, a view of some episodes of any source.
 //! - `fingerprint`: the content hash that tells the plan whether a source changed.
 
+mod aloha;
 mod dp_zarr;
 pub mod fingerprint;
+mod h5;
+mod jpeg;
+mod lerobot;
+pub mod mapping;
+mod parquet_read;
+mod robomimic;
+mod subset;
 
 use serde::Serialize;
 
@@ -64,6 +84,21 @@ pub struct Manifest {
     pub channels: Vec<ChannelInfo>,
     /// BLAKE3 over the bytes of everything the adapter reads.
     pub fingerprint: String,
+    /// Whether episodes carry timestamps read from the source.
+    pub timestamps: bool,
+    /// The split the source itself stores, if any (used with `[split] from = "source"`).
+    pub source_split: Option<SourceSplit>,
+    /// Things the user should know that do not stop the build (gaps in ids, skipped keys).
+    pub warnings: Vec<String>,
+}
+
+/// A train/validation split stored in the source, by source episode id.
+#[derive(Debug, Clone, Serialize)]
+pub struct SourceSplit {
+    /// Where it was read from (`mask/train, mask/valid`).
+    pub origin: String,
+    pub train: Vec<u64>,
+    pub val: Vec<u64>,
 }
 
 /// One channel's values for one episode, time-major and row-major.
@@ -78,6 +113,8 @@ pub enum ChannelData {
 pub struct Episode {
     pub id: u64,
     pub len: usize,
+    /// Seconds per step, when the source stores them (LeRobot `timestamp`, robosuite sim time).
+    pub timestamps: Option<Vec<f64>>,
     pub channels: Vec<ChannelData>,
 }
 
@@ -99,16 +136,32 @@ pub fn open(spec: &LoadedSpec) -> Result<Box<dyn Source>> {
             None,
         ));
     }
-    match src.format {
-        SourceFormat::DiffusionPolicyZarr => {
-            Ok(Box::new(dp_zarr::DpZarrSource::open(spec, &path)?))
-        }
-        other => Err(spec.error_at(
-            &["source", "format"],
-            format!("source format `{}` is not supported yet", other.name()),
-            None,
-        )),
+    let source: Box<dyn Source> = match src.format {
+        SourceFormat::DiffusionPolicyZarr => Box::new(dp_zarr::DpZarrSource::open(spec, &path)?),
+        SourceFormat::AlohaHdf5 => Box::new(aloha::AlohaSource::open(spec, &path)?),
+        SourceFormat::RobomimicHdf5 => Box::new(robomimic::RobomimicSource::open(spec, &path)?),
+        SourceFormat::Lerobot => Box::new(lerobot::LerobotSource::open(spec, &path)?),
+    };
+    match &src.episodes {
+        Some(ids) => Ok(Box::new(subset::Subset::new(spec, source, ids)?)),
+        None => Ok(source),
     }
+}
+
+/// The rate of a source that stores timestamps but no rate: one over the median interval,
+/// rounded to a thousandth of a Hz (so 0.05 s steps give exactly 20 Hz).
+pub fn fps_from_timestamps(episodes: &[Vec<f64>]) -> Option<f64> {
+    let mut dts: Vec<f64> = episodes
+        .iter()
+        .flat_map(|t| t.windows(2).map(|w| w[1] - w[0]))
+        .filter(|dt| dt.is_finite() && *dt > 0.0)
+        .collect();
+    if dts.is_empty() {
+        return None;
+    }
+    dts.sort_by(f64::total_cmp);
+    let median = dts[dts.len() / 2];
+    Some((1000.0 / median).round() / 1000.0)
 }
 
 /// Decides a channel's kind from its per-step shape, or says why it cannot be used.

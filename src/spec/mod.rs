@@ -15,6 +15,7 @@ mod preset;
 pub mod reference;
 mod validate;
 
+pub(crate) use diagnostic::suggest as suggest_name;
 pub use diagnostic::Diagnostic;
 pub use load::LoadedSpec;
 pub use model::*;

@@ -39,9 +39,103 @@ pub struct SourceSpec {
     /// Recording rate in Hz. Required when the source stores neither timestamps nor a rate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fps: Option<f64>,
-    /// Channel mapping, `our name = "source key"`. Exactly one channel must be called `action`;
-    /// every other channel is an observation and must be named `observation.<name>`.
-    pub channels: BTreeMap<String, String>,
+    /// Only these source episode ids, in the source's order (all when left out).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub episodes: Option<Vec<u64>>,
+    /// Channel mapping, `our name = "source key"` or `our name = { key = …, columns = […] }` /
+    /// `{ concat = […] }`. Exactly one channel must be called `action`; every other channel is
+    /// an observation and must be named `observation.<name>`.
+    pub channels: BTreeMap<String, ChannelSpec>,
+}
+
+/// One channel of `[source.channels]`: a source key, or a table that selects columns of a key,
+/// concatenates several keys, or declares the kind.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+#[serde(untagged)]
+pub enum ChannelSpec {
+    /// The source key, read whole.
+    Key(String),
+    /// `{ key = "state", columns = [1, 8] }`, `{ concat = ["a", "b"] }`, `{ key = …, kind = … }`.
+    Table(ChannelTable),
+}
+
+/// Untagged by hand: a string or a table, and a table's own error (an unknown field with the
+/// list of valid ones) reaches the user instead of serde's "did not match any variant".
+impl<'de> Deserialize<'de> for ChannelSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = ChannelSpec;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a source key (string) or a table such as { key = \"state\", columns = [0, 7] }")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<ChannelSpec, E> {
+                Ok(ChannelSpec::Key(v.to_string()))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> Result<ChannelSpec, A::Error> {
+                ChannelTable::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    .map(ChannelSpec::Table)
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
+}
+
+/// The table form of a channel mapping. Give exactly one of `key` and `concat`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ChannelTable {
+    /// The source key to read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub key: Option<String>,
+    /// Several low-dimensional source keys, joined column-wise in this order.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub concat: Option<Vec<String>>,
+    /// `[start, end)`: keep these columns of the (flattened) key, as Python's `x[:, start:end]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub columns: Option<[usize; 2]>,
+    /// What the channel holds; decided from its per-step shape when left out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kind: Option<ChannelKindSpec>,
+}
+
+/// A declared channel kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ChannelKindSpec {
+    /// A vector per step (any per-step shape is flattened).
+    Lowdim,
+    /// An (H, W, C) uint8 image per step.
+    Image,
+}
+
+impl ChannelSpec {
+    /// The source keys this channel reads, in order.
+    pub fn keys(&self) -> Vec<&str> {
+        match self {
+            ChannelSpec::Key(k) => vec![k.as_str()],
+            ChannelSpec::Table(t) => match (&t.key, &t.concat) {
+                (Some(k), _) => vec![k.as_str()],
+                (None, Some(keys)) => keys.iter().map(String::as_str).collect(),
+                (None, None) => Vec::new(),
+            },
+        }
+    }
+
+    /// How the mapping is shown in messages and the plan (`state[1:8]`, `a + b`).
+    pub fn describe(&self) -> String {
+        let joined = self.keys().join(" + ");
+        match self {
+            ChannelSpec::Table(ChannelTable {
+                columns: Some([a, b]),
+                ..
+            }) => format!("{joined}[{a}:{b}]"),
+            _ => joined,
+        }
+    }
 }
 
 /// The on-disk layouts chunkc reads.
@@ -80,6 +174,28 @@ pub struct SplitSpec {
     /// Seed of the split's hash.
     #[serde(default)]
     pub seed: u64,
+    /// Where the split comes from: chunkc's seeded hash (default), or the source's own split
+    /// (robomimic `mask/train` / `mask/valid`, LeRobot `info.json` `splits`), falling back to
+    /// the hash when the source has none.
+    #[serde(default, skip_serializing_if = "SplitFrom::is_hash")]
+    pub from: SplitFrom,
+}
+
+/// Where the train/validation split comes from.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SplitFrom {
+    /// chunkc's deterministic hash of (seed, episode id), with `val_fraction`.
+    #[default]
+    Hash,
+    /// The split stored in the source.
+    Source,
+}
+
+impl SplitFrom {
+    fn is_hash(&self) -> bool {
+        *self == SplitFrom::Hash
+    }
 }
 
 fn default_val_fraction() -> f64 {
@@ -91,6 +207,7 @@ impl Default for SplitSpec {
         SplitSpec {
             val_fraction: default_val_fraction(),
             seed: 0,
+            from: SplitFrom::Hash,
         }
     }
 }

@@ -44,11 +44,27 @@ fn resolve<'a>(node: &'a Value, root: &'a Value) -> &'a Value {
         return resolve(&root["$defs"][name], root);
     }
     if let Some(any) = node.get("anyOf").and_then(Value::as_array) {
-        if let Some(inner) = any.iter().find(|v| v.get("type") != Some(&"null".into())) {
-            return resolve(inner, root);
+        let is_null = |v: &&Value| v.get("type") == Some(&"null".into());
+        // `Option<T>` is `anyOf [T, null]`; a real choice (a string or a table) stays a choice.
+        if any.iter().any(|v| is_null(&v)) {
+            if let Some(inner) = any.iter().find(|v| !is_null(v)) {
+                return resolve(inner, root);
+            }
         }
     }
     node
+}
+
+/// The types of a choice (`anyOf`), each resolved.
+fn variants<'a>(node: &'a Value, root: &'a Value) -> Vec<String> {
+    node.get("anyOf")
+        .and_then(Value::as_array)
+        .map(|any| {
+            any.iter()
+                .map(|v| type_name(resolve(v, root), root))
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 fn description(node: &Value) -> String {
@@ -90,14 +106,22 @@ fn type_name(node: &Value, root: &Value) -> String {
     if node.get("enum").is_some() || node.get("oneOf").is_some() {
         return "string".into();
     }
+    let choice = variants(node, root);
+    if !choice.is_empty() {
+        return choice.join(" or ");
+    }
     let ty = types(node);
     let ty = ty.iter().find(|&&t| t != "null").copied().unwrap_or("any");
     match ty {
         "object" => match node.get("additionalProperties") {
             Some(v @ Value::Object(_)) if node.get("properties").is_none() => {
                 let inner = resolve(v, root);
+                let choice = variants(inner, root);
                 if inner.get("properties").is_some() {
                     "table of tables".into()
+                } else if !choice.is_empty() {
+                    let plural: Vec<String> = choice.iter().map(|c| format!("{c}s")).collect();
+                    format!("table of {}", plural.join(" or "))
                 } else {
                     format!("table of {}s", type_name(inner, root))
                 }

@@ -5,7 +5,7 @@
 
 use super::diagnostic::{backticked, did_you_mean, suggest, Diagnostic};
 use super::load::{dotted, LoadedSpec, Target};
-use super::model::{OutputFormat, Preset, ProfileSpec, SourceFormat};
+use super::model::{ChannelKindSpec, ChannelSpec, ChannelTable, OutputFormat, Preset, ProfileSpec};
 use super::preset::{self, ExpandError, Profile};
 
 /// Checks the spec and expands its profiles (in name order).
@@ -82,13 +82,17 @@ impl Checker<'_> {
 
     fn source(&mut self) {
         let source = &self.loaded.spec.source;
-        if source.format != SourceFormat::DiffusionPolicyZarr {
-            let name = source.format.name();
-            let message = format!("source format `{name}` is not supported yet");
-            let help = Some("this version of chunkc reads `diffusion_policy_zarr`".into());
-            self.value(&["source", "format"], message, "not supported yet", help);
-        }
         self.fps(&["source", "fps"], source.fps);
+        if source.episodes.as_ref().is_some_and(|e| e.is_empty()) {
+            let message = "`source.episodes` is empty".to_string();
+            let help = Some("leave it out to read every episode".into());
+            self.value(&["source", "episodes"], message, "no episodes", help);
+        }
+        for (name, channel) in &source.channels {
+            if let ChannelSpec::Table(table) = channel {
+                self.channel_table(name, table);
+            }
+        }
 
         // Exactly one `action` (the map's keys are unique); everything else an observation.
         let mut has_action = false;
@@ -109,6 +113,63 @@ impl Checker<'_> {
             let message = "no `action` channel".to_string();
             let help = Some("map the action to chunkc's name: `action = \"<source key>\"`".into());
             self.value(&["source", "channels", "action"], message, "", help);
+        }
+    }
+
+    /// The table form of a channel: exactly one of `key` and `concat`, a non-empty column range,
+    /// and no image kind on a slice or a concatenation.
+    fn channel_table(&mut self, name: &str, table: &ChannelTable) {
+        let at = ["source", "channels", name];
+        match (&table.key, &table.concat) {
+            (Some(_), Some(_)) => {
+                let message = format!("channel `{name}` has both `key` and `concat`");
+                let help = Some("read one key with `key = \"…\"`, or join several with `concat = [\"…\", \"…\"]`".into());
+                self.value(
+                    &[&at[..], &["concat"]].concat(),
+                    message,
+                    "give one of `key` and `concat`",
+                    help,
+                );
+            }
+            (None, None) => {
+                let message = format!("channel `{name}` names no source key");
+                let help = Some("add `key = \"<source key>\"` or `concat = [\"<key>\", …]`".into());
+                self.value(&at, message, "no `key` or `concat`", help);
+            }
+            (None, Some(keys)) if keys.is_empty() => {
+                let message = format!("channel `{name}` concatenates nothing");
+                self.value(
+                    &[&at[..], &["concat"]].concat(),
+                    message,
+                    "empty list",
+                    None,
+                );
+            }
+            _ => {}
+        }
+        if let Some([a, b]) = table.columns {
+            if a >= b {
+                let message =
+                    format!("channel `{name}` selects columns [{a}, {b}), which is empty");
+                let help = Some("columns are `[start, end)`, as Python's `x[:, start:end]`: end must exceed start".into());
+                self.value(
+                    &[&at[..], &["columns"]].concat(),
+                    message,
+                    "empty range",
+                    help,
+                );
+            }
+        }
+        let sliced = table.columns.is_some() || table.concat.is_some();
+        if sliced && table.kind == Some(ChannelKindSpec::Image) {
+            let message =
+                format!("channel `{name}` slices or concatenates keys, so it cannot be an image");
+            self.value(
+                &[&at[..], &["kind"]].concat(),
+                message,
+                "only whole keys are images",
+                None,
+            );
         }
     }
 

@@ -1,0 +1,242 @@
+//! ACT / ALOHA: a directory of `episode_<i>.hdf5`, one episode per file, ordered by the number
+//! (gaps are allowed and reported).
+//!
+//! `/action`, `/observations/qpos`, `/observations/qvel`, `/observations/effort`, and
+//! `/observations/images/<cam>`: either raw frames (T, H, W, 3) uint8 or, in the compressed
+//! variant, JPEG bytes (T, max_len) zero-padded. Which one is decided by the dataset's rank, never
+//! by the `compress` attribute (some forks set it and store gzip'd 4-D frames). The files store no
+//! timestamps; the rate is 50 Hz unless the spec says otherwise.
+
+use std::path::{Path, PathBuf};
+
+use hdf5::Dataset;
+
+use super::mapping::{self, KeyInfo, Mapped, Raw};
+use super::{fingerprint, h5, jpeg, Episode, EpisodeInfo, Manifest, Source};
+use crate::error::{Error, Result};
+use crate::spec::{LoadedSpec, SourceFormat};
+
+/// ALOHA records at 50 Hz and stores no rate.
+const DEFAULT_FPS: f64 = 50.0;
+
+pub struct AlohaSource {
+    files: Vec<PathBuf>,
+    manifest: Manifest,
+    mapped: Mapped,
+    /// Keys stored as JPEG rows, with the decoded frame's (height, width).
+    jpeg: Vec<(String, (usize, usize))>,
+}
+
+/// `episode_12.hdf5` → 12.
+fn episode_id(name: &str) -> Option<u64> {
+    name.strip_prefix("episode_")?
+        .strip_suffix(".hdf5")
+        .or_else(|| name.strip_prefix("episode_")?.strip_suffix(".h5"))?
+        .parse()
+        .ok()
+}
+
+/// A 2-D uint8 array of images holds one encoded frame per row.
+fn is_jpeg_rows(key: &str, ds: &Dataset) -> bool {
+    key.starts_with("observations/images/") && ds.ndim() == 2 && h5::dtype_name(ds) == "uint8"
+}
+
+/// The (height, width) of the JPEG in row `t`.
+fn jpeg_size(ds: &Dataset, t: usize, what: &str) -> Result<(usize, usize)> {
+    let row = ds
+        .read_slice_1d::<u8, _>(ndarray::s![t, ..])
+        .map_err(|e| Error::source(format!("{what} step {t}: cannot read: {e}")))?;
+    jpeg::dimensions(row.as_slice().unwrap_or(&row.to_vec()))
+        .map_err(|e| Error::source(format!("{what} step {t}: {e}")))
+}
+
+impl AlohaSource {
+    pub fn open(spec: &LoadedSpec, dir: &Path) -> Result<Self> {
+        let shown = dir.display().to_string();
+        if !dir.is_dir() {
+            return Err(spec.error_at(
+                &["source", "path"],
+                format!("an aloha_hdf5 source is a directory of episode_<i>.hdf5 files; {shown} is not a directory"),
+                None,
+            ));
+        }
+        let mut found: Vec<(u64, String)> = std::fs::read_dir(dir)
+            .map_err(|e| Error::source(format!("{shown}: cannot list: {e}")))?
+            .filter_map(|e| e.ok())
+            .filter_map(|e| {
+                let name = e.file_name().to_string_lossy().into_owned();
+                episode_id(&name).map(|id| (id, name))
+            })
+            .collect();
+        found.sort();
+        if found.is_empty() {
+            return Err(Error::source(format!("{shown}: no episode_<i>.hdf5 files")));
+        }
+        if let Some(w) = found.windows(2).find(|w| w[0].0 == w[1].0) {
+            return Err(Error::source(format!(
+                "{shown}: {} and {} have the same episode number",
+                w[0].1, w[1].1
+            )));
+        }
+        let mut warnings = Vec::new();
+        let missing: Vec<String> = found
+            .windows(2)
+            .filter(|w| w[1].0 > w[0].0 + 1)
+            .map(|w| {
+                if w[1].0 == w[0].0 + 2 {
+                    format!("{}", w[0].0 + 1)
+                } else {
+                    format!("{}..={}", w[0].0 + 1, w[1].0 - 1)
+                }
+            })
+            .collect();
+        if !missing.is_empty() || found[0].0 != 0 {
+            let mut gaps = missing;
+            if found[0].0 != 0 {
+                gaps.insert(0, format!("0..={}", found[0].0 - 1));
+            }
+            warnings.push(format!(
+                "{shown}: no episode file for ids {} (the original ACT code needs contiguous ids from 0)",
+                gaps.join(", ")
+            ));
+        }
+
+        let files: Vec<PathBuf> = found.iter().map(|(_, n)| dir.join(n)).collect();
+        let first = h5::open(&files[0])?;
+        let mut keys = Vec::new();
+        let mut jpeg_keys = Vec::new();
+        for (key, ds) in h5::datasets(&first, &files[0])? {
+            if !h5::is_numeric(&ds) || ds.ndim() == 0 {
+                continue;
+            }
+            if is_jpeg_rows(&key, &ds) {
+                let what = format!("{}: {key}", files[0].display());
+                let (h, w) = jpeg_size(&ds, 0, &what)?;
+                keys.push(KeyInfo {
+                    key: key.clone(),
+                    shape: vec![h, w, 3],
+                    dtype: "jpeg".into(),
+                });
+                jpeg_keys.push((key, (h, w)));
+            } else {
+                keys.push(KeyInfo {
+                    key,
+                    shape: h5::step_shape(&ds),
+                    dtype: h5::dtype_name(&ds),
+                });
+            }
+        }
+        drop(first);
+        let mapped = mapping::resolve(spec, &files[0].display().to_string(), &keys)?;
+        warnings.extend(mapped.warnings.iter().cloned());
+        let wanted = mapped.keys();
+        jpeg_keys.retain(|(k, _)| wanted.contains(k));
+
+        let mut episodes = Vec::with_capacity(files.len());
+        for ((id, _), path) in found.iter().zip(&files) {
+            let file = h5::open(path)?;
+            let here = path.display().to_string();
+            let mut len: Option<(usize, &str)> = None;
+            for key in &wanted {
+                let ds = h5::dataset(&file, key, path)?;
+                let reference = keys.iter().find(|k| &k.key == key).expect("resolved");
+                let jpeg = jpeg_keys.iter().find(|(k, _)| k == key);
+                let shape_ok = match jpeg {
+                    Some(_) => is_jpeg_rows(key, &ds),
+                    None => h5::step_shape(&ds) == reference.shape,
+                };
+                if !shape_ok {
+                    return Err(Error::source(format!(
+                        "{here}: `{key}` has shape {:?}, unlike {} ({:?} per step, {})",
+                        ds.shape(),
+                        files[0].display(),
+                        reference.shape,
+                        reference.dtype
+                    )));
+                }
+                let steps = h5::steps(&ds);
+                match len {
+                    None => len = Some((steps, key)),
+                    Some((n, first_key)) if n != steps => {
+                        return Err(Error::source(format!(
+                            "{here}: `{first_key}` has {n} steps but `{key}` has {steps}"
+                        )))
+                    }
+                    Some(_) => {}
+                }
+            }
+            let len = len.map(|(n, _)| n).unwrap_or(0);
+            if len == 0 {
+                return Err(Error::source(format!("{here}: the episode is empty")));
+            }
+            episodes.push(EpisodeInfo { id: *id, len });
+        }
+
+        let names: Vec<PathBuf> = found.iter().map(|(_, n)| PathBuf::from(n)).collect();
+        let fingerprint = fingerprint::of_files(dir, &names)?;
+        Ok(AlohaSource {
+            files,
+            manifest: Manifest {
+                format: SourceFormat::AlohaHdf5,
+                fps: spec.spec.source.fps.unwrap_or(DEFAULT_FPS),
+                episodes,
+                channels: mapped.channels.clone(),
+                fingerprint,
+                timestamps: false,
+                source_split: None,
+                warnings,
+            },
+            mapped,
+            jpeg: jpeg_keys,
+        })
+    }
+}
+
+/// Decodes every row of a (T, max_len) JPEG array into (T, H, W, 3) frames.
+fn decode_rows(ds: &Dataset, size: (usize, usize), what: &str) -> Result<Vec<u8>> {
+    let shape = ds.shape();
+    let (steps, row_len) = (shape[0], shape[1]);
+    let bytes = ds
+        .read_raw::<u8>()
+        .map_err(|e| Error::source(format!("{what}: cannot read: {e}")))?;
+    let mut out = Vec::with_capacity(steps * size.0 * size.1 * 3);
+    for (t, row) in bytes.chunks_exact(row_len.max(1)).enumerate() {
+        let frame =
+            jpeg::decode(row).map_err(|e| Error::source(format!("{what} step {t}: {e}")))?;
+        if (frame.height, frame.width) != size {
+            return Err(Error::source(format!(
+                "{what} step {t}: the frame is {}x{}, but the camera's first frame is {}x{}",
+                frame.height, frame.width, size.0, size.1
+            )));
+        }
+        out.extend_from_slice(&frame.rgb);
+    }
+    Ok(out)
+}
+
+impl Source for AlohaSource {
+    fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    fn read_episode(&self, index: usize) -> Result<Episode> {
+        let info = &self.manifest.episodes[index];
+        let path = &self.files[index];
+        let place = path.display().to_string();
+        let file = h5::open(path)?;
+        let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
+            let ds = h5::dataset(&file, key, path)?;
+            let what = format!("{place}: {key}");
+            match self.jpeg.iter().find(|(k, _)| k == key) {
+                Some((_, size)) => decode_rows(&ds, *size, &what).map(Raw::U8),
+                None => h5::read(&ds, || what.clone()),
+            }
+        })?;
+        Ok(Episode {
+            id: info.id,
+            len: info.len,
+            timestamps: None,
+            channels,
+        })
+    }
+}

@@ -1,0 +1,286 @@
+//! robomimic's one-file layout, and robosuite's older files it grew out of.
+//!
+//! `data/demo_<int>` groups, ordered by the integer (not lexically). robomimic stores the length
+//! as the `num_samples` attribute (checked against every array), `actions`, `rewards`, `dones`,
+//! `states` and `obs/<key>`; `mask/train` and `mask/valid` list demo names. robosuite's files have
+//! no `obs` group and no `num_samples`; column 0 of their `states` is simulation time, which
+//! becomes the episode's timestamps.
+
+use std::path::{Path, PathBuf};
+
+use hdf5::File;
+
+use super::mapping::{self, KeyInfo, Mapped};
+use super::{
+    fingerprint, fps_from_timestamps, h5, Episode, EpisodeInfo, Manifest, Source, SourceSplit,
+};
+use crate::error::{Error, Result};
+use crate::spec::{LoadedSpec, SourceFormat};
+
+pub struct RobomimicSource {
+    path: PathBuf,
+    file: File,
+    manifest: Manifest,
+    /// Group names under `data/`, in episode order.
+    demos: Vec<String>,
+    mapped: Mapped,
+    /// Per episode: simulation time from `states[:, 0]` (robosuite files only).
+    timestamps: Option<Vec<Vec<f64>>>,
+}
+
+/// `demo_12` → 12.
+fn demo_id(name: &str) -> Option<u64> {
+    name.strip_prefix("demo_")?.parse().ok()
+}
+
+impl RobomimicSource {
+    pub fn open(spec: &LoadedSpec, path: &Path) -> Result<Self> {
+        let shown = path.display().to_string();
+        let file = h5::open(path)?;
+        let data = h5::group(&file, "data", path)?;
+        let names = data
+            .member_names()
+            .map_err(|e| Error::source(format!("{shown}: cannot list `data`: {e}")))?;
+        let mut demos: Vec<(u64, String)> = names
+            .into_iter()
+            .filter_map(|n| demo_id(&n).map(|id| (id, n)))
+            .collect();
+        demos.sort();
+        if demos.is_empty() {
+            return Err(Error::source(format!(
+                "{shown}: no `data/demo_<n>` groups; is this a robomimic or robosuite file?"
+            )));
+        }
+        if let Some(w) = demos.windows(2).find(|w| w[0].0 == w[1].0) {
+            return Err(Error::source(format!(
+                "{shown}: `data/{}` and `data/{}` have the same number",
+                w[0].1, w[1].1
+            )));
+        }
+
+        let first = h5::group(&data, &demos[0].1, path)?;
+        let keys: Vec<KeyInfo> = h5::datasets(&first, path)?
+            .iter()
+            .filter(|(_, ds)| h5::is_numeric(ds))
+            .map(|(key, ds)| KeyInfo {
+                key: key.clone(),
+                shape: h5::step_shape(ds),
+                dtype: h5::dtype_name(ds),
+            })
+            .collect();
+        let place = format!("{shown} (data/{})", demos[0].1);
+        let mapped = mapping::resolve(spec, &place, &keys)?;
+        let wanted = mapped.keys();
+
+        let mut episodes = Vec::with_capacity(demos.len());
+        let mut timestamps = Vec::new();
+        let mut has_timestamps = true;
+        for (id, name) in &demos {
+            let g = h5::group(&data, name, path)?;
+            let here = format!("{shown}: data/{name}");
+            let arrays = h5::datasets(&g, path)?;
+            let num_samples = match g.attr("num_samples") {
+                Ok(attr) => Some(attr.read_scalar::<i64>().map_err(|e| {
+                    Error::source(format!("{here}: cannot read attribute `num_samples`: {e}"))
+                })?),
+                Err(_) => None,
+            };
+            let len = match num_samples {
+                Some(n) => {
+                    if n < 0 {
+                        return Err(Error::source(format!("{here}: num_samples is {n}")));
+                    }
+                    // Authoritative in robomimic; every array must agree with it.
+                    for (key, ds) in &arrays {
+                        if h5::steps(ds) as i64 != n {
+                            return Err(Error::source(format!(
+                                "{here}: num_samples is {n} but `{key}` has {} steps",
+                                h5::steps(ds)
+                            )));
+                        }
+                    }
+                    n as usize
+                }
+                None => {
+                    let (k0, d0) =
+                        arrays
+                            .iter()
+                            .find(|(k, _)| wanted.contains(k))
+                            .ok_or_else(|| {
+                                Error::source(format!("{here}: none of the mapped keys is present"))
+                            })?;
+                    for (key, ds) in arrays.iter().filter(|(k, _)| wanted.contains(k)) {
+                        if h5::steps(ds) != h5::steps(d0) {
+                            return Err(Error::source(format!(
+                                "{here}: `{k0}` has {} steps but `{key}` has {}",
+                                h5::steps(d0),
+                                h5::steps(ds)
+                            )));
+                        }
+                    }
+                    h5::steps(d0)
+                }
+            };
+            for key in &wanted {
+                let found = arrays.iter().find(|(k, _)| k == key);
+                let reference = keys.iter().find(|k| &k.key == key).expect("resolved");
+                match found {
+                    None => {
+                        return Err(Error::source(format!(
+                            "{here}: no `{key}` (it is in data/{})",
+                            demos[0].1
+                        )))
+                    }
+                    Some((_, ds)) if h5::step_shape(ds) != reference.shape => {
+                        return Err(Error::source(format!(
+                            "{here}: `{key}` has per-step shape {:?}, but {:?} in data/{}",
+                            h5::step_shape(ds),
+                            reference.shape,
+                            demos[0].1
+                        )))
+                    }
+                    Some(_) => {}
+                }
+            }
+            if len == 0 {
+                return Err(Error::source(format!("{here}: the episode is empty")));
+            }
+            // robosuite's layout: no observations group, simulation time in states[:, 0].
+            let states = arrays.iter().find(|(k, _)| k == "states");
+            match (g.group("obs").is_ok(), states) {
+                (false, Some((_, ds))) if h5::steps(ds) == len && ds.ndim() == 2 => {
+                    let all = ds
+                        .read_raw::<f64>()
+                        .map_err(|e| Error::source(format!("{here}: cannot read `states`: {e}")))?;
+                    let cols = ds.shape()[1].max(1);
+                    timestamps.push(all.iter().step_by(cols).copied().collect());
+                }
+                _ => has_timestamps = false,
+            }
+            episodes.push(EpisodeInfo { id: *id, len });
+        }
+        let timestamps = has_timestamps.then_some(timestamps);
+
+        let fps = match spec.spec.source.fps {
+            Some(fps) => fps,
+            None => timestamps
+                .as_deref()
+                .and_then(fps_from_timestamps)
+                .ok_or_else(|| {
+                    spec.error_at(
+                        &["source", "fps"],
+                        format!("{shown} stores no rate and no timestamps; set `source.fps`"),
+                        Some("robomimic's datasets are recorded at 20 Hz".into()),
+                    )
+                })?,
+        };
+
+        let mut warnings = mapped.warnings.clone();
+        let source_split = read_masks(&file, &demos, &shown, &mut warnings)?;
+
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let name = PathBuf::from(path.file_name().unwrap_or_default());
+        let fingerprint = fingerprint::of_files(dir, &[name])?;
+
+        Ok(RobomimicSource {
+            path: path.to_path_buf(),
+            file,
+            manifest: Manifest {
+                format: SourceFormat::RobomimicHdf5,
+                fps,
+                episodes,
+                channels: mapped.channels.clone(),
+                fingerprint,
+                timestamps: timestamps.is_some(),
+                source_split,
+                warnings,
+            },
+            demos: demos.into_iter().map(|(_, n)| n).collect(),
+            mapped,
+            timestamps,
+        })
+    }
+}
+
+/// `mask/valid` (and `mask/train`) as a split: the validation demos are those in `mask/valid`,
+/// everything else trains.
+fn read_masks(
+    file: &File,
+    demos: &[(u64, String)],
+    shown: &str,
+    warnings: &mut Vec<String>,
+) -> Result<Option<SourceSplit>> {
+    let Ok(mask) = file.group("mask") else {
+        return Ok(None);
+    };
+    let read = |name: &str| -> Result<Option<Vec<u64>>> {
+        let Ok(ds) = mask.dataset(name) else {
+            return Ok(None);
+        };
+        let names = h5::read_strings(&ds)
+            .map_err(|e| Error::source(format!("{shown}: mask/{name}: {e}")))?;
+        let mut ids = Vec::with_capacity(names.len());
+        for n in names {
+            match demos.iter().find(|(_, d)| *d == n) {
+                Some((id, _)) => ids.push(*id),
+                None => {
+                    return Err(Error::source(format!(
+                        "{shown}: mask/{name} lists `{n}`, which is not a group in `data`"
+                    )))
+                }
+            }
+        }
+        ids.sort_unstable();
+        Ok(Some(ids))
+    };
+    let (train, valid) = (read("train")?, read("valid")?);
+    let Some(val) = valid else {
+        return Ok(None);
+    };
+    let rest: Vec<u64> = demos
+        .iter()
+        .map(|(id, _)| *id)
+        .filter(|id| val.binary_search(id).is_err())
+        .collect();
+    if let Some(train) = &train {
+        let neither: Vec<String> = rest
+            .iter()
+            .filter(|id| train.binary_search(id).is_err())
+            .map(|id| format!("demo_{id}"))
+            .collect();
+        if !neither.is_empty() {
+            warnings.push(format!(
+                "{shown}: {} in neither mask/train nor mask/valid; used for training",
+                neither.join(", ")
+            ));
+        }
+    }
+    Ok(Some(SourceSplit {
+        origin: format!("{shown}: mask/valid"),
+        train: rest,
+        val,
+    }))
+}
+
+impl Source for RobomimicSource {
+    fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    fn read_episode(&self, index: usize) -> Result<Episode> {
+        let info = &self.manifest.episodes[index];
+        let demo = &self.demos[index];
+        let place = format!("{}: data/{demo}", self.path.display());
+        let group = h5::group(&self.file, &format!("data/{demo}"), &self.path)?;
+        let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
+            let ds = h5::dataset(&group, key, &self.path)?;
+            h5::read(&ds, || format!("{place}/{key}"))
+        })?;
+        Ok(Episode {
+            id: info.id,
+            len: info.len,
+            timestamps: self.timestamps.as_ref().map(|t| t[index].clone()),
+            channels,
+        })
+    }
+}

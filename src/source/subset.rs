@@ -1,0 +1,54 @@
+//! `[source] episodes = […]`: some episodes of any source, in the source's order.
+
+use super::{Episode, Manifest, Source};
+use crate::error::Result;
+use crate::spec::LoadedSpec;
+
+pub struct Subset {
+    inner: Box<dyn Source>,
+    manifest: Manifest,
+    /// Positions in the inner source's episode list.
+    positions: Vec<usize>,
+}
+
+impl Subset {
+    pub fn new(spec: &LoadedSpec, inner: Box<dyn Source>, ids: &[u64]) -> Result<Self> {
+        let all = &inner.manifest().episodes;
+        if let Some(id) = ids.iter().find(|id| !all.iter().any(|e| e.id == **id)) {
+            let shown: Vec<String> = all.iter().take(20).map(|e| e.id.to_string()).collect();
+            let more = if all.len() > 20 { ", …" } else { "" };
+            return Err(spec.error_at(
+                &["source", "episodes"],
+                format!(
+                    "episode {id} is not in the source, which has ids {}{more}",
+                    shown.join(", ")
+                ),
+                None,
+            ));
+        }
+        let positions: Vec<usize> = (0..all.len())
+            .filter(|&i| ids.contains(&all[i].id))
+            .collect();
+        let mut manifest = inner.manifest().clone();
+        manifest.episodes = positions.iter().map(|&i| all[i].clone()).collect();
+        if let Some(split) = manifest.source_split.as_mut() {
+            split.train.retain(|id| ids.contains(id));
+            split.val.retain(|id| ids.contains(id));
+        }
+        Ok(Subset {
+            inner,
+            manifest,
+            positions,
+        })
+    }
+}
+
+impl Source for Subset {
+    fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    fn read_episode(&self, index: usize) -> Result<Episode> {
+        self.inner.read_episode(self.positions[index])
+    }
+}
