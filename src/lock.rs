@@ -1,4 +1,6 @@
-//! `chunkc.lock`: what the last successful build produced, written next to the spec.
+//! `chunkc.lock`: what the last successful build of each spec produced, written next to the
+//! specs. One lock serves every spec of a directory: entries are keyed by the spec's file name, and
+//! a build rewrites only its own entry.
 //!
 //! JSON with sorted keys and no timestamps, so that it is itself reproducible and diffs well in
 //! code review. The plan compares it with the current spec, source and output files to decide
@@ -11,12 +13,19 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, IoContext, Result};
 
-pub const LOCK_VERSION: u32 = 1;
+pub const LOCK_VERSION: u32 = 2;
 pub const LOCK_FILE: &str = "chunkc.lock";
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Lock {
     pub version: u32,
+    /// By spec file name.
+    pub specs: BTreeMap<String, SpecLock>,
+}
+
+/// What one spec's last build produced.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct SpecLock {
     pub tool_version: String,
     pub spec_hash: String,
     pub source_fingerprint: String,
@@ -40,16 +49,29 @@ pub fn path_for(spec_file: &Path) -> PathBuf {
         .join(LOCK_FILE)
 }
 
+/// The key of a spec's entry in its lock.
+pub fn key_for(spec_file: &Path) -> String {
+    spec_file
+        .file_name()
+        .unwrap_or_default()
+        .to_string_lossy()
+        .into_owned()
+}
+
 impl Lock {
     /// Reads a lock; a missing file is `Ok(None)`, an unreadable one an error.
     pub fn read(path: &Path) -> Result<Option<Lock>> {
         match std::fs::read_to_string(path) {
-            Ok(text) => serde_json::from_str(&text).map(Some).map_err(|e| {
-                Error::output(format!(
-                    "{} is not a valid chunkc lock file ({e}); delete it to rebuild everything",
-                    path.display()
-                ))
-            }),
+            Ok(text) => serde_json::from_str::<Lock>(&text)
+                .ok()
+                .filter(|l| l.version == LOCK_VERSION)
+                .map(Some)
+                .ok_or_else(|| {
+                    Error::output(format!(
+                        "{} is not a chunkc lock file of version {LOCK_VERSION}; delete it to rebuild everything",
+                        path.display()
+                    ))
+                }),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
             Err(e) => Err(Error::io_path("read", path, e)),
         }

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use crate::chunk::Sampling;
 use crate::error::{Error, IoContext, Result};
-use crate::lock::{self, Lock, LockedProfile, LOCK_VERSION};
+use crate::lock::{self, Lock, LockedProfile, SpecLock, LOCK_VERSION};
 use crate::plan::{self, Plan, ProfilePlan, META_FILE, STATS_FILE};
 use crate::render;
 use crate::sink::documents;
@@ -65,7 +65,10 @@ pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
     let out_dir = spec.resolve(&spec.spec.output.dir);
     check_output_location(spec, &out_dir)?;
     let lock = Lock::read(&lock::path_for(&spec.file))?;
-    let plan = plan::resolve(spec, source.manifest(), lock.as_ref(), &out_dir)?;
+    let entry = lock
+        .as_ref()
+        .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
+    let plan = plan::resolve(spec, source.manifest(), entry, &out_dir)?;
     Ok((source, plan))
 }
 
@@ -127,7 +130,14 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let built: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
     staging.commit(&built)?;
 
-    let previous = Lock::read(&lock::path_for(&spec.file))?.unwrap_or_default();
+    // Re-read the lock: only this spec's entry changes, whatever else it holds.
+    let lock_path = lock::path_for(&spec.file);
+    let key = lock::key_for(&spec.file);
+    let mut all = Lock::read(&lock_path)?.unwrap_or(Lock {
+        version: LOCK_VERSION,
+        specs: BTreeMap::new(),
+    });
+    let previous = all.specs.remove(&key).unwrap_or_default();
     let mut profiles = BTreeMap::new();
     for p in &plan.profiles {
         let entry = match hashes.get(&p.name) {
@@ -139,14 +149,16 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         };
         profiles.insert(p.name.clone(), entry);
     }
-    Lock {
-        version: LOCK_VERSION,
-        tool_version: plan::TOOL_VERSION.to_string(),
-        spec_hash: plan.spec_hash.clone(),
-        source_fingerprint: plan.source.fingerprint.clone(),
-        profiles,
-    }
-    .write(&lock::path_for(&spec.file))?;
+    all.specs.insert(
+        key,
+        SpecLock {
+            tool_version: plan::TOOL_VERSION.to_string(),
+            spec_hash: plan.spec_hash.clone(),
+            source_fingerprint: plan.source.fingerprint.clone(),
+            profiles,
+        },
+    );
+    all.write(&lock_path)?;
     Ok(BuildReport {
         out_dir,
         built,

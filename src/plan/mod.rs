@@ -22,7 +22,7 @@ pub use text::render_text;
 use crate::chunk::segment::SegmentParams;
 use crate::chunk::{decimated_len, Sampling, Window};
 use crate::error::Result;
-use crate::lock::{self, Lock};
+use crate::lock::{self, SpecLock};
 use crate::source::{ChannelInfo, ChannelKind, Manifest};
 use crate::spec::{LoadedSpec, NormalizeMode, Profile, SplitFrom};
 
@@ -135,6 +135,7 @@ pub struct SplitCounts {
 #[derive(Debug, Clone, Serialize)]
 pub struct PlannedFile {
     pub path: String,
+    /// An upper bound: image frames are counted before compression.
     pub estimated_bytes: u64,
 }
 
@@ -201,7 +202,7 @@ fn stats_dims(ch: &ChannelInfo) -> usize {
 pub fn resolve(
     spec: &LoadedSpec,
     manifest: &Manifest,
-    lock: Option<&Lock>,
+    lock: Option<&SpecLock>,
     out_dir: &Path,
 ) -> Result<Plan> {
     let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
@@ -283,7 +284,7 @@ fn resolve_profile(
     manifest: &Manifest,
     split: &Split,
     profile: &Profile,
-    lock: Option<&Lock>,
+    lock: Option<&SpecLock>,
     out_dir: &Path,
 ) -> Result<ProfilePlan> {
     let name = &profile.name;
@@ -556,7 +557,7 @@ fn profile_fingerprint(spec: &LoadedSpec, manifest: &Manifest, profile: &Profile
     h.finalize().to_hex().to_string()
 }
 
-fn status_of(name: &str, fingerprint: &str, lock: Option<&Lock>, dir: &Path) -> Result<Status> {
+fn status_of(name: &str, fingerprint: &str, lock: Option<&SpecLock>, dir: &Path) -> Result<Status> {
     let build = |reason: String| {
         Ok(Status {
             up_to_date: false,
@@ -564,7 +565,7 @@ fn status_of(name: &str, fingerprint: &str, lock: Option<&Lock>, dir: &Path) -> 
         })
     };
     let Some(lock) = lock else {
-        return build("no chunkc.lock: first build".into());
+        return build("not in chunkc.lock: first build".into());
     };
     let Some(entry) = lock.profiles.get(name) else {
         return build(format!("profile `{name}` is not in chunkc.lock"));

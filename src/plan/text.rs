@@ -129,7 +129,7 @@ pub fn render_text(plan: &Plan) -> String {
         for f in &p.files {
             let _ = writeln!(
                 s,
-                "  write  {}/{}  ~{}",
+                "  write  {}/{}  <= {}",
                 p.name,
                 f.path,
                 human_bytes(f.estimated_bytes)

@@ -246,8 +246,8 @@ pub struct ProfileSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub obs_history: Option<u32>,
     /// Action steps the policy executes before replanning (Diffusion Policy's `n_action_steps`).
-    /// With `alignment = "diffusion_policy"` it bounds the padding after the episode end
-    /// (`pad_after = executes - 1`).
+    /// When set, it bounds the padding after the episode end to `executes - 1` steps (Diffusion
+    /// Policy's `pad_after`), whatever the alignment.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub executes: Option<u32>,
     /// Where the action chunk starts relative to the observation history.
@@ -291,7 +291,8 @@ pub enum Preset {
     DiffusionPolicyHighfreq,
     /// LeRobot's ACT: K=100 at the dataset rate, indices clamped, MEAN_STD.
     LerobotAct,
-    /// LeRobot's Diffusion: horizon 64, two observations, executes 32, MIN_MAX low-dim.
+    /// LeRobot's Diffusion: horizon 64, two observations, MIN_MAX low-dim, every frame a sample
+    /// (its `n_action_steps` 32 is an inference setting that does not shape the dataset).
     LerobotDiffusion,
     /// openpi (pi0): K=50 at the dataset rate, quantile normalization.
     Openpi,

@@ -219,3 +219,50 @@ coarse_seconds = 2.0
         fine_valid = ~s["action_is_pad"]
         np.testing.assert_array_equal(s["action"][fine_valid], s["coarse_action"][5 * j : 5 * j + 5][fine_valid])
         assert fine_valid.sum() == min(5, length - (t0 + 5 * j))
+
+
+def test_gripper_command_sign_changes_split_robosuite_lift(tmp_path):
+    import h5py
+
+    from conftest import REPO
+
+    source = REPO / "tests" / "data" / "robosuite_panda_lift.hdf5"
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        f"""
+version = 1
+[source]
+format = "robomimic_hdf5"
+path = "{source}"
+[source.channels]
+action = "actions"
+"observation.state" = {{ key = "states", columns = [1, 32] }}
+[split]
+val_fraction = 0.0
+[output]
+dir = "out"
+[profiles.phases]
+chunk = 1000
+padding = "mask"
+normalize = {{ action = "limits" }}
+[profiles.phases.segment]
+method = "sign_change"
+channel = "action"
+dims = [6]
+"""
+    )
+    run_chunkc("build", "-q", spec)
+    ds = load(tmp_path / "out" / "phases")
+    with h5py.File(source, "r") as f:
+        gripper = f["data/demo_1/actions"][:, 6]
+    # numpy: the steps where the gripper command's sign differs from the step before.
+    sign = np.sign(gripper)
+    cuts = (np.nonzero(sign[1:] != sign[:-1])[0] + 1).tolist()
+    assert cuts, "the lift demo closes the gripper at least once"
+    bounds = [0, *cuts, len(gripper)]
+    assert ds.meta["sampling"]["segments"] == [[[a, b] for a, b in zip(bounds, bounds[1:])]]
+    for i in range(len(ds)):
+        s = ds[i]
+        n = int((~s["action_is_pad"]).sum())
+        gripper_seg = ds.denormalize("action", s["action"][:n])[:, 6]
+        assert len(set(np.sign(np.round(gripper_seg, 6)))) == 1  # one command sign per segment
