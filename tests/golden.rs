@@ -1,5 +1,6 @@
 //! Every example spec in `specs/` is built, and its outputs are compared with `golden/<spec>/`:
-//! text files verbatim, HDF5 files as canonical dumps (`<file>.txt`), other binary files as
+//! text files verbatim, HDF5 files and Zarr directories as canonical dumps (`<file>.txt`), other
+//! binary files as
 //! size and hash. A missing or an extra file
 //! fails. The same builds with 1 and 2 threads must give byte-identical files.
 //!
@@ -27,12 +28,19 @@ fn copy_dir(from: &Path, to: &Path) {
 }
 
 fn files_under(root: &Path) -> Vec<PathBuf> {
+    files_under_opt(root, false)
+}
+
+/// Files under `root`; with `zarr_as_files`, a `*.zarr` directory counts as one entry.
+fn files_under_opt(root: &Path, zarr_as_files: bool) -> Vec<PathBuf> {
     let mut out = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
         for entry in std::fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
-            if path.is_dir() {
+            if zarr_as_files && path.is_dir() && path.extension().is_some_and(|e| e == "zarr") {
+                out.push(path.strip_prefix(root).unwrap().to_path_buf());
+            } else if path.is_dir() {
                 stack.push(path);
             } else {
                 out.push(path.strip_prefix(root).unwrap().to_path_buf());
@@ -76,9 +84,13 @@ fn build(spec: &Path, threads: &str) -> (tempfile::TempDir, PathBuf) {
 /// What the golden directory should hold for a built output directory.
 fn canonical(out_dir: &Path) -> BTreeMap<PathBuf, String> {
     let mut files = BTreeMap::new();
-    for rel in files_under(out_dir) {
+    for rel in files_under_opt(out_dir, true) {
         let path = out_dir.join(&rel);
-        if rel.extension().is_some_and(|e| e == "h5") {
+        if rel.extension().is_some_and(|e| e == "zarr") {
+            let mut name = rel.clone().into_os_string();
+            name.push(".txt");
+            files.insert(PathBuf::from(name), dump::zarr_text(&path).unwrap());
+        } else if rel.extension().is_some_and(|e| e == "h5" || e == "hdf5") {
             let mut name = rel.clone().into_os_string();
             name.push(".txt");
             files.insert(PathBuf::from(name), dump::hdf5_text(&path).unwrap());

@@ -479,6 +479,7 @@ fn run(
         }
         sink.write_index(&train, &val)?;
         let data_file = sink.data_file().to_string();
+        let normalized = sink.stores_normalized();
         sink.finish()?;
 
         let write = |name: &str, text: String| -> Result<()> {
@@ -497,6 +498,7 @@ fn run(
                     segments: &segments,
                 },
                 &data_file,
+                normalized,
             ),
         )?;
         write(STATS_FILE, documents::stats_json(stats))?;

@@ -392,10 +392,32 @@ fn resolve_profile(
         .sum::<u64>()
         + 32 * (counts.train.unwrap_or(steps) + counts.val.unwrap_or(0)) as u64
         + 16 * manifest.episodes.len() as u64;
+    // `/chunks` of the HDF5 layouts that add it: K (or obs_history) rows per window.
+    let windows = (counts.train.unwrap_or(0) + counts.val.unwrap_or(0)) as u64;
+    let (k, h) = (u64::from(profile.chunk), u64::from(profile.obs_history));
+    let chunk_bytes: u64 = match (profile.format, profile.layout) {
+        (crate::spec::OutputFormat::Hdf5, crate::spec::Layout::Materialized) => manifest
+            .channels
+            .iter()
+            .filter(|c| c.kind == ChannelKind::Lowdim)
+            .map(|c| {
+                let steps = if c.name == "action" { k } else { h };
+                windows * steps * (step_bytes(c) + 1)
+            })
+            .sum(),
+        (crate::spec::OutputFormat::Hdf5, crate::spec::Layout::Virtual) => {
+            windows * k / 8 + 4096 * k
+        }
+        _ => 0,
+    };
     let files = vec![
         PlannedFile {
-            path: DATA_FILE.into(),
-            estimated_bytes: data_bytes + 8192,
+            path: match profile.format {
+                crate::spec::OutputFormat::Zarr => "data.zarr/".into(),
+                crate::spec::OutputFormat::ActEpisodes => "episode_*.hdf5".into(),
+                _ => DATA_FILE.into(),
+            },
+            estimated_bytes: data_bytes + chunk_bytes + 8192,
         },
         PlannedFile {
             path: LOADER_FILE.into(),

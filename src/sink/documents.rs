@@ -11,6 +11,7 @@ use serde_json::{json, Value};
 use crate::chunk::Sampling;
 use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
 use crate::source::ChannelKind;
+use crate::spec::OutputFormat;
 use crate::stats::normalize::Normalizer;
 use crate::stats::ChannelStats;
 
@@ -33,7 +34,17 @@ pub struct Built<'a> {
 }
 
 /// `meta.json`: everything the loader needs, and the provenance of the dataset.
-pub fn meta_json(plan: &Plan, profile: &ProfilePlan, built: &Built, data_file: &str) -> String {
+///
+/// `data_file` and `normalized` come from the sink: where the data is, and whether its
+/// low-dimensional values are stored normalized (chunkc's HDF5) or raw (Zarr, Parquet; the loader
+/// then normalizes on read).
+pub fn meta_json(
+    plan: &Plan,
+    profile: &ProfilePlan,
+    built: &Built,
+    data_file: &str,
+    normalized: bool,
+) -> String {
     let v = &profile.values;
     let window = profile.window();
     let mut sampling = serde_json::Map::new();
@@ -91,8 +102,13 @@ pub fn meta_json(plan: &Plan, profile: &ProfilePlan, built: &Built, data_file: &
         "executes": v.executes,
         "max_pad_after": window.max_pad_after,
         "sampling": sampling,
-        "layout": "index",
+        "layout": match v.format {
+            OutputFormat::Hdf5 => v.layout.name(),
+            other => other.name(),
+        },
+        "data_format": v.format.name(),
         "data_file": data_file,
+        "stored_values": if normalized { "normalized" } else { "raw" },
         "rate": { "source_fps": plan.source.fps, "factor": profile.rate_factor },
         "episode_ends": built.episode_ends,
         "episodes": ids,

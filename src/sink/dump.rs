@@ -27,6 +27,7 @@ fn type_name(t: &TypeDescriptor) -> String {
         TypeDescriptor::Float(FloatSize::U4) => "float32".into(),
         TypeDescriptor::Float(FloatSize::U8) => "float64".into(),
         TypeDescriptor::VarLenUnicode => "string".into(),
+        TypeDescriptor::Boolean => "bool".into(),
         other => format!("{other:?}"),
     }
 }
@@ -74,6 +75,11 @@ fn content_hash(ds: &Dataset, t: &TypeDescriptor) -> Result<String> {
         TypeDescriptor::Unsigned(IntSize::U1) => ds.read_raw::<u8>()?,
         TypeDescriptor::Integer(IntSize::U8) => bytes!(i64),
         TypeDescriptor::Integer(IntSize::U4) => bytes!(i32),
+        TypeDescriptor::Boolean => ds
+            .read_raw::<bool>()?
+            .iter()
+            .map(|&b| u8::from(b))
+            .collect(),
         other => return Ok(format!("<unhashed {other:?}>")),
     };
     Ok(blake3::hash(&bytes).to_hex().to_string())
@@ -111,4 +117,75 @@ fn group(g: &Group, path: &str, out: &mut String) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// A canonical dump of a Zarr directory (v2 or v3): every metadata document verbatim, and per
+/// array the number of stored chunk files and a BLAKE3 hash over their keys and bytes (sorted).
+pub fn zarr_text(root: &Path) -> Result<String> {
+    let mut files = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).map_err(|e| Error::output(e.to_string()))? {
+            let path = entry.map_err(|e| Error::output(e.to_string()))?.path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let rel = path.strip_prefix(root).expect("under root");
+                files.push(rel.to_string_lossy().replace('\\', "/"));
+            }
+        }
+    }
+    files.sort();
+    let is_meta = |f: &str| {
+        let name = f.rsplit('/').next().unwrap_or(f);
+        matches!(name, ".zarray" | ".zgroup" | ".zattrs" | "zarr.json")
+    };
+    let arrays: Vec<String> = files
+        .iter()
+        .filter(|f| f.ends_with(".zarray") || f.ends_with("zarr.json"))
+        .map(|f| {
+            f.rsplit_once('/')
+                .map_or(String::new(), |(d, _)| d.to_string())
+        })
+        .collect();
+    let mut out = String::new();
+    for f in files.iter().filter(|f| is_meta(f)) {
+        let text =
+            std::fs::read_to_string(root.join(f)).map_err(|e| Error::output(e.to_string()))?;
+        let _ = writeln!(out, "--- {f}\n{}", text.trim_end());
+    }
+    for array in &arrays {
+        let prefix = if array.is_empty() {
+            String::new()
+        } else {
+            format!("{array}/")
+        };
+        let mut hasher = blake3::Hasher::new();
+        let mut count = 0;
+        for f in files.iter().filter(|f| !is_meta(f)) {
+            let Some(key) = f.strip_prefix(&prefix) else {
+                continue;
+            };
+            // A chunk of this array, not of an array nested below it.
+            if arrays
+                .iter()
+                .any(|a| a.len() > array.len() && f.starts_with(&format!("{a}/")))
+            {
+                continue;
+            }
+            let bytes = std::fs::read(root.join(f)).map_err(|e| Error::output(e.to_string()))?;
+            hasher.update(key.as_bytes());
+            hasher.update(&(bytes.len() as u64).to_le_bytes());
+            hasher.update(&bytes);
+            count += 1;
+        }
+        if count > 0 {
+            let _ = writeln!(
+                out,
+                "chunks {array}: {count} files blake3 {}",
+                hasher.finalize()
+            );
+        }
+    }
+    Ok(out)
 }

@@ -1,4 +1,5 @@
-//! The HDF5 writer for chunkc's own `index` layout.
+//! The HDF5 writer for chunkc's own layouts (`index`, and `materialized` / `virtual`, which add
+//! `/chunks`: see `hdf5_chunks`).
 //!
 //! ```text
 //! /data/<channel>      (N, ...) float32 (normalized low-dim) or uint8 (images, HWC)
@@ -14,10 +15,13 @@ use hdf5::types::VarLenUnicode;
 use hdf5::{Dataset, File, Group};
 use ndarray::{ArrayViewD, IxDyn};
 
+use super::hdf5_chunks::{self, Stored, Windows};
 use super::{FrameEncoding, Sink, SinkContext};
+use crate::chunk::Window;
 use crate::error::{Error, Result};
 use crate::plan::DATA_FILE;
 use crate::source::ChannelKind;
+use crate::spec::{Compression, Layout, Padding};
 use crate::stats::normalize::Normalizer;
 
 /// Chunks of low-dimensional data hold about this many bytes (a few windows' worth).
@@ -25,10 +29,20 @@ const LOWDIM_CHUNK_BYTES: usize = 64 * 1024;
 /// Image frames are compressed with deflate at this level (fast, and lossless).
 const IMAGE_DEFLATE_LEVEL: u8 = 1;
 
+/// gzip's level when the spec gives none.
+const DEFAULT_GZIP_LEVEL: u32 = 4;
+
 pub struct Hdf5Writer {
     file: File,
     data: Vec<Dataset>,
     shapes: Vec<Vec<usize>>,
+    names: Vec<String>,
+    layout: Layout,
+    window: Window,
+    padding: Padding,
+    episode_ends: Vec<u64>,
+    /// Normalized low-dim values and normalizers, kept for `/chunks` (not for `index`).
+    kept: Vec<Option<(Vec<f32>, Normalizer)>>,
 }
 
 fn group(parent: &Group, name: &str) -> Result<Group> {
@@ -75,7 +89,7 @@ impl Hdf5Writer {
             .write_scalar(&text(v.alignment.name())?)?;
         root.new_attr::<VarLenUnicode>()
             .create("layout")?
-            .write_scalar(&text("index")?)?;
+            .write_scalar(&text(v.layout.name())?)?;
 
         let data_group = group(root, "data")?;
         let mut data = Vec::new();
@@ -89,12 +103,19 @@ impl Hdf5Writer {
                     let rows = (LOWDIM_CHUNK_BYTES / row_bytes).clamp(1, steps.max(1));
                     let mut chunk = vec![rows];
                     chunk.extend(&ch.shape);
-                    data_group
+                    let b = data_group
                         .new_dataset::<f32>()
                         .shape(shape.clone())
                         .chunk(chunk)
-                        .obj_track_times(false)
-                        .create(ch.name.as_str())?
+                        .obj_track_times(false);
+                    let b = match v.compression {
+                        Compression::Gzip => {
+                            b.deflate(v.compression_level.unwrap_or(DEFAULT_GZIP_LEVEL) as u8)
+                        }
+                        Compression::Lzf => b.lzf(),
+                        _ => b,
+                    };
+                    b.create(ch.name.as_str())?
                 }
                 ChannelKind::Image => {
                     let mut chunk = vec![1];
@@ -123,7 +144,17 @@ impl Hdf5Writer {
                 .write_raw(values)?;
         }
         group(root, "index")?;
-        Ok(Hdf5Writer { file, data, shapes })
+        Ok(Hdf5Writer {
+            file,
+            data,
+            shapes,
+            names: plan.channels.iter().map(|c| c.name.clone()).collect(),
+            layout: v.layout,
+            window: *plan.window(),
+            padding: v.padding,
+            episode_ends: episode_ends.to_vec(),
+            kept: plan.channels.iter().map(|_| None).collect(),
+        })
     }
 
     fn selection(&self, channel: usize, row: usize, rows: usize) -> hdf5::Hyperslab {
@@ -222,12 +253,55 @@ impl Sink for Hdf5Writer {
     fn write_lowdim(&mut self, channel: usize, raw: &[f32], normalizer: &Normalizer) -> Result<()> {
         let mut values = raw.to_vec();
         normalizer.apply(&mut values);
-        self.write_f32(channel, &values)
+        self.write_f32(channel, &values)?;
+        let wanted = match self.layout {
+            Layout::Index => false,
+            Layout::Materialized => true,
+            Layout::Virtual => self.names[channel] == "action",
+        };
+        if wanted {
+            self.kept[channel] = Some((values, normalizer.clone()));
+        }
+        Ok(())
     }
 
     fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()> {
         self.write_index_of("train", train)?;
-        self.write_index_of("val", val)
+        self.write_index_of("val", val)?;
+        if self.layout == Layout::Index {
+            return Ok(());
+        }
+        let windows = Windows {
+            window: &self.window,
+            padding: self.padding,
+            episode_ends: &self.episode_ends,
+            rows: train.iter().chain(val).copied().collect(),
+            num_train: train.len(),
+        };
+        let stored: Vec<Stored> = self
+            .kept
+            .iter()
+            .enumerate()
+            .filter_map(|(c, kept)| {
+                let (values, normalizer) = kept.as_ref()?;
+                Some(Stored {
+                    name: &self.names[c],
+                    width: self.shapes[c].iter().product::<usize>().max(1),
+                    shape: &self.shapes[c],
+                    values,
+                    normalizer,
+                })
+            })
+            .collect();
+        match self.layout {
+            Layout::Materialized => hdf5_chunks::materialize(&self.file, &windows, &stored),
+            _ => {
+                let action = stored.iter().find(|s| s.name == "action").ok_or_else(|| {
+                    Error::Internal("the virtual layout needs the action channel".into())
+                })?;
+                hdf5_chunks::virtual_action(&self.file, &windows, action)
+            }
+        }
     }
 
     fn finish(self: Box<Self>) -> Result<()> {

@@ -5,13 +5,20 @@
 //! (already encoded the way the sink asked, in parallel, once per rate and encoding), then every
 //! low-dimensional channel whole, then the window index, then `finish`.
 //!
-//! - `hdf5`: chunkc's own `index` layout in HDF5.
+//! - `hdf5` (+ `hdf5_chunks`): chunkc's own HDF5 layouts `index`, `materialized`, `virtual`.
+//! - `zarr`: a Diffusion Policy replay buffer (raw values) + the window index.
+//! - `windows`: the rows of one window, as the loader resolves them.
+//! - `act_episodes`: ACT's `episode_<i>.hdf5` files (raw values).
 //! - `documents`: `meta.json` and `stats.json`.
 //! - `dump`: canonical text dumps of written files (golden tests).
 
+pub mod act_episodes;
 pub mod documents;
 pub mod dump;
 pub mod hdf5;
+mod hdf5_chunks;
+pub mod windows;
+pub mod zarr;
 
 use std::path::Path;
 
@@ -61,6 +68,10 @@ pub trait Sink {
     /// The file `meta.json` names as the data (relative to the profile directory).
     fn data_file(&self) -> &str;
     fn frame_encoding(&self) -> FrameEncoding;
+    /// Whether low-dimensional values are stored normalized (`meta.json` `stored_values`).
+    fn stores_normalized(&self) -> bool {
+        true
+    }
     /// Encoded frames of image channel `channel` for one episode, from stored row `row`.
     fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()>;
     /// A whole low-dimensional channel in raw units, and the profile's normalizer for it: the
@@ -76,6 +87,8 @@ pub trait Sink {
 pub fn create(ctx: &SinkContext) -> Result<Box<dyn Sink>> {
     match ctx.profile.values.format {
         OutputFormat::Hdf5 => Ok(Box::new(hdf5::Hdf5Writer::create(ctx)?)),
+        OutputFormat::Zarr => Ok(Box::new(zarr::ZarrWriter::create(ctx)?)),
+        OutputFormat::ActEpisodes => Ok(Box::new(act_episodes::ActEpisodesWriter::create(ctx)?)),
         other => Err(crate::Error::output(format!(
             "output format `{}` is not supported yet",
             other.name()

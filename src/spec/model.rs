@@ -262,9 +262,29 @@ pub struct ProfileSpec {
     /// Normalization per channel; channels left out get the preset's mode for their kind.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normalize: Option<BTreeMap<String, NormalizeMode>>,
-    /// Output container format.
+    /// Output container format: chunkc's own (`hdf5`, `zarr`, `parquet`) or a codebase-native
+    /// export (`act_episodes`, `robomimic_hdf5`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub format: Option<OutputFormat>,
+    /// How `format = "hdf5"` stores the chunks: `index` (default, per-step arrays + window
+    /// index), `materialized` (plus `/chunks/<channel>` of shape (N, K, ...): K times the
+    /// storage) or `virtual` (plus an HDF5 virtual dataset `/chunks/action` mapped onto the
+    /// per-step rows).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub layout: Option<Layout>,
+    /// Compression of low-dimensional arrays (images: see `formats.md`). HDF5: `none`
+    /// (default), `gzip`, `lzf`; Zarr: `lz4` (default, Blosc), `zstd` (Blosc, bit-shuffled),
+    /// `none`; Parquet: `zstd` (default), `none`. Native exports keep their codebase's layout.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compression: Option<Compression>,
+    /// Compression level: gzip 0-9 (default 4), Blosc 1-9 (default 5), Parquet zstd 1-22
+    /// (default 3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compression_level: Option<u32>,
+    /// Zarr format version of `format = "zarr"`: 2 (default; what Diffusion Policy's
+    /// `ReplayBuffer` opens) or 3.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zarr_version: Option<u32>,
     /// Statistics files in target codebases' own formats, written beside `stats.json`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stats_formats: Option<Vec<StatsFormat>>,
@@ -489,17 +509,107 @@ impl StatsFormat {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum OutputFormat {
+    /// chunkc's own HDF5 file `data.h5` (see `layout`), read by the generated `loader.py`.
     Hdf5,
+    /// A Diffusion Policy replay buffer `data.zarr` (`data/<channel>`, `meta/episode_ends`) in
+    /// raw units, plus chunkc's window index (`index/train`, `index/val`).
     Zarr,
+    /// A LeRobot v3.0 dataset in raw units (`data/chunk-000/file-000.parquet`, `meta/…`), plus
+    /// chunkc's window index (`meta/chunkc_index.parquet`).
     Parquet,
+    /// ACT's own layout: `episode_<i>.hdf5` files in raw units, plus `dataset_stats.pkl`.
+    ActEpisodes,
+    /// A robomimic dataset `data.hdf5` in raw units (`data/demo_<i>`, `mask/train`, `mask/valid`).
+    RobomimicHdf5,
 }
 
 impl OutputFormat {
+    pub const ALL: [OutputFormat; 5] = [
+        OutputFormat::Hdf5,
+        OutputFormat::Zarr,
+        OutputFormat::Parquet,
+        OutputFormat::ActEpisodes,
+        OutputFormat::RobomimicHdf5,
+    ];
+
     pub fn name(self) -> &'static str {
         match self {
             OutputFormat::Hdf5 => "hdf5",
             OutputFormat::Zarr => "zarr",
             OutputFormat::Parquet => "parquet",
+            OutputFormat::ActEpisodes => "act_episodes",
+            OutputFormat::RobomimicHdf5 => "robomimic_hdf5",
+        }
+    }
+
+    /// Whether the output is a codebase's own layout (raw values, no chunkc loader).
+    pub fn is_native_export(self) -> bool {
+        matches!(
+            self,
+            OutputFormat::ActEpisodes | OutputFormat::RobomimicHdf5
+        )
+    }
+}
+
+/// How chunkc's HDF5 file stores the chunks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Layout {
+    /// Per-step arrays once plus the window index; a chunk is computed on read.
+    Index,
+    /// Also `/chunks/<channel>` (N, K, ...) and `/chunks/<channel>_is_pad` (N, K) for every
+    /// low-dimensional channel (observations: (N, obs_history, ...)).
+    Materialized,
+    /// Also an HDF5 virtual dataset `/chunks/action` (N, K, A) whose rows map onto stored
+    /// rows, and `/chunks/action_is_pad`.
+    Virtual,
+}
+
+impl Layout {
+    pub fn name(self) -> &'static str {
+        match self {
+            Layout::Index => "index",
+            Layout::Materialized => "materialized",
+            Layout::Virtual => "virtual",
+        }
+    }
+}
+
+/// Compression codecs (which ones a format accepts: see `compression`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Compression {
+    /// Stored uncompressed.
+    None,
+    /// Deflate (HDF5's gzip filter).
+    Gzip,
+    /// LZF (HDF5; h5py ships the filter).
+    Lzf,
+    /// Blosc with LZ4 (Zarr), no shuffle: Diffusion Policy's default.
+    Lz4,
+    /// Blosc with Zstandard and bit-shuffle (Zarr: Diffusion Policy's "disk" setting), or
+    /// Parquet's zstd.
+    Zstd,
+}
+
+impl Compression {
+    pub fn name(self) -> &'static str {
+        match self {
+            Compression::None => "none",
+            Compression::Gzip => "gzip",
+            Compression::Lzf => "lzf",
+            Compression::Lz4 => "lz4",
+            Compression::Zstd => "zstd",
+        }
+    }
+
+    /// The codecs `format` accepts, its default first.
+    pub fn allowed(format: OutputFormat) -> &'static [Compression] {
+        match format {
+            OutputFormat::Hdf5 => &[Compression::None, Compression::Gzip, Compression::Lzf],
+            OutputFormat::Zarr => &[Compression::Lz4, Compression::Zstd, Compression::None],
+            OutputFormat::Parquet => &[Compression::Zstd, Compression::None],
+            OutputFormat::ActEpisodes | OutputFormat::RobomimicHdf5 => &[Compression::None],
         }
     }
 }

@@ -10,8 +10,8 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use super::model::{
-    Alignment, HierarchySpec, NormalizeMode, OutputFormat, Padding, Preset, ProfileSpec,
-    SegmentSpec, StatsFormat,
+    Alignment, Compression, HierarchySpec, Layout, NormalizeMode, OutputFormat, Padding, Preset,
+    ProfileSpec, SegmentSpec, StatsFormat,
 };
 
 /// A profile with every value decided. Later stages never look at presets again.
@@ -36,6 +36,11 @@ pub struct Profile {
     /// Explicit per-channel modes from the spec (merged along the `extends` chain).
     pub normalize: BTreeMap<String, NormalizeMode>,
     pub format: OutputFormat,
+    pub layout: Layout,
+    pub compression: Compression,
+    /// `None`: the codec's default level.
+    pub compression_level: Option<u32>,
+    pub zarr_version: u32,
     pub stats_formats: Vec<StatsFormat>,
     pub segment: Option<SegmentSpec>,
     pub hierarchy: Option<HierarchySpec>,
@@ -251,12 +256,37 @@ pub fn expand(
         OutputFormat::Hdf5,
         std::convert::identity
     );
+    let layout = resolve!(
+        layout,
+        |_: &PresetValues| None,
+        Layout::Index,
+        std::convert::identity
+    );
+    let compression = resolve!(
+        compression,
+        |_: &PresetValues| None,
+        Compression::allowed(format)[0],
+        std::convert::identity
+    );
+    let compression_level = resolve!(compression_level, |_: &PresetValues| None, None, Some);
+    let zarr_version = resolve!(
+        zarr_version,
+        |_: &PresetValues| None,
+        2,
+        std::convert::identity
+    );
     let stats_formats = resolve!(
         stats_formats,
         |b: &PresetValues| Some(b.stats_formats.to_vec()),
         Vec::new(),
         std::convert::identity
     );
+    // A native export carries its codebase's statistics file.
+    let mut stats_formats = stats_formats;
+    if format == OutputFormat::ActEpisodes && !stats_formats.contains(&StatsFormat::Act) {
+        stats_formats.push(StatsFormat::Act);
+        stats_formats.sort();
+    }
     let segment = pick!(segment);
     let hierarchy = pick!(hierarchy);
     let extends = profiles[name].extends.clone();
@@ -292,6 +322,10 @@ pub fn expand(
         normalize_multidim,
         normalize,
         format,
+        layout,
+        compression,
+        compression_level,
+        zarr_version,
         stats_formats,
         segment,
         hierarchy,

@@ -5,7 +5,10 @@
 
 use super::diagnostic::{backticked, did_you_mean, suggest, Diagnostic};
 use super::load::{dotted, LoadedSpec, Target};
-use super::model::{ChannelKindSpec, ChannelSpec, ChannelTable, OutputFormat, Preset, ProfileSpec};
+use super::model::{
+    ChannelKindSpec, ChannelSpec, ChannelTable, Compression, Layout, OutputFormat, Preset,
+    ProfileSpec,
+};
 use super::preset::{self, ExpandError, Profile};
 
 /// Checks the spec and expands its profiles (in name order).
@@ -215,12 +218,6 @@ impl Checker<'_> {
             }
         }
 
-        if let Some(format) = profile.format.filter(|&f| f != OutputFormat::Hdf5) {
-            let message = format!("output format `{}` is not supported yet", format.name());
-            let help = Some("use `format = \"hdf5\"` (the default) for now".into());
-            self.value(&key("format"), message, "not supported yet", help);
-        }
-
         if let Some(segment) = &profile.segment {
             if !channels.contains(&segment.channel.as_str()) {
                 let message = format!(
@@ -263,7 +260,10 @@ impl Checker<'_> {
         }
 
         match preset::expand(name, &self.loaded.spec.profiles) {
-            Ok(expanded) => Some(expanded),
+            Ok(expanded) => {
+                self.output_options(name, &expanded);
+                Some(expanded)
+            }
             Err(ExpandError::Missing(missing)) => {
                 let message =
                     format!("profile `{name}` has no `{missing}` and no preset to take it from");
@@ -292,6 +292,86 @@ impl Checker<'_> {
                 self.value(&key("extends"), message, "circular", None);
                 None
             }
+        }
+    }
+
+    /// `layout`, `compression`, `compression_level` and `zarr_version` against the format (all
+    /// resolved, so an inherited value is checked against this profile's format too).
+    fn output_options(&mut self, name: &str, p: &Profile) {
+        let key = |k: &'static str| ["profiles", name, k];
+        let format = p.format.name();
+        if matches!(
+            p.format,
+            OutputFormat::Parquet | OutputFormat::RobomimicHdf5
+        ) {
+            let message = format!("output format `{format}` is not supported yet");
+            let help = Some("use `hdf5`, `zarr` or `act_episodes`".into());
+            self.value(&key("format"), message, "not supported yet", help);
+        }
+        if p.layout != Layout::Index && p.format != OutputFormat::Hdf5 {
+            let message = format!(
+                "`layout = \"{}\"` needs `format = \"hdf5\"`, but profile `{name}` writes `{format}`",
+                p.layout.name()
+            );
+            self.value(&key("layout"), message, "only for hdf5", None);
+        }
+        if p.layout != Layout::Index && (p.segment.is_some() || p.hierarchy.is_some()) {
+            let message = format!(
+                "`layout = \"{}\"` needs fixed windows; profile `{name}` uses {}",
+                p.layout.name(),
+                if p.segment.is_some() {
+                    "`segment`"
+                } else {
+                    "`hierarchy`"
+                }
+            );
+            let help = Some("use `layout = \"index\"`, which stores every sampling".into());
+            self.value(&key("layout"), message, "fixed windows only", help);
+        }
+        let allowed = Compression::allowed(p.format);
+        if !allowed.contains(&p.compression) {
+            let names: Vec<&str> = allowed.iter().map(|c| c.name()).collect();
+            let message = format!(
+                "format `{format}` does not support `compression = \"{}\"`",
+                p.compression.name()
+            );
+            let help = Some(format!("`{format}` accepts {}", backticked(&names)));
+            self.value(&key("compression"), message, "not for this format", help);
+        }
+        if let Some(level) = p.compression_level {
+            let range = match p.compression {
+                Compression::Gzip => Some(0..=9),
+                Compression::Lz4 => Some(1..=9),
+                Compression::Zstd if p.format == OutputFormat::Zarr => Some(1..=9),
+                Compression::Zstd => Some(1..=22),
+                Compression::None | Compression::Lzf => None,
+            };
+            match range {
+                Some(r) if !r.contains(&level) => {
+                    let message = format!(
+                        "`compression_level` {level} is out of range for {} ({}..={})",
+                        p.compression.name(),
+                        r.start(),
+                        r.end()
+                    );
+                    self.value(&key("compression_level"), message, "out of range", None);
+                }
+                None => {
+                    let message = format!(
+                        "`compression = \"{}\"` takes no `compression_level`",
+                        p.compression.name()
+                    );
+                    self.value(&key("compression_level"), message, "has no level", None);
+                }
+                Some(_) => {}
+            }
+        }
+        if !matches!(p.zarr_version, 2 | 3) {
+            let message = format!("`zarr_version` must be 2 or 3, not {}", p.zarr_version);
+            self.value(&key("zarr_version"), message, "expected 2 or 3", None);
+        } else if p.zarr_version != 2 && p.format != OutputFormat::Zarr {
+            let message = format!("`zarr_version` needs `format = \"zarr\"`, not `{format}`");
+            self.value(&key("zarr_version"), message, "only for zarr", None);
         }
     }
 

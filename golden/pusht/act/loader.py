@@ -6,9 +6,11 @@
                      #  "observation.<name>": (n_obs, ...), "episode_index", "frame_index"}
     raw = ds.denormalize("action", sample["action"])
 
-Works with numpy and h5py alone; when torch is installed, ChunkedDataset is a
-torch.utils.data.Dataset and can go straight into a DataLoader (any num_workers: the HDF5 file
-is opened lazily in each worker process).
+Works with numpy and h5py alone (zarr-python for `format = "zarr"`); when torch is installed,
+ChunkedDataset is a torch.utils.data.Dataset and can go straight into a DataLoader (any
+num_workers: the data file is opened lazily in each worker process). Formats that store raw
+values (`meta.json` "stored_values": "raw") are normalized here on read, exactly as the build
+normalizes chunkc's HDF5 layouts.
 
 Samples: the sample at current step t of an episode has observations t-n_obs+1 .. t (the first
 frame repeated before the episode start, marked in `<name>_is_pad`) and actions starting at
@@ -23,7 +25,6 @@ Hierarchical profiles add `coarse_action`, `coarse_action_is_pad`, `fine_index` 
 import json
 import os
 
-import h5py
 import numpy as np
 
 try:  # torch is optional
@@ -59,8 +60,13 @@ class ChunkedDataset(_DatasetBase):
         self.episode_ids = np.asarray(self.meta["episodes"], dtype=np.int64)
         self.action_lead = int(self.meta["action_lead"])
         self.sampling = self.meta["sampling"]["mode"]
-        with h5py.File(self.path, "r") as f:
-            self.index = f["index"][split][()].reshape(-1, 4)
+        self.data_format = self.meta.get("data_format", "hdf5")
+        self.raw_values = self.meta.get("stored_values", "normalized") == "raw"
+        self._lowdim = {n for n, c in self.meta["channels"].items() if c["kind"] == "lowdim"}
+        f = self._open()
+        self.index = np.asarray(f["index"][split][...], dtype=np.int64).reshape(-1, 4)
+        if self.data_format == "hdf5":
+            f.close()
         self._norm = {
             name: (
                 np.asarray(p["center"], dtype=np.float64),
@@ -74,11 +80,22 @@ class ChunkedDataset(_DatasetBase):
         self._memory = None
         self._images = {n for n, c in self.meta["channels"].items() if c["kind"] == "image"}
         if in_memory:
-            with h5py.File(self.path, "r") as f:
-                self._memory = {"data/" + n: f["data/" + n][()] for n in CHANNELS}
+            f = self._open()
+            self._memory = {"data/" + n: f["data/" + n][...] for n in CHANNELS}
+            if self.data_format == "hdf5":
+                f.close()
 
     def __len__(self):
         return len(self.index)
+
+    def _open(self):
+        if self.data_format == "zarr":
+            import zarr
+
+            return zarr.open_group(self.path, mode="r")
+        import h5py
+
+        return h5py.File(self.path, "r")
 
     def _h5(self):
         if self._memory is not None:
@@ -87,9 +104,16 @@ class ChunkedDataset(_DatasetBase):
         # changes after the build, and SWMR handles clash with plain h5py opens in one process.)
         pid = os.getpid()
         if self._file is None or self._pid != pid:
-            self._file = h5py.File(self.path, "r")
+            self._file = self._open()
             self._pid = pid
         return self._file
+
+    def _rows(self, f, name, lo, hi):
+        """Stored rows [lo, hi) of a channel, in normalized units."""
+        rows = f["data/" + name][lo:hi]
+        if self.raw_values and name in self._lowdim:
+            rows = self.normalize(name, rows).astype(np.float32)
+        return rows
 
     def __getstate__(self):
         state = self.__dict__.copy()
@@ -119,7 +143,7 @@ class ChunkedDataset(_DatasetBase):
         """K action rows from episode step `first` (may be negative), valid below `stop`."""
         lo = min(max(first, 0), length - 1)
         hi = max(min(stop, length), lo + 1)
-        valid = f["data/action"][start + lo : start + hi]
+        valid = self._rows(f, "action", start + lo, start + hi)
         n_before = lo - first
         n_valid = min(len(valid), k - n_before)
         valid = valid[:n_valid]
@@ -169,7 +193,7 @@ class ChunkedDataset(_DatasetBase):
         for name in CHANNELS:
             if name == "action":
                 continue
-            obs = f["data/" + name][start + max(oldest, 0) : start + current + 1]
+            obs = self._rows(f, name, start + max(oldest, 0), start + current + 1)
             missing = h - len(obs)
             if missing:
                 obs = np.concatenate([np.repeat(obs[:1], missing, axis=0), obs])

@@ -1,0 +1,308 @@
+//! The `/chunks` group of the `materialized` and `virtual` HDF5 layouts.
+//!
+//! Rows of `/chunks/<channel>` are the windows of `/index/train` followed by those of
+//! `/index/val` (`/chunks` attributes `num_train`, `num_val`).
+//!
+//! - `materialized`: `/chunks/action` (N, K, A) and `/chunks/action_is_pad` (N, K); every
+//!   low-dimensional observation as `/chunks/<name>` (N, obs_history, ...) and `<name>_is_pad`.
+//! - `virtual`: `/chunks/action` is an HDF5 virtual dataset. For every split and chunk step k,
+//!   one mapping sends the windows whose step k is inside the episode onto rows of
+//!   `/data/action`, and one sends the padded ones onto `/chunks/action_pad`, which holds only the
+//!   pad rows (in mapping order). Selections are unions of row blocks, so the mapping count is
+//!   2 x 2 x K whatever the number of windows.
+
+use std::ffi::CString;
+
+use hdf5::{File, Group};
+use hdf5_sys::h5::hsize_t;
+use hdf5_sys::h5i::hid_t;
+
+use super::windows::{action_steps, obs_steps, pad_row, Step};
+use crate::chunk::Window;
+use crate::error::{Error, Result};
+use crate::spec::Padding;
+use crate::stats::normalize::Normalizer;
+
+/// A stored low-dimensional channel, normalized as in `/data`.
+pub struct Stored<'a> {
+    pub name: &'a str,
+    pub width: usize,
+    pub shape: &'a [usize],
+    pub values: &'a [f32],
+    pub normalizer: &'a Normalizer,
+}
+
+pub struct Windows<'a> {
+    pub window: &'a Window,
+    pub padding: Padding,
+    pub episode_ends: &'a [u64],
+    /// Index rows, train then val.
+    pub rows: Vec<[i64; 4]>,
+    pub num_train: usize,
+}
+
+impl Windows<'_> {
+    fn start(&self, ep: usize) -> usize {
+        if ep == 0 {
+            0
+        } else {
+            self.episode_ends[ep - 1] as usize
+        }
+    }
+
+    fn len(&self, ep: usize) -> usize {
+        self.episode_ends[ep] as usize - self.start(ep)
+    }
+}
+
+fn chunks_group(file: &File, w: &Windows) -> Result<Group> {
+    let g = file
+        .create_group_builder()
+        .obj_track_times(false)
+        .create("chunks")?;
+    for (name, n) in [
+        ("num_train", w.num_train),
+        ("num_val", w.rows.len() - w.num_train),
+    ] {
+        g.new_attr::<i64>()
+            .create(name)?
+            .write_scalar(&(n as i64))?;
+    }
+    Ok(g)
+}
+
+fn write_dense<T: hdf5::H5Type>(
+    g: &Group,
+    name: &str,
+    shape: Vec<usize>,
+    values: &[T],
+    gzip: bool,
+) -> Result<()> {
+    let mut chunk = shape.clone();
+    // About 64 KiB per chunk: reading one window stays cheap.
+    let row: usize = shape[1..].iter().product::<usize>().max(1) * std::mem::size_of::<T>();
+    chunk[0] = (64 * 1024 / row).clamp(1, shape[0].max(1));
+    let b = g
+        .new_dataset::<T>()
+        .shape(shape)
+        .chunk(chunk)
+        .obj_track_times(false);
+    let b = if gzip { b.deflate(4) } else { b };
+    let ds = b.create(name)?;
+    if !values.is_empty() {
+        ds.write_raw(values)?;
+    }
+    Ok(())
+}
+
+/// `/chunks` of the `materialized` layout.
+pub fn materialize(file: &File, w: &Windows, channels: &[Stored]) -> Result<()> {
+    let g = chunks_group(file, w)?;
+    let n = w.rows.len();
+    for ch in channels {
+        let is_action = ch.name == "action";
+        let steps = if is_action {
+            w.window.chunk
+        } else {
+            w.window.obs_history
+        };
+        let mut values = Vec::with_capacity(n * steps * ch.width);
+        let mut pads = Vec::with_capacity(n * steps);
+        for r in &w.rows {
+            let (ep, t, limit) = (r[0] as usize, r[1] as usize, r[2] as usize);
+            let start = w.start(ep);
+            let row = |i: usize| &ch.values[(start + i) * ch.width..(start + i + 1) * ch.width];
+            if is_action {
+                for s in action_steps(w.window, t, limit, w.len(ep)) {
+                    match s {
+                        Step::Row(i) => values.extend_from_slice(row(i)),
+                        Step::Pad(i) => {
+                            values.extend(pad_row(w.padding, ch.normalizer, row(i)));
+                        }
+                    }
+                    pads.push(matches!(s, Step::Pad(_)));
+                }
+            } else {
+                for (i, pad) in obs_steps(w.window, t) {
+                    values.extend_from_slice(row(i));
+                    pads.push(pad);
+                }
+            }
+        }
+        let mut shape = vec![n, steps];
+        shape.extend(ch.shape);
+        write_dense(&g, ch.name, shape, &values, false)?;
+        write_dense(
+            &g,
+            &format!("{}_is_pad", ch.name),
+            vec![n, steps],
+            &pads,
+            true,
+        )?;
+    }
+    Ok(())
+}
+
+/// An HDF5 dataspace being built as a union of blocks; closed on drop.
+struct Space(hid_t);
+
+impl Space {
+    fn new(dims: &[usize]) -> Result<Space> {
+        let dims: Vec<hsize_t> = dims.iter().map(|&d| d as hsize_t).collect();
+        // SAFETY: `dims` has `dims.len()` entries and outlives the call.
+        let id = hdf5::sync::sync(|| unsafe {
+            hdf5_sys::h5s::H5Screate_simple(dims.len() as i32, dims.as_ptr(), std::ptr::null())
+        });
+        if id < 0 {
+            return Err(Error::output("HDF5: cannot create a dataspace".to_string()));
+        }
+        // SAFETY: `id` is a valid dataspace.
+        hdf5::sync::sync(|| unsafe { hdf5_sys::h5s::H5Sselect_none(id) });
+        Ok(Space(id))
+    }
+
+    /// Adds the block at `start` of size `count`.
+    fn add(&mut self, start: &[usize], count: &[usize]) -> Result<()> {
+        let start: Vec<hsize_t> = start.iter().map(|&d| d as hsize_t).collect();
+        let count: Vec<hsize_t> = count.iter().map(|&d| d as hsize_t).collect();
+        // SAFETY: both arrays have one entry per dimension of the dataspace.
+        let status = hdf5::sync::sync(|| unsafe {
+            hdf5_sys::h5s::H5Sselect_hyperslab(
+                self.0,
+                hdf5_sys::h5s::H5S_SELECT_OR,
+                start.as_ptr(),
+                std::ptr::null(),
+                count.as_ptr(),
+                std::ptr::null(),
+            )
+        });
+        if status < 0 {
+            return Err(Error::output("HDF5: cannot select a block".to_string()));
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Space {
+    fn drop(&mut self) {
+        // SAFETY: `self.0` is a dataspace this struct created.
+        hdf5::sync::sync(|| unsafe { hdf5_sys::h5s::H5Sclose(self.0) });
+    }
+}
+
+/// Runs of consecutive window positions `(i, source row)` with consecutive source rows.
+fn runs(items: &[(usize, usize)]) -> Vec<(usize, usize, usize)> {
+    let mut out: Vec<(usize, usize, usize)> = Vec::new();
+    for &(i, r) in items {
+        match out.last_mut() {
+            Some((i0, r0, n)) if *i0 + *n == i && *r0 + *n == r => *n += 1,
+            _ => out.push((i, r, 1)),
+        }
+    }
+    out
+}
+
+/// `/chunks` of the `virtual` layout (action only).
+pub fn virtual_action(file: &File, w: &Windows, action: &Stored) -> Result<()> {
+    let g = chunks_group(file, w)?;
+    let (n, k, a) = (w.rows.len(), w.window.chunk, action.width);
+    let steps = *w.episode_ends.last().unwrap_or(&0) as usize;
+    // Per (split, k): valid (window, data row) pairs and padded (window, pad row) pairs.
+    let mut pad_values: Vec<f32> = Vec::new();
+    let mut mappings: Vec<(Vec<(usize, usize)>, bool)> = Vec::new();
+    let mut is_pad = vec![false; n * k];
+    let splits = [(0, w.num_train), (w.num_train, n)];
+    let resolved: Vec<Vec<Step>> = w
+        .rows
+        .iter()
+        .map(|r| action_steps(w.window, r[1] as usize, r[2] as usize, w.len(r[0] as usize)))
+        .collect();
+    for (lo, hi) in splits {
+        for step in 0..k {
+            let mut valid = Vec::new();
+            let mut padded = Vec::new();
+            for i in lo..hi {
+                let start = w.start(w.rows[i][0] as usize);
+                match resolved[i][step] {
+                    Step::Row(r) => valid.push((i, start + r)),
+                    Step::Pad(r) => {
+                        is_pad[i * k + step] = true;
+                        padded.push((i, pad_values.len() / a.max(1)));
+                        let edge = &action.values[(start + r) * a..(start + r + 1) * a];
+                        pad_values.extend(pad_row(w.padding, action.normalizer, edge));
+                    }
+                }
+            }
+            mappings.push((valid, false));
+            mappings.push((padded, true));
+        }
+    }
+    let pad_rows = pad_values.len() / a.max(1);
+    write_dense(&g, "action_pad", vec![pad_rows, a], &pad_values, false)?;
+    write_dense(&g, "action_is_pad", vec![n, k], &is_pad, true)?;
+
+    // SAFETY (all calls below): ids are created here and closed before returning; strings are
+    // NUL-terminated and outlive the calls; the HDF5 lock is held by `sync`.
+    let dcpl = hdf5::sync::sync(|| unsafe {
+        hdf5_sys::h5p::H5Pcreate(*hdf5_sys::h5p::H5P_CLS_DATASET_CREATE)
+    });
+    if dcpl < 0 {
+        return Err(Error::output(
+            "HDF5: cannot create a property list".to_string(),
+        ));
+    }
+    // Modification times would make the bytes depend on the clock.
+    hdf5::sync::sync(|| unsafe { hdf5_sys::h5p::H5Pset_obj_track_times(dcpl, 0) });
+    let here = CString::new(".").unwrap();
+    let data = CString::new("/data/action").unwrap();
+    let pads = CString::new("/chunks/action_pad").unwrap();
+    let mut result = Ok(());
+    for (m, (pairs, is_pad_map)) in mappings.iter().enumerate() {
+        if pairs.is_empty() {
+            continue;
+        }
+        let step = (m / 2) % k;
+        let source_rows = if *is_pad_map { pad_rows } else { steps };
+        let mut vspace = Space::new(&[n, k, a])?;
+        let mut sspace = Space::new(&[source_rows, a])?;
+        for (i, r, len) in runs(pairs) {
+            vspace.add(&[i, step, 0], &[len, 1, a])?;
+            sspace.add(&[r, 0], &[len, a])?;
+        }
+        let name = if *is_pad_map { &pads } else { &data };
+        let status = hdf5::sync::sync(|| unsafe {
+            hdf5_sys::h5p::H5Pset_virtual(dcpl, vspace.0, here.as_ptr(), name.as_ptr(), sspace.0)
+        });
+        if status < 0 {
+            result = Err(Error::output(
+                "HDF5: cannot add a virtual mapping".to_string(),
+            ));
+            break;
+        }
+    }
+    if result.is_ok() {
+        let space = Space::new(&[n, k, a])?;
+        let name = CString::new("action").unwrap();
+        let id = hdf5::sync::sync(|| unsafe {
+            hdf5_sys::h5s::H5Sselect_all(space.0);
+            hdf5_sys::h5d::H5Dcreate2(
+                g.id(),
+                name.as_ptr(),
+                *hdf5_sys::h5t::H5T_NATIVE_FLOAT,
+                space.0,
+                hdf5_sys::h5p::H5P_DEFAULT,
+                dcpl,
+                hdf5_sys::h5p::H5P_DEFAULT,
+            )
+        });
+        if id < 0 {
+            result = Err(Error::output(
+                "HDF5: cannot create the virtual dataset".to_string(),
+            ));
+        } else {
+            hdf5::sync::sync(|| unsafe { hdf5_sys::h5d::H5Dclose(id) });
+        }
+    }
+    hdf5::sync::sync(|| unsafe { hdf5_sys::h5p::H5Pclose(dcpl) });
+    result
+}

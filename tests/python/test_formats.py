@@ -1,0 +1,214 @@
+"""Every output format read back with the reference readers (h5py, zarr-python, numcodecs) and
+compared with the `index` layout's windows (bit for bit) and with the raw source."""
+
+import importlib.util
+import json
+import pickle
+
+import h5py
+import numpy as np
+import pytest
+import zarr
+
+from conftest import PUSHT, RawSource, run_chunkc, write_spec
+
+DP = 'preset = "diffusion_policy"\n'
+PROFILES = f"""
+[profiles.index]
+{DP}
+[profiles.materialized]
+{DP}layout = "materialized"
+compression = "gzip"
+
+[profiles.virtual]
+{DP}layout = "virtual"
+compression = "lzf"
+
+[profiles.zarr]
+{DP}format = "zarr"
+
+[profiles.zarr3]
+{DP}format = "zarr"
+zarr_version = 3
+compression = "zstd"
+
+[profiles.act]
+preset = "act"
+fps = 10
+chunk = 20
+format = "act_episodes"
+
+[profiles.act_zero]
+preset = "act"
+fps = 10
+chunk = 20
+padding = "zero"
+layout = "virtual"
+
+[profiles.act_zero_mat]
+extends = "act_zero"
+layout = "materialized"
+"""
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    d = tmp_path_factory.mktemp("formats")
+    run_chunkc("build", "-q", write_spec(d, PROFILES))
+    return d / "out"
+
+
+def load(root, split):
+    spec = importlib.util.spec_from_file_location(f"loader_{root.name}_{split}", root / "loader.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.ChunkedDataset(str(root), split)
+
+
+def bits(x):
+    x = np.asarray(x)
+    return x.view(np.uint32) if x.dtype == np.float32 else x
+
+
+def same(a, b):
+    assert a.keys() == b.keys()
+    for key in a:
+        assert np.array_equal(bits(a[key]), bits(b[key])), key
+
+
+@pytest.mark.parametrize("profile", ["materialized", "virtual", "zarr"])
+def test_loader_windows_equal_the_index_layout(built, profile):
+    for split in ("train", "val"):
+        want, got = load(built / "index", split), load(built / profile, split)
+        assert len(want) == len(got) > 0
+        np.testing.assert_array_equal(want.index, got.index)
+        for i in range(len(want)):
+            same(want[i], got[i])
+
+
+def index_windows(root):
+    """Every window of both splits (train then val), as the loader returns them."""
+    out = []
+    for split in ("train", "val"):
+        ds = load(root, split)
+        out.extend(ds[i] for i in range(len(ds)))
+    return out
+
+
+@pytest.mark.parametrize("layout,pairs", [
+    ("materialized", ("index", "materialized")),
+    ("virtual", ("index", "virtual")),
+    ("materialized", ("act_zero", "act_zero_mat")),
+    ("virtual", ("act_zero", "act_zero")),
+])
+def test_chunks_group_equals_loader_windows(built, layout, pairs):
+    reference, profile = pairs
+    windows = index_windows(built / reference)
+    meta = json.loads((built / profile / "meta.json").read_text())
+    assert meta["layout"] == layout
+    with h5py.File(built / profile / "data.h5", "r") as f:
+        chunks = f["chunks"]
+        assert f.attrs["layout"] == layout
+        assert chunks.attrs["num_train"] + chunks.attrs["num_val"] == len(windows)
+        if layout == "virtual":
+            assert chunks["action"].is_virtual
+        action, pad = chunks["action"][()], chunks["action_is_pad"][()]
+        assert action.shape == (len(windows), meta["chunk_size"], 2)
+        for i, w in enumerate(windows):
+            assert np.array_equal(bits(action[i]), bits(w["action"])), i
+            assert np.array_equal(pad[i], w["action_is_pad"]), i
+            # Plain h5py indexing of one row returns the same chunk.
+        assert np.array_equal(bits(chunks["action"][len(windows) - 1]), bits(windows[-1]["action"]))
+        if layout == "materialized":
+            state = chunks["observation.state"][()]
+            for i, w in enumerate(windows):
+                assert np.array_equal(bits(state[i]), bits(w["observation.state"]))
+                assert np.array_equal(chunks["observation.state_is_pad"][i], w["observation.state_is_pad"])
+
+
+def test_virtual_layout_is_small_on_lowdim(tmp_path):
+    channels = {"action": "action", "observation.state": "state", "observation.keypoint": "keypoint"}
+    profiles = f"[profiles.index]\n{DP}\n[profiles.virtual]\n{DP}layout = \"virtual\"\n"
+    run_chunkc("build", "-q", write_spec(tmp_path, profiles, channels=channels))
+    index = (tmp_path / "out/index/data.h5").stat().st_size
+    virtual = (tmp_path / "out/virtual/data.h5").stat().st_size
+    assert virtual < 1.1 * index, (virtual, index)
+
+
+def test_zarr_is_a_replay_buffer_of_raw_values(built, raw):
+    root = zarr.open_group(str(built / "zarr" / "data.zarr"), mode="r")
+    ends = root["meta/episode_ends"][:]
+    np.testing.assert_array_equal(ends, raw.ends)
+    mapping = {"action": "action", "observation.state": "state", "observation.image": "img"}
+    for name, key in mapping.items():
+        arr = root["data"][name]
+        assert arr.shape[0] == ends[-1]
+        assert arr.shape == raw.array(key).shape
+        want = raw.array(key)
+        if name == "observation.image":
+            assert arr.dtype == np.uint8
+            np.testing.assert_array_equal(arr[:], want.astype(np.uint8))
+            assert arr.chunks[0] == 1
+        else:
+            assert np.array_equal(bits(arr[:]), bits(want.astype(np.float32)))
+    assert root["data/action"].compressor.cname == "lz4"
+    meta = json.loads((built / "zarr" / "meta.json").read_text())
+    assert meta["stored_values"] == "raw" and meta["data_format"] == "zarr"
+
+
+def test_zarr_v3_layout(built, raw):
+    import numcodecs
+
+    base = built / "zarr3" / "data.zarr"
+    assert json.loads((base / "zarr.json").read_text())["zarr_format"] == 3
+    meta = json.loads((base / "data/action/zarr.json").read_text())
+    assert meta["shape"] == list(raw.array("action").shape)
+    codec = meta["codecs"][-1]
+    assert codec["name"] == "blosc" and codec["configuration"]["cname"] == "zstd"
+    rows = meta["chunk_grid"]["configuration"]["chunk_shape"][0]
+    chunk = numcodecs.Blosc().decode((base / "data/action/c/0/0").read_bytes())
+    got = np.frombuffer(chunk, dtype="<f4").reshape(rows, 2)
+    n = min(rows, len(raw.array("action")))
+    assert np.array_equal(bits(got[:n]), bits(raw.array("action")[:n]))
+
+
+def act_episode(path, start_ts):
+    """ACT's EpisodicDataset.__getitem__ (imitate_episodes/utils.py), minus normalization."""
+    with h5py.File(path, "r") as root:
+        is_sim = root.attrs["sim"]
+        original_action_shape = root["/action"].shape
+        episode_len = original_action_shape[0]
+        qpos = root["/observations/qpos"][start_ts]
+        root["/observations/qvel"][start_ts]
+        image_dict = {cam: root[f"/observations/images/{cam}"][start_ts] for cam in ["image"]}
+        if is_sim:
+            action = root["/action"][start_ts:]
+            action_len = episode_len - start_ts
+        else:
+            action = root["/action"][max(0, start_ts - 1):]
+            action_len = episode_len - max(0, start_ts - 1)
+    padded_action = np.zeros(original_action_shape, dtype=np.float32)
+    padded_action[:action_len] = action
+    is_pad = np.zeros(episode_len)
+    is_pad[action_len:] = 1
+    return image_dict, qpos, padded_action, is_pad
+
+
+def test_act_episodes_load_with_act_reader(built, raw):
+    out = built / "act"
+    files = sorted(out.glob("episode_*.hdf5"))
+    assert len(files) == len(raw.ends)
+    for e in range(len(raw.ends)):
+        path = out / f"episode_{e}.hdf5"
+        length = raw.ends[e] - raw.starts[e]
+        for start_ts in (0, length // 2, length - 1):
+            images, qpos, action, is_pad = act_episode(path, start_ts)
+            np.testing.assert_array_equal(qpos, raw.episode("state", e)[start_ts])
+            np.testing.assert_array_equal(images["image"], raw.episode("img", e)[start_ts].astype(np.uint8))
+            np.testing.assert_array_equal(action[: length - start_ts], raw.episode("action", e)[start_ts:])
+            assert is_pad.sum() == start_ts
+    with open(out / "dataset_stats.pkl", "rb") as f:
+        stats = pickle.load(f)
+    for key in ("action_mean", "action_std", "qpos_mean", "qpos_std", "example_qpos"):
+        assert key in stats
+    assert stats["action_mean"].shape == (2,)
