@@ -547,6 +547,7 @@ fn profile_fingerprint(spec: &LoadedSpec, manifest: &Manifest, profile: &Profile
         serde_json::to_string(profile).unwrap(),
         serde_json::to_string(&spec.spec.source).unwrap(),
         serde_json::to_string(&spec.spec.split).unwrap(),
+        serde_json::to_string(&spec.spec.audit).unwrap(),
         spec.spec.output.dir.clone(),
         manifest.fingerprint.clone(),
     ];

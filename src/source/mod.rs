@@ -11,6 +11,7 @@
 //! - `lerobot`: LeRobot v2.1 (one parquet per episode) and v3.0 (many per file).
 //!
 //! Shared pieces:
+//! - `check`: what every episode must satisfy (lengths, finite values, increasing timestamps).
 //! - `mapping`: `[source.channels]` (rename, column slices, concatenation, kind) resolved
 //!   against the keys a source offers, and applied to the arrays read.
 //! - `h5`: HDF5 reading helpers (key listing, typed reads, clear errors).
@@ -20,6 +21,7 @@
 //! - `fingerprint`: the content hash that tells the plan whether a source changed.
 
 mod aloha;
+pub mod check;
 mod dp_zarr;
 pub mod fingerprint;
 mod h5;
@@ -29,6 +31,8 @@ pub mod mapping;
 mod parquet_read;
 mod robomimic;
 mod subset;
+
+pub use subset::Subset;
 
 use serde::Serialize;
 
