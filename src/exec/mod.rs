@@ -385,6 +385,10 @@ fn run(
     let non_finite = spec.spec.audit.non_finite;
     let source_path = spec.spec.source.path.as_str();
     let mut excluded: BTreeMap<u64, String> = BTreeMap::new();
+    // Test hook: the tests prove that a panicking episode job becomes an error naming it.
+    let panic_on: Option<u64> = std::env::var("CHUNKC_TEST_PANIC_EPISODE")
+        .ok()
+        .and_then(|v| v.parse().ok());
     let overrides = spec
         .spec
         .output
@@ -479,6 +483,9 @@ fn run(
                 reads[i].fetch_add(1, Ordering::Relaxed);
                 catch_unwind(AssertUnwindSafe(|| {
                     let ep = source.read_episode(i)?;
+                    if panic_on == Some(id) {
+                        panic!("CHUNKC_TEST_PANIC_EPISODE={id}");
+                    }
                     let place = format!("{source_path}: episode {id}");
                     match source::check::episode(&ep, manifest, non_finite, &place)? {
                         source::check::Verdict::Exclude(reason) => Ok(Err((id, reason))),

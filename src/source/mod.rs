@@ -134,11 +134,15 @@ pub fn open(spec: &LoadedSpec) -> Result<Box<dyn Source>> {
     let src = &spec.spec.source;
     let path = spec.resolve(&src.path);
     if !path.exists() {
-        return Err(spec.error_at(
-            &["source", "path"],
-            format!("source path {} does not exist", path.display()),
-            None,
-        ));
+        let message = match std::fs::read_link(&path) {
+            Ok(target) => format!(
+                "source path {} is a symlink to {}, which does not exist",
+                path.display(),
+                target.display()
+            ),
+            Err(_) => format!("source path {} does not exist", path.display()),
+        };
+        return Err(spec.error_at(&["source", "path"], message, None));
     }
     let source: Box<dyn Source> = match src.format {
         SourceFormat::DiffusionPolicyZarr => Box::new(dp_zarr::DpZarrSource::open(spec, &path)?),
