@@ -258,10 +258,15 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     })
 }
 
+/// BLAKE3 of every output file, by profile, then path.
+type FileHashes = BTreeMap<String, BTreeMap<String, String>>;
+/// Episodes to leave out: id → reason.
+type Excluded = BTreeMap<u64, String>;
+
 enum Outcome {
-    Built(staging::Staging, BTreeMap<String, BTreeMap<String, String>>),
-    /// Episodes to leave out (id → reason): nothing was kept of this attempt.
-    Exclude(BTreeMap<u64, String>),
+    Built(staging::Staging, FileHashes),
+    /// Nothing was kept of this attempt.
+    Exclude(Excluded),
 }
 
 fn run_staged(
@@ -380,7 +385,7 @@ fn run(
     staging: &staging::Staging,
     opts: &BuildOptions,
     reads: &[AtomicUsize],
-) -> Result<Result<BTreeMap<String, BTreeMap<String, String>>, BTreeMap<u64, String>>> {
+) -> Result<Result<FileHashes, Excluded>> {
     let manifest = source.manifest();
     let non_finite = spec.spec.audit.non_finite;
     let source_path = spec.spec.source.path.as_str();
