@@ -15,7 +15,8 @@
 //!
 //! [`BuildLock`] is an advisory lock (`flock`) on `<output.dir>/.chunkc-build.lock`, held for the
 //! whole build: a second build of the same output directory fails at once instead of
-//! interleaving. The kernel releases it when the process dies, however it dies.
+//! interleaving. The kernel releases it when the process dies, however it dies; a build that
+//! ends normally removes the file, so only a killed build leaves it (empty) behind.
 
 use std::fs::{File, TryLockError};
 use std::path::{Path, PathBuf};
@@ -37,35 +38,45 @@ pub struct BuildLock {
 
 impl BuildLock {
     pub fn acquire(out_dir: &Path) -> Result<Self> {
+        use std::os::unix::fs::MetadataExt;
         let created_out_dir = !out_dir.exists();
         std::fs::create_dir_all(out_dir).at("create output directory", out_dir)?;
         let path = out_dir.join(BUILD_LOCK_FILE);
-        let file = File::options()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&path)
-            .at("open", &path)?;
         let mut lock = BuildLock {
             out_dir: out_dir.to_path_buf(),
             file: None,
             created_out_dir,
             keep: false,
         };
-        match file.try_lock() {
-            Ok(()) => {
-                lock.file = Some(file);
-                Ok(lock)
+        loop {
+            let file = File::options()
+                .create(true)
+                .truncate(false)
+                .write(true)
+                .open(&path)
+                .at("open", &path)?;
+            match file.try_lock() {
+                Ok(()) => {}
+                Err(TryLockError::WouldBlock) => {
+                    lock.keep = true; // the other build owns the directory
+                    return Err(Error::Busy(format!(
+                        "another chunkc build is writing to {} (it holds {}); wait for it to finish, then build again",
+                        out_dir.display(),
+                        path.display()
+                    )));
+                }
+                Err(TryLockError::Error(e)) => return Err(Error::io_path("lock", &path, e)),
             }
-            Err(TryLockError::WouldBlock) => {
-                lock.keep = true; // the other build owns the directory
-                Err(Error::Busy(format!(
-                    "another chunkc build is writing to {} (it holds {}); wait for it to finish, then build again",
-                    out_dir.display(),
-                    path.display()
-                )))
+            // The holder removes the file before it lets go: if the path no longer names the
+            // file we locked, that build just finished and we must lock the new file.
+            let ours = file.metadata().at("stat", &path)?.ino();
+            match std::fs::metadata(&path) {
+                Ok(m) if m.ino() == ours => {
+                    lock.file = Some(file);
+                    return Ok(lock);
+                }
+                _ => continue,
             }
-            Err(TryLockError::Error(e)) => Err(Error::io_path("lock", &path, e)),
         }
     }
 
@@ -77,10 +88,13 @@ impl BuildLock {
 
 impl Drop for BuildLock {
     fn drop(&mut self) {
-        // Closing the file releases the lock.
-        drop(self.file.take());
-        if self.created_out_dir && !self.keep {
+        if let Some(file) = self.file.take() {
+            // Removed while still held (see `acquire`), so the output directory holds outputs
+            // only; closing the file releases the lock.
             let _ = std::fs::remove_file(self.out_dir.join(BUILD_LOCK_FILE));
+            drop(file);
+        }
+        if self.created_out_dir && !self.keep {
             // Only removes it if nothing else was put there meanwhile.
             let _ = std::fs::remove_dir(&self.out_dir);
         }
