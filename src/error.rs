@@ -15,6 +15,8 @@ pub mod exit {
     pub const OUTPUT: i32 = 4;
     /// `--locked` was given and the outputs are not up to date.
     pub const LOCKED: i32 = 5;
+    /// Another build holds the output directory's build lock.
+    pub const BUSY: i32 = 6;
     /// A bug in chunkc: a job panicked or an invariant broke.
     pub const INTERNAL: i32 = 70;
 }
@@ -38,6 +40,9 @@ pub enum Error {
     },
     #[error("{0}")]
     Locked(String),
+    /// Another build of the same output directory is running.
+    #[error("{0}")]
+    Busy(String),
     #[error("internal error: {0}")]
     Internal(String),
 }
@@ -51,6 +56,7 @@ impl Error {
             Error::Source(_) => exit::SOURCE,
             Error::Output(_) | Error::Io { .. } => exit::OUTPUT,
             Error::Locked(_) => exit::LOCKED,
+            Error::Busy(_) => exit::BUSY,
             Error::Internal(_) => exit::INTERNAL,
         }
     }

@@ -85,6 +85,10 @@ fn build(spec: &Path, threads: &str) -> (tempfile::TempDir, PathBuf) {
 fn canonical(out_dir: &Path) -> BTreeMap<PathBuf, String> {
     let mut files = BTreeMap::new();
     for rel in files_under_opt(out_dir, true) {
+        // The build lock is chunkc's bookkeeping (empty), not an output.
+        if rel == Path::new(chunkc::exec::BUILD_LOCK_FILE) {
+            continue;
+        }
         let path = out_dir.join(&rel);
         if rel.extension().is_some_and(|e| e == "zarr") {
             let mut name = rel.clone().into_os_string();

@@ -29,7 +29,7 @@ use crate::source::{self, ChannelData, ChannelKind, Episode, Source};
 use crate::spec::{LoadedSpec, SplitFrom};
 use crate::stats::{self, normalize::Normalizer, ChannelStats, ImagePartial};
 
-pub use staging::STAGING_DIR;
+pub use staging::{BUILD_LOCK_FILE, STAGING_DIR};
 
 #[derive(Debug, Clone, Default)]
 pub struct BuildOptions {
@@ -75,23 +75,65 @@ pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
 fn check_output_location(spec: &LoadedSpec, out_dir: &Path) -> Result<()> {
     let source_dir = spec.resolve(&spec.spec.source.path);
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    if abs(out_dir).starts_with(abs(&source_dir)) {
-        return Err(spec.error_at(
-            &["output", "dir"],
+    let (out_real, source_real) = (real_path(out_dir), real_path(&source_dir));
+    let (message, help) = if abs(out_dir).starts_with(abs(&source_dir)) {
+        let how = if abs(out_dir) == abs(&source_dir) {
+            "is the source"
+        } else {
+            "is inside the source"
+        };
+        (
             format!(
-                "the output directory {} is inside the source {}; chunkc never writes into a source",
+                "the output directory {} {how} {}; chunkc never writes into a source",
                 out_dir.display(),
                 source_dir.display()
             ),
             None,
-        ));
+        )
+    } else if out_real.starts_with(&source_real) {
+        // Only symlinks can make this happen: the written path looks harmless.
+        (
+            format!(
+                "the output directory {} resolves through a symlink to {}, inside the source {}; chunkc never writes into a source",
+                out_dir.display(),
+                out_real.display(),
+                source_real.display()
+            ),
+            Some("point `output.dir` at a directory outside the source, or remove the symlink".into()),
+        )
+    } else {
+        return Ok(());
+    };
+    Err(spec.error_at(&["output", "dir"], message, help))
+}
+
+/// `path` with every symlink resolved, for the part of it that exists.
+fn real_path(path: &Path) -> PathBuf {
+    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut rest = Vec::new();
+    let mut existing = abs.as_path();
+    loop {
+        if let Ok(real) = existing.canonicalize() {
+            return rest.iter().rev().fold(real, |p, part| p.join(part));
+        }
+        match (existing.parent(), existing.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name.to_os_string());
+                existing = parent;
+            }
+            _ => return abs,
+        }
     }
-    Ok(())
 }
 
 pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
-    let (source, plan) = plan(spec)?;
     let out_dir = spec.resolve(&spec.spec.output.dir);
+    // Never create anything (not even the lock) inside a source.
+    check_output_location(spec, &out_dir)?;
+    let mut build_lock = staging::BuildLock::acquire(&out_dir)?;
+    // Repair what an interrupted build left, before the plan compares outputs with the lock.
+    staging::Staging::recover(&out_dir)?;
+    let (source, plan) = plan(spec)?;
     let stale: Vec<&ProfilePlan> = plan
         .profiles
         .iter()
@@ -122,13 +164,62 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         )));
     }
 
-    let staging = staging::Staging::new(&out_dir)?;
     let reads: Vec<AtomicUsize> = (0..plan.source.episodes)
         .map(|_| AtomicUsize::new(0))
         .collect();
-    let hashes = run(spec, &plan, &stale, source.as_ref(), &staging, opts, &reads)?;
-    let built: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
-    staging.commit(&built)?;
+    let (plan, stale, hashes) =
+        match run_staged(spec, &plan, &stale, source.as_ref(), opts, &reads)? {
+            Outcome::Built(staging, hashes) => {
+                let built: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
+                build_lock.keep();
+                staging.commit(&built)?;
+                (plan, built, hashes)
+            }
+            Outcome::Exclude(excluded) => {
+                // `[audit] non_finite = "exclude_episode"` found episodes to leave out. Which ones
+                // depends only on the data, so the output stays deterministic: plan again without
+                // them and build from that plan (this reads the kept episodes a second time).
+                let ids: Vec<u64> = excluded.keys().copied().collect();
+                let kept: Box<dyn Source> = Box::new(source::Subset::without(source, &ids));
+                let lock = Lock::read(&lock::path_for(&spec.file))?;
+                let entry = lock
+                    .as_ref()
+                    .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
+                let mut replan = plan::resolve(spec, kept.manifest(), entry, &out_dir)?;
+                for p in &mut replan.profiles {
+                    p.excluded = excluded
+                        .iter()
+                        .map(|(&id, reason)| plan::Excluded {
+                            id,
+                            reason: reason.clone(),
+                        })
+                        .collect();
+                }
+                let names: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
+                let restale: Vec<&ProfilePlan> = replan
+                    .profiles
+                    .iter()
+                    .filter(|p| names.contains(&p.name))
+                    .collect();
+                let again: Vec<AtomicUsize> = (0..replan.source.episodes)
+                    .map(|_| AtomicUsize::new(0))
+                    .collect();
+                match run_staged(spec, &replan, &restale, kept.as_ref(), opts, &again)? {
+                    Outcome::Built(staging, hashes) => {
+                        build_lock.keep();
+                        staging.commit(&names)?;
+                        (replan, names, hashes)
+                    }
+                    Outcome::Exclude(more) => {
+                        return Err(Error::Internal(format!(
+                            "episodes {:?} passed the audit once and failed it the second time",
+                            more.keys().collect::<Vec<_>>()
+                        )))
+                    }
+                }
+            }
+        };
+    let built = stale;
 
     // Re-read the lock: only this spec's entry changes, whatever else it holds.
     let lock_path = lock::path_for(&spec.file);
@@ -164,6 +255,33 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         built,
         up_to_date,
         episode_reads: reads.into_iter().map(AtomicUsize::into_inner).collect(),
+    })
+}
+
+/// BLAKE3 of every output file, by profile, then path.
+type FileHashes = BTreeMap<String, BTreeMap<String, String>>;
+/// Episodes to leave out: id → reason.
+type Excluded = BTreeMap<u64, String>;
+
+enum Outcome {
+    Built(staging::Staging, FileHashes),
+    /// Nothing was kept of this attempt.
+    Exclude(Excluded),
+}
+
+fn run_staged(
+    spec: &LoadedSpec,
+    plan: &Plan,
+    stale: &[&ProfilePlan],
+    source: &dyn Source,
+    opts: &BuildOptions,
+    reads: &[AtomicUsize],
+) -> Result<Outcome> {
+    let out_dir = spec.resolve(&spec.spec.output.dir);
+    let staging = staging::Staging::new(&out_dir)?;
+    run(spec, plan, stale, source, &staging, opts, reads).map(|r| match r {
+        Ok(hashes) => Outcome::Built(staging, hashes),
+        Err(excluded) => Outcome::Exclude(excluded),
     })
 }
 
@@ -267,8 +385,15 @@ fn run(
     staging: &staging::Staging,
     opts: &BuildOptions,
     reads: &[AtomicUsize],
-) -> Result<BTreeMap<String, BTreeMap<String, String>>> {
+) -> Result<Result<FileHashes, Excluded>> {
     let manifest = source.manifest();
+    let non_finite = spec.spec.audit.non_finite;
+    let source_path = spec.spec.source.path.as_str();
+    let mut excluded: BTreeMap<u64, String> = BTreeMap::new();
+    // Test hook: the tests prove that a panicking episode job becomes an error naming it.
+    let panic_on: Option<u64> = std::env::var("CHUNKC_TEST_PANIC_EPISODE")
+        .ok()
+        .and_then(|v| v.parse().ok());
     let overrides = spec
         .spec
         .output
@@ -353,16 +478,27 @@ fn run(
     );
     let positions: Vec<usize> = (0..manifest.episodes.len()).collect();
     for batch in positions.chunks(batch_size()) {
-        let processed: Vec<Processed> = batch
+        // Once an episode is excluded this attempt is thrown away: only check the rest.
+        let checking_only = !excluded.is_empty();
+        let processed: Vec<Option<Processed>> = batch
             .par_iter()
             .map(|&i| {
                 let id = manifest.episodes[i].id;
                 let train = plan.split.is_train(id);
                 reads[i].fetch_add(1, Ordering::Relaxed);
                 catch_unwind(AssertUnwindSafe(|| {
-                    source
-                        .read_episode(i)
-                        .map(|ep| process(ep, source, &jobs, train))
+                    let ep = source.read_episode(i)?;
+                    if panic_on == Some(id) {
+                        panic!("CHUNKC_TEST_PANIC_EPISODE={id}");
+                    }
+                    let place = format!("{source_path}: episode {id}");
+                    match source::check::episode(&ep, manifest, non_finite, &place)? {
+                        source::check::Verdict::Exclude(reason) => Ok(Err((id, reason))),
+                        source::check::Verdict::Keep if checking_only => Ok(Ok(None)),
+                        source::check::Verdict::Keep => {
+                            Ok(Ok(Some(process(ep, source, &jobs, train))))
+                        }
+                    }
                 }))
                 .unwrap_or_else(|panic| {
                     let what = panic
@@ -375,7 +511,20 @@ fn run(
                     )))
                 })
             })
-            .collect::<Result<Vec<_>>>()?;
+            .collect::<Result<Vec<_>>>()?
+            .into_iter()
+            .map(|r| {
+                r.unwrap_or_else(|(id, reason)| {
+                    excluded.insert(id, reason);
+                    None
+                })
+            })
+            .collect();
+        if !excluded.is_empty() {
+            bar.inc(batch.len() as u64);
+            continue;
+        }
+        let processed: Vec<Processed> = processed.into_iter().flatten().collect();
 
         for (&i, episode) in batch.iter().zip(processed) {
             for (r, (rate, (data, partials))) in rates
@@ -407,6 +556,9 @@ fn run(
         }
     }
     bar.finish_and_clear();
+    if !excluded.is_empty() {
+        return Ok(Err(excluded));
+    }
 
     // Statistics once per (rate, channel), shared by every profile at that rate.
     let train_mask: Vec<bool> = ids.iter().map(|&id| plan.split.is_train(id)).collect();
@@ -550,5 +702,5 @@ fn run(
         }
         hashes.insert(p.name.clone(), files);
     }
-    Ok(hashes)
+    Ok(Ok(hashes))
 }

@@ -376,12 +376,22 @@ fn resolve_profile(
         });
     }
     if counts.train == Some(0) {
+        let train: Vec<String> = episodes
+            .iter()
+            .filter(|e| e.split == "train")
+            .map(|e| format!("{} ({} steps)", e.id, e.len))
+            .collect();
+        let more = if train.len() > 10 { ", …" } else { "" };
         return Err(spec.error_at(
             &["profiles", name, "chunk"],
             format!(
-                "profile `{name}` yields no training samples: every training episode is too short"
+                "profile `{name}` yields no training samples: with {} padding, chunk {} and obs_history {} at {fps} Hz, every training episode is too short: {}{more}",
+                profile.padding.name(),
+                profile.chunk,
+                profile.obs_history,
+                train.iter().take(10).cloned().collect::<Vec<_>>().join(", ")
             ),
-            None,
+            Some(format!("lower `profiles.{name}.chunk`, or use `padding = \"edge\"` so that short episodes still give windows")),
         ));
     }
 
@@ -569,6 +579,7 @@ fn profile_fingerprint(spec: &LoadedSpec, manifest: &Manifest, profile: &Profile
         serde_json::to_string(profile).unwrap(),
         serde_json::to_string(&spec.spec.source).unwrap(),
         serde_json::to_string(&spec.spec.split).unwrap(),
+        serde_json::to_string(&spec.spec.audit).unwrap(),
         spec.spec.output.dir.clone(),
         manifest.fingerprint.clone(),
     ];

@@ -309,14 +309,8 @@ pub fn assemble(
                         let raw = &cache[&part.key];
                         let row = t * part.width;
                         for c in part.columns.clone() {
-                            let v = raw.get(row + c);
-                            if !v.is_finite() {
-                                return Err(Error::source(format!(
-                                    "{place}: channel `{}` (`{}`) step {t} column {c} holds a non-finite value ({v})",
-                                    ch.name, part.key
-                                )));
-                            }
-                            values.push(v);
+                            // Non-finite values are `check`'s business (`[audit] non_finite`).
+                            values.push(raw.get(row + c));
                         }
                     }
                 }

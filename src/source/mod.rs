@@ -11,6 +11,7 @@
 //! - `lerobot`: LeRobot v2.1 (one parquet per episode) and v3.0 (many per file).
 //!
 //! Shared pieces:
+//! - `check`: what every episode must satisfy (lengths, finite values, increasing timestamps).
 //! - `mapping`: `[source.channels]` (rename, column slices, concatenation, kind) resolved
 //!   against the keys a source offers, and applied to the arrays read.
 //! - `h5`: HDF5 reading helpers (key listing, typed reads, clear errors).
@@ -20,6 +21,7 @@
 //! - `fingerprint`: the content hash that tells the plan whether a source changed.
 
 mod aloha;
+pub mod check;
 mod dp_zarr;
 pub mod fingerprint;
 mod h5;
@@ -29,6 +31,8 @@ pub mod mapping;
 mod parquet_read;
 mod robomimic;
 mod subset;
+
+pub use subset::Subset;
 
 use serde::Serialize;
 
@@ -130,11 +134,15 @@ pub fn open(spec: &LoadedSpec) -> Result<Box<dyn Source>> {
     let src = &spec.spec.source;
     let path = spec.resolve(&src.path);
     if !path.exists() {
-        return Err(spec.error_at(
-            &["source", "path"],
-            format!("source path {} does not exist", path.display()),
-            None,
-        ));
+        let message = match std::fs::read_link(&path) {
+            Ok(target) => format!(
+                "source path {} is a symlink to {}, which does not exist",
+                path.display(),
+                target.display()
+            ),
+            Err(_) => format!("source path {} does not exist", path.display()),
+        };
+        return Err(spec.error_at(&["source", "path"], message, None));
     }
     let source: Box<dyn Source> = match src.format {
         SourceFormat::DiffusionPolicyZarr => Box::new(dp_zarr::DpZarrSource::open(spec, &path)?),

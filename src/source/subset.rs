@@ -43,6 +43,27 @@ impl Subset {
     }
 }
 
+impl Subset {
+    /// Every episode of `inner` except those in `excluded` (ids).
+    pub fn without(inner: Box<dyn Source>, excluded: &[u64]) -> Self {
+        let all = &inner.manifest().episodes;
+        let positions: Vec<usize> = (0..all.len())
+            .filter(|&i| !excluded.contains(&all[i].id))
+            .collect();
+        let mut manifest = inner.manifest().clone();
+        manifest.episodes = positions.iter().map(|&i| all[i].clone()).collect();
+        if let Some(split) = manifest.source_split.as_mut() {
+            split.train.retain(|id| !excluded.contains(id));
+            split.val.retain(|id| !excluded.contains(id));
+        }
+        Subset {
+            inner,
+            manifest,
+            positions,
+        }
+    }
+}
+
 impl Source for Subset {
     fn manifest(&self) -> &Manifest {
         &self.manifest

@@ -22,6 +22,9 @@ pub struct Spec {
     /// How episodes are divided into training and validation sets.
     #[serde(default)]
     pub split: SplitSpec,
+    /// What to do about bad data found while reading.
+    #[serde(default, skip_serializing_if = "AuditSpec::is_default")]
+    pub audit: AuditSpec,
     /// Where the outputs go.
     pub output: OutputSpec,
     /// One entry per target architecture: `[profiles.<name>]`. Each writes `<output.dir>/<name>/`.
@@ -210,6 +213,34 @@ impl Default for SplitSpec {
             from: SplitFrom::Hash,
         }
     }
+}
+
+/// `[audit]`: checks of the data itself, decided while the source is read.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AuditSpec {
+    /// A NaN or infinite value in a low-dimensional channel: stop the build with an error naming
+    /// the episode, channel and step (default), or leave the whole episode out (listed under
+    /// `excluded` in each profile's `meta.json`).
+    #[serde(default)]
+    pub non_finite: NonFinite,
+}
+
+impl AuditSpec {
+    fn is_default(&self) -> bool {
+        *self == AuditSpec::default()
+    }
+}
+
+/// What to do with an episode holding NaN or infinity.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum NonFinite {
+    /// Fail the build.
+    #[default]
+    Error,
+    /// Leave the episode out of every profile.
+    ExcludeEpisode,
 }
 
 /// `[output]`: where the built datasets are written.

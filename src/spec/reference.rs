@@ -365,6 +365,7 @@ mod tests {
                 "[source]",
                 "[source.channels]",
                 "[split]",
+                "[audit]",
                 "[output]",
                 "[profiles.<name>]",
                 "[profiles.<name>.normalize]",
