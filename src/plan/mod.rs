@@ -145,9 +145,45 @@ pub struct Status {
     pub reason: String,
 }
 
+/// One resolved profile value and where it came from.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct ResolvedValue {
+    pub key: &'static str,
+    pub value: String,
+    /// `profiles.<name>`, `preset <name>`, `spec` or `default`.
+    pub origin: String,
+}
+
 impl ProfilePlan {
     pub fn window(&self) -> &Window {
         self.sampling.window()
+    }
+
+    /// The values that shape the dataset, as `chunkc plan` and the dataset card show them.
+    pub fn resolved_values(&self) -> Vec<ResolvedValue> {
+        let v = &self.values;
+        let opt = |x: Option<String>| x.unwrap_or_else(|| "none".into());
+        [
+            ("preset", opt(v.preset.map(|p| p.name().to_string()))),
+            ("fps", self.fps.to_string()),
+            ("chunk", self.window().chunk.to_string()),
+            ("obs_history", v.obs_history.to_string()),
+            ("executes", opt(v.executes.map(|e| e.to_string()))),
+            ("alignment", v.alignment.name().to_string()),
+            ("padding", v.padding.name().to_string()),
+            ("stride", v.stride.to_string()),
+            ("format", v.format.name().to_string()),
+            ("sampling", self.sampling.name().to_string()),
+        ]
+        .into_iter()
+        .map(|(key, value)| {
+            let origin = v.origins.get(key).cloned().unwrap_or_else(|| {
+                let from_spec = key == "sampling" && (v.segment.is_some() || v.hierarchy.is_some());
+                if from_spec { "spec" } else { "default" }.to_string()
+            });
+            ResolvedValue { key, value, origin }
+        })
+        .collect()
     }
 }
 

@@ -79,25 +79,8 @@ pub fn render_text(plan: &Plan) -> String {
         };
         let _ = writeln!(s, "profile {}  [{}]", p.name, state);
         let _ = writeln!(s, "  rate   {}", p.rate);
-        let opt = |v: Option<String>| v.unwrap_or_else(|| "none".into());
-        let values: [(&str, String); 10] = [
-            ("preset", opt(v.preset.map(|p| p.name().to_string()))),
-            ("fps", opt(v.fps.map(|f| f.to_string()))),
-            ("chunk", v.chunk.to_string()),
-            ("obs_history", v.obs_history.to_string()),
-            ("executes", opt(v.executes.map(|e| e.to_string()))),
-            ("alignment", v.alignment.name().to_string()),
-            ("padding", v.padding.name().to_string()),
-            ("stride", v.stride.to_string()),
-            ("format", v.format.name().to_string()),
-            ("sampling", p.sampling.name().to_string()),
-        ];
-        for (key, value) in values {
-            let from = v.origins.get(key).map(String::as_str).unwrap_or(match key {
-                "sampling" if v.segment.is_some() || v.hierarchy.is_some() => "spec",
-                _ => "default",
-            });
-            let _ = writeln!(s, "  {key} {value} ({from})");
+        for r in p.resolved_values() {
+            let _ = writeln!(s, "  {} {} ({})", r.key, r.value, r.origin);
         }
         if let Some(e) = &v.extends {
             let _ = writeln!(s, "  extends {e}");

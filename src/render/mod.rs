@@ -114,28 +114,11 @@ pub fn profile_files(r: &Renderer, c: &ProfileContext) -> Result<Vec<(&'static s
         output_hint => c.output_hint,
         channels => channels_py,
     };
-    let opt = |x: Option<String>| x.unwrap_or_else(|| "none".into());
-    let values: Vec<Value> = [
-        ("preset", opt(v.preset.map(|p| p.name().to_string()))),
-        ("fps", p.fps.to_string()),
-        ("chunk", p.window().chunk.to_string()),
-        ("obs_history", v.obs_history.to_string()),
-        ("executes", opt(v.executes.map(|e| e.to_string()))),
-        ("alignment", v.alignment.name().to_string()),
-        ("padding", v.padding.name().to_string()),
-        ("stride", v.stride.to_string()),
-        ("format", v.format.name().to_string()),
-    ]
-    .into_iter()
-    .map(|(key, value)| {
-        let origin = v
-            .origins
-            .get(key)
-            .cloned()
-            .unwrap_or_else(|| "default".into());
-        context! { key, value, origin }
-    })
-    .collect();
+    let values: Vec<Value> = p
+        .resolved_values()
+        .into_iter()
+        .map(|r| context! { key => r.key, value => r.value, origin => r.origin })
+        .collect();
     let channels: Vec<Value> = p
         .channels
         .iter()
