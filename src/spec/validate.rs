@@ -300,10 +300,7 @@ impl Checker<'_> {
     fn output_options(&mut self, name: &str, p: &Profile) {
         let key = |k: &'static str| ["profiles", name, k];
         let format = p.format.name();
-        if matches!(
-            p.format,
-            OutputFormat::Parquet | OutputFormat::RobomimicHdf5
-        ) {
+        if p.format == OutputFormat::Parquet {
             let message = format!("output format `{format}` is not supported yet");
             let help = Some("use `hdf5`, `zarr` or `act_episodes`".into());
             self.value(&key("format"), message, "not supported yet", help);

@@ -48,6 +48,9 @@ layout = "virtual"
 [profiles.act_zero_mat]
 extends = "act_zero"
 layout = "materialized"
+
+[profiles.robomimic]
+{DP}format = "robomimic_hdf5"
 """
 
 
@@ -212,3 +215,42 @@ def test_act_episodes_load_with_act_reader(built, raw):
     for key in ("action_mean", "action_std", "qpos_mean", "qpos_std", "example_qpos"):
         assert key in stats
     assert stats["action_mean"].shape == (2,)
+
+
+def test_robomimic_export_reads_like_robomimic(built, raw):
+    out = built / "robomimic"
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["stored_values"] == "raw" and meta["data_format"] == "robomimic_hdf5"
+    assert meta["data_file"] == "data.hdf5"
+    ids = meta["episodes"]
+    with h5py.File(out / "data.hdf5", "r") as f:
+        data = f["data"]
+        demos = sorted(data.keys(), key=lambda k: int(k[5:]))
+        assert demos == [f"demo_{i}" for i in range(len(ids))] == [f"demo_{i}" for i in range(len(raw.ends))]
+        assert data.attrs["total"] == raw.ends[-1]
+        env = json.loads(data.attrs["env_args"])
+        assert env == {"env_name": "", "type": 1, "env_kwargs": {}}
+        for e, name in enumerate(demos):
+            g = data[name]
+            length = raw.ends[e] - raw.starts[e]
+            assert g.attrs["num_samples"] == length
+            assert g["actions"].dtype == np.float64
+            np.testing.assert_array_equal(g["actions"][()], raw.episode("action", e).astype(np.float64))
+            np.testing.assert_array_equal(g["obs/state"][()], raw.episode("state", e).astype(np.float32).astype(np.float64))
+            assert g["obs/image"].dtype == np.uint8
+            np.testing.assert_array_equal(g["obs/image"][()], raw.episode("img", e).astype(np.uint8))
+            dones = g["dones"][()]
+            assert dones.dtype == np.uint8 and dones.shape == (length,)
+            assert dones[-1] == 1 and dones[:-1].sum() == 0
+            assert g["rewards"].shape == (length,) and not g["rewards"][()].any()
+        # robomimic's get_demos_for_filter_key: byte strings decoded to demo names.
+        masks = {k: [elem.decode("utf-8") for elem in np.array(f["mask"][k][:])] for k in ("train", "valid")}
+        for key, split in (("train", "train"), ("valid", "val")):
+            want = [f"demo_{i}" for i, eid in enumerate(ids) if eid in meta["split"][split]]
+            assert masks[key] == want
+        assert masks["valid"] and masks["train"]
+
+
+def test_robomimic_export_is_deterministic(built, tmp_path):
+    run_chunkc("build", "-q", write_spec(tmp_path, "[profiles.robomimic]\n" + DP + 'format = "robomimic_hdf5"\n'))
+    assert (tmp_path / "out/robomimic/data.hdf5").read_bytes() == (built / "robomimic/data.hdf5").read_bytes()
