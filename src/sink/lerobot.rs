@@ -17,7 +17,7 @@
 //! chunk statistics), so the bytes depend only on the contents.
 
 use std::fs::File;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use arrow_array::builder::{BinaryBuilder, ListBuilder, StringBuilder};
@@ -54,7 +54,8 @@ pub struct LerobotWriter {
     raw: Vec<Option<Vec<f32>>>,
     /// Per channel: PNG frames by stored row (images only).
     frames: Vec<Vec<Vec<u8>>>,
-    index: Option<(Vec<[i64; 4]>, Vec<[i64; 4]>)>,
+    train: Vec<[i64; 4]>,
+    val: Vec<[i64; 4]>,
 }
 
 fn err(e: impl std::fmt::Display) -> Error {
@@ -158,7 +159,8 @@ impl LerobotWriter {
                 })
                 .collect(),
             channels,
-            index: None,
+            train: Vec::new(),
+            val: Vec::new(),
         })
     }
 
@@ -380,10 +382,7 @@ impl LerobotWriter {
             Field::new("limit", DataType::Int64, false),
             Field::new("sub", DataType::Int64, false),
         ]));
-        let (train, val) = self
-            .index
-            .as_ref()
-            .map_or((&[][..], &[][..]), |(t, v)| (t.as_slice(), v.as_slice()));
+        let (train, val) = (&self.train, &self.val);
         let rows: Vec<(&str, &[i64; 4])> = train
             .iter()
             .map(|r| ("train", r))
@@ -398,11 +397,6 @@ impl LerobotWriter {
         let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
         self.write_parquet(INDEX_FILE, schema, &[batch])
     }
-}
-
-/// The data file of `dir` (for tests and tools).
-pub fn data_path(dir: &Path) -> PathBuf {
-    dir.join(DATA_PATH)
 }
 
 impl Sink for LerobotWriter {
@@ -439,7 +433,8 @@ impl Sink for LerobotWriter {
     }
 
     fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()> {
-        self.index = Some((train.to_vec(), val.to_vec()));
+        self.train = train.to_vec();
+        self.val = val.to_vec();
         Ok(())
     }
 
