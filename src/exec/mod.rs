@@ -654,6 +654,11 @@ fn run(
             ),
         )?;
         write(STATS_FILE, documents::stats_json(stats))?;
+        if p.values.format == crate::spec::OutputFormat::Parquet {
+            // LeRobot v3.0 reads its statistics from `meta/stats.json`.
+            let path = dir.join(sink::lerobot::STATS_PATH);
+            std::fs::write(&path, render::codebase::lerobot(p, stats)).at("write", &path)?;
+        }
         let mut stats_files = Vec::new();
         if !p.values.stats_formats.is_empty() {
             // ACT's `example_qpos`: the state of the first training episode, in raw units.

@@ -461,6 +461,10 @@ fn resolve_profile(
             path: match profile.format {
                 crate::spec::OutputFormat::Zarr => "data.zarr/".into(),
                 crate::spec::OutputFormat::ActEpisodes => "episode_*.hdf5".into(),
+                crate::spec::OutputFormat::Parquet => "data/".into(),
+                crate::spec::OutputFormat::RobomimicHdf5 => {
+                    crate::sink::robomimic::ROBOMIMIC_FILE.into()
+                }
                 _ => DATA_FILE.into(),
             },
             estimated_bytes: data_bytes + chunk_bytes + 8192,

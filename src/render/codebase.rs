@@ -77,7 +77,7 @@ pub fn files(formats: &[StatsFormat], inputs: &Inputs) -> crate::Result<Vec<File
             StatsFormat::DiffusionPolicy => out.extend(diffusion_policy(inputs)?),
             StatsFormat::Lerobot => out.push(file(
                 "lerobot_stats.json",
-                lerobot(inputs),
+                lerobot(inputs.profile, inputs.stats),
                 "LeRobot `meta/stats.json` layout",
             )),
             StatsFormat::Openpi => out.push(file(
@@ -206,10 +206,10 @@ fn diffusion_policy(inputs: &Inputs) -> crate::Result<Vec<File>> {
 
 /// LeRobot's `meta/stats.json`: per feature min, max, mean, std, count and quantiles. Images are
 /// per colour channel with shape (3, 1, 1), in [0, 1] units.
-fn lerobot(inputs: &Inputs) -> Vec<u8> {
+pub fn lerobot(profile: &ProfilePlan, stats: &BTreeMap<String, ChannelStats>) -> Vec<u8> {
     let mut doc = serde_json::Map::new();
-    for ch in &inputs.profile.channels {
-        let s = &inputs.stats[&ch.name];
+    for ch in &profile.channels {
+        let s = &stats[&ch.name];
         let entry = if ch.kind == ChannelKind::Image {
             let img = |v: &Vec<f64>, div: f64| -> Value {
                 json!(v.iter().map(|x| vec![vec![x / div]]).collect::<Vec<_>>())

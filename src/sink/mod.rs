@@ -9,6 +9,8 @@
 //! - `zarr`: a Diffusion Policy replay buffer (raw values) + the window index.
 //! - `windows`: the rows of one window, as the loader resolves them.
 //! - `act_episodes`: ACT's `episode_<i>.hdf5` files (raw values).
+//! - `lerobot`: a LeRobot v3.0 parquet dataset + the window index (raw values).
+//! - `robomimic`: robomimic's `data.hdf5` with `data/demo_<i>` (raw values).
 //! - `documents`: `meta.json` and `stats.json`.
 //! - `dump`: canonical text dumps of written files (golden tests).
 
@@ -17,6 +19,8 @@ pub mod documents;
 pub mod dump;
 pub mod hdf5;
 mod hdf5_chunks;
+pub mod lerobot;
+pub mod robomimic;
 pub mod windows;
 pub mod zarr;
 
@@ -89,9 +93,7 @@ pub fn create(ctx: &SinkContext) -> Result<Box<dyn Sink>> {
         OutputFormat::Hdf5 => Ok(Box::new(hdf5::Hdf5Writer::create(ctx)?)),
         OutputFormat::Zarr => Ok(Box::new(zarr::ZarrWriter::create(ctx)?)),
         OutputFormat::ActEpisodes => Ok(Box::new(act_episodes::ActEpisodesWriter::create(ctx)?)),
-        other => Err(crate::Error::output(format!(
-            "output format `{}` is not supported yet",
-            other.name()
-        ))),
+        OutputFormat::Parquet => Ok(Box::new(lerobot::LerobotWriter::create(ctx)?)),
+        OutputFormat::RobomimicHdf5 => Ok(Box::new(robomimic::RobomimicWriter::create(ctx)?)),
     }
 }

@@ -300,14 +300,6 @@ impl Checker<'_> {
     fn output_options(&mut self, name: &str, p: &Profile) {
         let key = |k: &'static str| ["profiles", name, k];
         let format = p.format.name();
-        if matches!(
-            p.format,
-            OutputFormat::Parquet | OutputFormat::RobomimicHdf5
-        ) {
-            let message = format!("output format `{format}` is not supported yet");
-            let help = Some("use `hdf5`, `zarr` or `act_episodes`".into());
-            self.value(&key("format"), message, "not supported yet", help);
-        }
         if p.layout != Layout::Index && p.format != OutputFormat::Hdf5 {
             let message = format!(
                 "`layout = \"{}\"` needs `format = \"hdf5\"`, but profile `{name}` writes `{format}`",

@@ -48,6 +48,12 @@ layout = "virtual"
 [profiles.act_zero_mat]
 extends = "act_zero"
 layout = "materialized"
+
+[profiles.robomimic]
+{DP}format = "robomimic_hdf5"
+
+[profiles.parquet]
+{DP}format = "parquet"
 """
 
 
@@ -76,7 +82,7 @@ def same(a, b):
         assert np.array_equal(bits(a[key]), bits(b[key])), key
 
 
-@pytest.mark.parametrize("profile", ["materialized", "virtual", "zarr"])
+@pytest.mark.parametrize("profile", ["materialized", "virtual", "zarr", "parquet"])
 def test_loader_windows_equal_the_index_layout(built, profile):
     for split in ("train", "val"):
         want, got = load(built / "index", split), load(built / profile, split)
@@ -212,3 +218,118 @@ def test_act_episodes_load_with_act_reader(built, raw):
     for key in ("action_mean", "action_std", "qpos_mean", "qpos_std", "example_qpos"):
         assert key in stats
     assert stats["action_mean"].shape == (2,)
+
+
+def test_robomimic_export_reads_like_robomimic(built, raw):
+    out = built / "robomimic"
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["stored_values"] == "raw" and meta["data_format"] == "robomimic_hdf5"
+    assert meta["data_file"] == "data.hdf5"
+    ids = meta["episodes"]
+    with h5py.File(out / "data.hdf5", "r") as f:
+        data = f["data"]
+        demos = sorted(data.keys(), key=lambda k: int(k[5:]))
+        assert demos == [f"demo_{i}" for i in range(len(ids))] == [f"demo_{i}" for i in range(len(raw.ends))]
+        assert data.attrs["total"] == raw.ends[-1]
+        env = json.loads(data.attrs["env_args"])
+        assert env == {"env_name": "", "type": 1, "env_kwargs": {}}
+        for e, name in enumerate(demos):
+            g = data[name]
+            length = raw.ends[e] - raw.starts[e]
+            assert g.attrs["num_samples"] == length
+            assert g["actions"].dtype == np.float64
+            np.testing.assert_array_equal(g["actions"][()], raw.episode("action", e).astype(np.float64))
+            np.testing.assert_array_equal(g["obs/state"][()], raw.episode("state", e).astype(np.float32).astype(np.float64))
+            assert g["obs/image"].dtype == np.uint8
+            np.testing.assert_array_equal(g["obs/image"][()], raw.episode("img", e).astype(np.uint8))
+            dones = g["dones"][()]
+            assert dones.dtype == np.uint8 and dones.shape == (length,)
+            assert dones[-1] == 1 and dones[:-1].sum() == 0
+            assert g["rewards"].shape == (length,) and not g["rewards"][()].any()
+        # robomimic's get_demos_for_filter_key: byte strings decoded to demo names.
+        masks = {k: [elem.decode("utf-8") for elem in np.array(f["mask"][k][:])] for k in ("train", "valid")}
+        for key, split in (("train", "train"), ("valid", "val")):
+            want = [f"demo_{i}" for i, eid in enumerate(ids) if eid in meta["split"][split]]
+            assert masks[key] == want
+        assert masks["valid"] and masks["train"]
+
+
+def test_robomimic_export_is_deterministic(built, tmp_path):
+    run_chunkc("build", "-q", write_spec(tmp_path, "[profiles.robomimic]\n" + DP + 'format = "robomimic_hdf5"\n'))
+    assert (tmp_path / "out/robomimic/data.hdf5").read_bytes() == (built / "robomimic/data.hdf5").read_bytes()
+
+
+def test_parquet_is_a_lerobot_v3_dataset_of_raw_values(built, raw):
+    import io
+
+    import pyarrow.parquet as pq
+
+    out = built / "parquet"
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["stored_values"] == "raw" and meta["data_format"] == "parquet"
+    ids = meta["episodes"]
+    info = json.loads((out / "meta/info.json").read_text())
+    n, total = len(raw.ends), int(raw.ends[-1])
+    assert info["codebase_version"] == "v3.0" and info["fps"] == 10
+    assert info["total_episodes"] == n and info["total_frames"] == total and info["total_tasks"] == 1
+    assert info["chunks_size"] == 1000 and info["splits"] == {"train": f"0:{n}"}
+    assert info["data_path"] == "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
+    assert info["video_path"] is None and info["robot_type"] is None
+    assert info["features"]["action"] == {"dtype": "float32", "shape": [2], "names": None}
+    assert info["features"]["observation.image"]["dtype"] == "image"
+    assert info["features"]["observation.image"]["shape"] == list(raw.array("img").shape[1:])
+    for key in ("timestamp", "frame_index", "episode_index", "index", "task_index"):
+        assert key in info["features"]
+
+    path = out / "data/chunk-000/file-000.parquet"
+    f = pq.ParquetFile(path)
+    assert f.metadata.num_row_groups == n
+    for e in range(n):
+        assert f.metadata.row_group(e).num_rows == raw.ends[e] - raw.starts[e]
+    table = pq.read_table(path)
+    assert table.num_rows == total
+    np.testing.assert_array_equal(table.column("index").to_numpy(), np.arange(total))
+    frame = table.column("frame_index").to_numpy()
+    episode = table.column("episode_index").to_numpy()
+    ts = table.column("timestamp").to_numpy()
+    assert ts.dtype == np.float32
+    for e in range(n):
+        lo, hi = raw.starts[e], raw.ends[e]
+        np.testing.assert_array_equal(frame[lo:hi], np.arange(hi - lo))
+        assert (episode[lo:hi] == ids[e]).all()
+        np.testing.assert_array_equal(ts[lo:hi], (np.arange(hi - lo) / 10).astype(np.float32))
+    assert (table.column("task_index").to_numpy() == 0).all()
+    for name, key in (("action", "action"), ("observation.state", "state")):
+        got = np.stack(table.column(name).to_numpy(zero_copy_only=False))
+        assert np.array_equal(bits(got.astype(np.float32)), bits(raw.array(key).astype(np.float32))), name
+    images = table.column("observation.image").to_pylist()
+    assert images[0]["path"] is None
+    try:
+        from PIL import Image
+    except ImportError:
+        Image = None
+    want = raw.array("img").astype(np.uint8)
+    for i in (0, total // 2, total - 1):
+        png = images[i]["bytes"]
+        assert png[:8] == b"\x89PNG\r\n\x1a\n"
+        if Image is not None:
+            np.testing.assert_array_equal(np.asarray(Image.open(io.BytesIO(png))), want[i])
+
+    episodes = pq.read_table(out / "meta/episodes/chunk-000/file-000.parquet").to_pydict()
+    assert episodes["episode_index"] == ids
+    assert episodes["tasks"] == [["chunkc"]] * n
+    assert episodes["length"] == list(raw.ends - raw.starts)
+    assert episodes["dataset_from_index"] == list(raw.starts)
+    assert episodes["dataset_to_index"] == list(raw.ends)
+    assert episodes["data/chunk_index"] == [0] * n and episodes["data/file_index"] == [0] * n
+    assert pq.read_table(out / "meta/tasks.parquet").to_pydict() == {"task_index": [0], "task": ["chunkc"]}
+    stats = json.loads((out / "meta/stats.json").read_text())
+    assert set(stats) == {"action", "observation.state", "observation.image"}
+    assert len(stats["action"]["mean"]) == 2
+
+
+def test_parquet_is_deterministic(built, tmp_path):
+    run_chunkc("build", "-q", write_spec(tmp_path, "[profiles.parquet]\n" + DP + 'format = "parquet"\n'))
+    for rel in ("data/chunk-000/file-000.parquet", "chunkc_index.parquet", "meta/info.json",
+                "meta/episodes/chunk-000/file-000.parquet", "meta/tasks.parquet", "meta/stats.json"):
+        assert (tmp_path / "out/parquet" / rel).read_bytes() == (built / "parquet" / rel).read_bytes(), rel

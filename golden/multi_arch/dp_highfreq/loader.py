@@ -6,7 +6,8 @@
                      #  "observation.<name>": (n_obs, ...), "episode_index", "frame_index"}
     raw = ds.denormalize("action", sample["action"])
 
-Works with numpy and h5py alone (zarr-python for `format = "zarr"`); when torch is installed,
+Works with numpy and h5py alone (zarr-python for `format = "zarr"`, pyarrow for
+`format = "parquet"`); when torch is installed,
 ChunkedDataset is a torch.utils.data.Dataset and can go straight into a DataLoader (any
 num_workers: the data file is opened lazily in each worker process). Formats that store raw
 values (`meta.json` "stored_values": "raw") are normalized here on read, exactly as the build
@@ -33,6 +34,51 @@ except ImportError:  # pragma: no cover - exercised in numpy-only environments
     _DatasetBase = object
 
 CHANNELS = ["action", "observation.state"]
+
+
+def _png(data, shape):
+    """One PNG frame as written by chunkc (8-bit, no interlace): filters undone here, so numpy
+    and zlib are enough."""
+    import struct
+    import zlib
+
+    pos, idat, width, channels = 8, b"", 0, 1
+    while pos < len(data):
+        (length,) = struct.unpack(">I", data[pos:pos + 4])
+        kind, body = data[pos + 4:pos + 8], data[pos + 8:pos + 8 + length]
+        if kind == b"IHDR":
+            width, height, _, color = struct.unpack(">IIBB", body[:10])
+            channels = {0: 1, 2: 3, 4: 2, 6: 4}[color]
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + length
+    raw = np.frombuffer(zlib.decompress(idat), dtype=np.uint8)
+    stride = width * channels
+    rows = raw.reshape(-1, stride + 1)
+    out = np.zeros((len(rows), stride), dtype=np.uint8)
+    for y, row in enumerate(rows):
+        f, line = row[0], row[1:].astype(np.int32)
+        prev = out[y - 1].astype(np.int32) if y else np.zeros(stride, dtype=np.int32)
+        if f == 0:
+            cur = line
+        elif f == 2:
+            cur = line + prev
+        else:  # 1 (sub), 3 (average), 4 (paeth): left-dependent, one byte at a time
+            cur = np.zeros(stride, dtype=np.int32)
+            for x in range(stride):
+                a = cur[x - channels] if x >= channels else 0
+                b = prev[x]
+                c = prev[x - channels] if x >= channels else 0
+                if f == 1:
+                    p = a
+                elif f == 3:
+                    p = (a + b) // 2
+                else:
+                    pa, pb, pc = abs(b - c), abs(a - c), abs(a + b - 2 * c)
+                    p = a if pa <= pb and pa <= pc else (b if pb <= pc else c)
+                cur[x] = (line[x] + p) & 0xFF
+        out[y] = cur & 0xFF
+    return out.reshape(shape)
 
 
 class ChunkedDataset(_DatasetBase):
@@ -93,9 +139,34 @@ class ChunkedDataset(_DatasetBase):
             import zarr
 
             return zarr.open_group(self.path, mode="r")
+        if self.data_format == "parquet":
+            return self._open_parquet()
         import h5py
 
         return h5py.File(self.path, "r")
+
+    def _open_parquet(self):
+        """LeRobot v3.0 parquet: the whole table read once (pyarrow), as the arrays
+        `data/<channel>` (images decoded from PNG) and `index/<split>`."""
+        import pyarrow.parquet as pq
+
+        table = pq.read_table(self.path)
+        out = {}
+        for name in CHANNELS:
+            shape = tuple(self.meta["channels"][name]["shape"])
+            column = table.column(name).combine_chunks()
+            if name in self._lowdim:
+                values = column.values.to_numpy(zero_copy_only=False).astype(np.float32)
+                out["data/" + name] = values.reshape((len(column),) + shape)
+            else:
+                frames = column.field("bytes").to_pylist()
+                out["data/" + name] = np.stack([_png(b, shape) for b in frames]) if frames else \
+                    np.zeros((0,) + shape, dtype=np.uint8)
+        index = pq.read_table(os.path.join(self.root, "chunkc_index.parquet"))
+        split = np.asarray(index.column("split").to_pylist())
+        rows = np.stack([index.column(k).to_numpy() for k in ("episode", "t", "limit", "sub")], axis=1)
+        out["index"] = {s: rows[split == s].astype(np.int64).reshape(-1, 4) for s in ("train", "val")}
+        return out
 
     def _h5(self):
         if self._memory is not None:

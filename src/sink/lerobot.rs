@@ -1,0 +1,447 @@
+//! LeRobot v3.0's dataset layout (`format = "parquet"`), plus chunkc's window index.
+//!
+//! ```text
+//! data/chunk-000/file-000.parquet   one row per stored step, one row group per episode:
+//!                                   <channel> FixedSizeList<float32> raw (low-dim) or
+//!                                   struct {bytes: PNG, path: null} (images), timestamp
+//!                                   float32 = frame_index / fps, frame_index, episode_index
+//!                                   (source id), index (global row), task_index = 0 (int64)
+//! meta/info.json                    codebase_version "v3.0", fps, features, totals, paths
+//! meta/episodes/chunk-000/file-000.parquet  one row per episode
+//! meta/tasks.parquet                task_index, task ("chunkc")
+//! meta/stats.json                   written by `exec` (LeRobot's statistics layout)
+//! chunkc_index.parquet              chunkc's window index: split, episode, t, limit, sub
+//! ```
+//! Values are raw: LeRobot normalizes in its policy with `meta/stats.json`, and chunkc's loader
+//! normalizes on read. Writer properties are fixed (created_by, zstd level, no dictionary,
+//! chunk statistics), so the bytes depend only on the contents.
+
+use std::fs::File;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use arrow_array::builder::{BinaryBuilder, ListBuilder, StringBuilder};
+use arrow_array::{
+    ArrayRef, FixedSizeListArray, Float32Array, Int64Array, RecordBatch, StringArray, StructArray,
+};
+use arrow_schema::{DataType, Field, Fields, Schema};
+use parquet::arrow::ArrowWriter;
+use parquet::basic::{Compression as PqCompression, ZstdLevel};
+use parquet::file::properties::{EnabledStatistics, WriterProperties};
+use serde_json::{json, Value};
+
+use super::{FrameEncoding, Sink, SinkContext};
+use crate::error::{Error, IoContext, Result};
+use crate::source::ChannelKind;
+use crate::spec::Compression;
+use crate::stats::normalize::Normalizer;
+
+pub const DATA_PATH: &str = "data/chunk-000/file-000.parquet";
+pub const INDEX_FILE: &str = "chunkc_index.parquet";
+pub const STATS_PATH: &str = "meta/stats.json";
+const TASK: &str = "chunkc";
+const CREATED_BY: &str = "chunkc";
+const DEFAULT_ZSTD_LEVEL: u32 = 3;
+
+pub struct LerobotWriter {
+    dir: PathBuf,
+    fps: f64,
+    props: WriterProperties,
+    ends: Vec<u64>,
+    ids: Vec<u64>,
+    /// Per channel: the name, its shape, its kind.
+    channels: Vec<(String, Vec<usize>, ChannelKind)>,
+    raw: Vec<Option<Vec<f32>>>,
+    /// Per channel: PNG frames by stored row (images only).
+    frames: Vec<Vec<Vec<u8>>>,
+    train: Vec<[i64; 4]>,
+    val: Vec<[i64; 4]>,
+}
+
+fn err(e: impl std::fmt::Display) -> Error {
+    Error::output(format!("parquet: {e}"))
+}
+
+/// A PNG of one HWC `u8` frame: filter 0 on every row, zlib at a fixed level (deterministic).
+pub fn png(frame: &[u8], shape: &[usize]) -> Vec<u8> {
+    use std::io::Write;
+    let (h, w, c) = match shape {
+        [h, w, c] => (*h, *w, *c),
+        [h, w] => (*h, *w, 1),
+        _ => (1, frame.len(), 1),
+    };
+    let color: u8 = match c {
+        1 => 0,
+        2 => 4,
+        3 => 2,
+        _ => 6,
+    };
+    let mut raw = Vec::with_capacity(h * (w * c + 1));
+    for row in frame.chunks(w * c) {
+        raw.push(0);
+        raw.extend_from_slice(row);
+    }
+    let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::new(6));
+    z.write_all(&raw).expect("writing to a Vec cannot fail");
+    let idat = z.finish().expect("writing to a Vec cannot fail");
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut chunk = |kind: &[u8], data: &[u8]| {
+        out.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        let mut crc = flate2::Crc::new();
+        crc.update(kind);
+        crc.update(data);
+        out.extend_from_slice(kind);
+        out.extend_from_slice(data);
+        out.extend_from_slice(&crc.sum().to_be_bytes());
+    };
+    let mut ihdr = Vec::with_capacity(13);
+    ihdr.extend_from_slice(&(w as u32).to_be_bytes());
+    ihdr.extend_from_slice(&(h as u32).to_be_bytes());
+    ihdr.extend_from_slice(&[8, color, 0, 0, 0]);
+    chunk(b"IHDR", &ihdr);
+    chunk(b"IDAT", &idat);
+    chunk(b"IEND", &[]);
+    out
+}
+
+fn image_fields() -> Fields {
+    Fields::from(vec![
+        Field::new("bytes", DataType::Binary, true),
+        Field::new("path", DataType::Utf8, true),
+    ])
+}
+
+fn item() -> Arc<Field> {
+    Arc::new(Field::new("item", DataType::Float32, true))
+}
+
+fn i64_col(values: impl IntoIterator<Item = i64>) -> ArrayRef {
+    Arc::new(Int64Array::from_iter_values(values))
+}
+
+impl LerobotWriter {
+    pub fn create(ctx: &SinkContext) -> Result<Self> {
+        let v = &ctx.profile.values;
+        let compression = match v.compression {
+            Compression::None => PqCompression::UNCOMPRESSED,
+            _ => PqCompression::ZSTD(
+                ZstdLevel::try_new(v.compression_level.unwrap_or(DEFAULT_ZSTD_LEVEL) as i32)
+                    .map_err(err)?,
+            ),
+        };
+        let props = WriterProperties::builder()
+            .set_created_by(CREATED_BY.into())
+            .set_compression(compression)
+            .set_dictionary_enabled(false)
+            .set_statistics_enabled(EnabledStatistics::Chunk)
+            .set_max_row_group_row_count(None)
+            .set_max_row_group_bytes(None)
+            .build();
+        let channels: Vec<(String, Vec<usize>, ChannelKind)> = ctx
+            .profile
+            .channels
+            .iter()
+            .map(|c| (c.name.clone(), c.shape.clone(), c.kind))
+            .collect();
+        let steps = *ctx.episode_ends.last().unwrap_or(&0) as usize;
+        Ok(LerobotWriter {
+            dir: ctx.dir.to_path_buf(),
+            fps: ctx.profile.fps,
+            props,
+            ends: ctx.episode_ends.to_vec(),
+            ids: ctx.episode_ids.to_vec(),
+            raw: channels.iter().map(|_| None).collect(),
+            frames: channels
+                .iter()
+                .map(|(_, _, k)| match k {
+                    ChannelKind::Image => Vec::with_capacity(steps),
+                    ChannelKind::Lowdim => Vec::new(),
+                })
+                .collect(),
+            channels,
+            train: Vec::new(),
+            val: Vec::new(),
+        })
+    }
+
+    fn write_parquet(&self, rel: &str, schema: Arc<Schema>, batches: &[RecordBatch]) -> Result<()> {
+        let path = self.dir.join(rel);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).at("create", parent)?;
+        }
+        let file = File::create(&path).at("create", &path)?;
+        let mut w = ArrowWriter::try_new(file, schema, Some(self.props.clone())).map_err(err)?;
+        for b in batches {
+            w.write(b).map_err(err)?;
+            // One row group per batch.
+            w.flush().map_err(err)?;
+        }
+        w.close().map_err(err)?;
+        Ok(())
+    }
+
+    fn write_json(&self, rel: &str, value: &Value) -> Result<()> {
+        let path = self.dir.join(rel);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).at("create", parent)?;
+        }
+        let mut text = serde_json::to_string_pretty(value).expect("JSON serializes");
+        text.push('\n');
+        std::fs::write(&path, text).at("write", &path)
+    }
+
+    fn data(&self) -> Result<()> {
+        let mut fields = Vec::new();
+        for (name, _, kind) in &self.channels {
+            let dt = match kind {
+                ChannelKind::Lowdim => {
+                    let width = self.width(name);
+                    DataType::FixedSizeList(item(), width as i32)
+                }
+                ChannelKind::Image => DataType::Struct(image_fields()),
+            };
+            fields.push(Field::new(name, dt, false));
+        }
+        for (name, dt) in [
+            ("timestamp", DataType::Float32),
+            ("frame_index", DataType::Int64),
+            ("episode_index", DataType::Int64),
+            ("index", DataType::Int64),
+            ("task_index", DataType::Int64),
+        ] {
+            fields.push(Field::new(name, dt, false));
+        }
+        let schema = Arc::new(Schema::new(fields));
+        let mut batches = Vec::with_capacity(self.ends.len());
+        let mut start = 0usize;
+        for (e, &end) in self.ends.iter().enumerate() {
+            let (lo, hi) = (start, end as usize);
+            start = hi;
+            let mut cols: Vec<ArrayRef> = Vec::new();
+            for ((name, _, kind), (raw, frames)) in
+                self.channels.iter().zip(self.raw.iter().zip(&self.frames))
+            {
+                match kind {
+                    ChannelKind::Lowdim => {
+                        let width = self.width(name);
+                        let raw = raw
+                            .as_ref()
+                            .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
+                        let values = Float32Array::from(raw[lo * width..hi * width].to_vec());
+                        let list = FixedSizeListArray::try_new(
+                            item(),
+                            width as i32,
+                            Arc::new(values),
+                            None,
+                        )
+                        .map_err(err)?;
+                        cols.push(Arc::new(list));
+                    }
+                    ChannelKind::Image => {
+                        let mut bytes = BinaryBuilder::new();
+                        let mut paths = StringBuilder::new();
+                        for f in frames
+                            .get(lo..hi)
+                            .ok_or_else(|| Error::Internal(format!("missing frames of {name}")))?
+                        {
+                            bytes.append_value(f);
+                            paths.append_null();
+                        }
+                        let s = StructArray::try_new(
+                            image_fields(),
+                            vec![Arc::new(bytes.finish()), Arc::new(paths.finish())],
+                            None,
+                        )
+                        .map_err(err)?;
+                        cols.push(Arc::new(s));
+                    }
+                }
+            }
+            let n = hi - lo;
+            cols.push(Arc::new(Float32Array::from_iter_values(
+                (0..n).map(|i| (i as f64 / self.fps) as f32),
+            )));
+            cols.push(i64_col((0..n).map(|i| i as i64)));
+            cols.push(i64_col((0..n).map(|_| self.ids[e] as i64)));
+            cols.push(i64_col((lo..hi).map(|i| i as i64)));
+            cols.push(i64_col((0..n).map(|_| 0)));
+            batches.push(RecordBatch::try_new(schema.clone(), cols).map_err(err)?);
+        }
+        self.write_parquet(DATA_PATH, schema, &batches)
+    }
+
+    fn width(&self, name: &str) -> usize {
+        let (_, shape, _) = self
+            .channels
+            .iter()
+            .find(|(n, _, _)| n == name)
+            .expect("a known channel");
+        shape.iter().product::<usize>().max(1)
+    }
+
+    fn episodes(&self) -> Result<()> {
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("episode_index", DataType::Int64, false),
+            Field::new(
+                "tasks",
+                DataType::List(Arc::new(Field::new("item", DataType::Utf8, true))),
+                false,
+            ),
+            Field::new("length", DataType::Int64, false),
+            Field::new("dataset_from_index", DataType::Int64, false),
+            Field::new("dataset_to_index", DataType::Int64, false),
+            Field::new("data/chunk_index", DataType::Int64, false),
+            Field::new("data/file_index", DataType::Int64, false),
+        ]));
+        let n = self.ends.len();
+        let starts: Vec<i64> = std::iter::once(0)
+            .chain(self.ends.iter().map(|&e| e as i64))
+            .take(n)
+            .collect();
+        let mut tasks = ListBuilder::new(StringBuilder::new());
+        for _ in 0..n {
+            tasks.values().append_value(TASK);
+            tasks.append(true);
+        }
+        let tasks = tasks.finish();
+        let cols: Vec<ArrayRef> = vec![
+            i64_col(self.ids.iter().map(|&i| i as i64)),
+            Arc::new(tasks),
+            i64_col(self.ends.iter().zip(&starts).map(|(&e, &s)| e as i64 - s)),
+            i64_col(starts.iter().copied()),
+            i64_col(self.ends.iter().map(|&e| e as i64)),
+            i64_col((0..n).map(|_| 0)),
+            i64_col((0..n).map(|_| 0)),
+        ];
+        let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
+        self.write_parquet("meta/episodes/chunk-000/file-000.parquet", schema, &[batch])?;
+
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("task_index", DataType::Int64, false),
+            Field::new("task", DataType::Utf8, false),
+        ]));
+        let batch = RecordBatch::try_new(
+            schema.clone(),
+            vec![i64_col([0]), Arc::new(StringArray::from(vec![TASK]))],
+        )
+        .map_err(err)?;
+        self.write_parquet("meta/tasks.parquet", schema, &[batch])
+    }
+
+    fn info(&self) -> Result<()> {
+        let mut features = serde_json::Map::new();
+        for (name, shape, kind) in &self.channels {
+            let dtype = match kind {
+                ChannelKind::Lowdim => "float32",
+                ChannelKind::Image => "image",
+            };
+            let shape = if shape.is_empty() {
+                vec![1]
+            } else {
+                shape.clone()
+            };
+            features.insert(
+                name.clone(),
+                json!({"dtype": dtype, "shape": shape, "names": null}),
+            );
+        }
+        for (name, dtype) in [
+            ("timestamp", "float32"),
+            ("frame_index", "int64"),
+            ("episode_index", "int64"),
+            ("index", "int64"),
+            ("task_index", "int64"),
+        ] {
+            features.insert(
+                name.into(),
+                json!({"dtype": dtype, "shape": [1], "names": null}),
+            );
+        }
+        let n = self.ends.len();
+        let doc = json!({
+            "codebase_version": "v3.0",
+            "robot_type": null,
+            "total_episodes": n,
+            "total_frames": self.ends.last().copied().unwrap_or(0),
+            "total_tasks": 1,
+            "chunks_size": 1000,
+            "fps": self.fps,
+            "splits": {"train": format!("0:{n}")},
+            "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
+            "video_path": null,
+            "features": Value::Object(features),
+        });
+        self.write_json("meta/info.json", &doc)
+    }
+
+    fn chunkc_index(&self) -> Result<()> {
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("split", DataType::Utf8, false),
+            Field::new("episode", DataType::Int64, false),
+            Field::new("t", DataType::Int64, false),
+            Field::new("limit", DataType::Int64, false),
+            Field::new("sub", DataType::Int64, false),
+        ]));
+        let (train, val) = (&self.train, &self.val);
+        let rows: Vec<(&str, &[i64; 4])> = train
+            .iter()
+            .map(|r| ("train", r))
+            .chain(val.iter().map(|r| ("val", r)))
+            .collect();
+        let mut cols: Vec<ArrayRef> = vec![Arc::new(StringArray::from(
+            rows.iter().map(|(s, _)| *s).collect::<Vec<_>>(),
+        ))];
+        for k in 0..4 {
+            cols.push(i64_col(rows.iter().map(|(_, r)| r[k])));
+        }
+        let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
+        self.write_parquet(INDEX_FILE, schema, &[batch])
+    }
+}
+
+impl Sink for LerobotWriter {
+    fn data_file(&self) -> &str {
+        DATA_PATH
+    }
+
+    fn frame_encoding(&self) -> FrameEncoding {
+        FrameEncoding::Raw
+    }
+
+    fn stores_normalized(&self) -> bool {
+        false
+    }
+
+    fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+        let (_, shape, _) = &self.channels[channel];
+        let shape = shape.clone();
+        let out = &mut self.frames[channel];
+        if out.len() != row {
+            return Err(Error::Internal(format!(
+                "frames out of order: row {row}, have {}",
+                out.len()
+            )));
+        }
+        out.extend(frames.iter().map(|f| png(f, &shape)));
+        Ok(())
+    }
+
+    /// Raw values: LeRobot normalizes with `meta/stats.json`.
+    fn write_lowdim(&mut self, channel: usize, raw: &[f32], _: &Normalizer) -> Result<()> {
+        self.raw[channel] = Some(raw.to_vec());
+        Ok(())
+    }
+
+    fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()> {
+        self.train = train.to_vec();
+        self.val = val.to_vec();
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>) -> Result<()> {
+        self.data()?;
+        self.episodes()?;
+        self.info()?;
+        self.chunkc_index()
+    }
+}
