@@ -96,3 +96,60 @@ def test_in_memory_and_float_images_match_lazy_reads(built):
         np.testing.assert_array_equal(a["observation.state"], b["observation.state"])
         assert b["observation.image"].dtype == np.float32
         np.testing.assert_allclose(b["observation.image"], a["observation.image"] / 255.0, rtol=1e-7)
+
+
+FORMATS = """
+[profiles.dp_hdf5]
+preset = "diffusion_policy"
+[profiles.act_hdf5]
+preset = "act"
+fps = 10
+chunk = 20
+[profiles.dp_zarr]
+extends = "dp_hdf5"
+format = "zarr"
+[profiles.act_zarr]
+extends = "act_hdf5"
+format = "zarr"
+[profiles.dp_parquet]
+extends = "dp_hdf5"
+format = "parquet"
+[profiles.act_parquet]
+extends = "act_hdf5"
+format = "parquet"
+"""
+
+
+@pytest.fixture(scope="module")
+def every_format(tmp_path_factory):
+    d = tmp_path_factory.mktemp("formats")
+    run_chunkc("build", "-q", write_spec(d, FORMATS))
+    return d / "out"
+
+
+@pytest.mark.parametrize("arch", ["dp", "act"])
+@pytest.mark.parametrize("fmt", ["zarr", "parquet"])
+def test_full_epoch_with_two_workers_in_every_format(every_format, arch, fmt):
+    """A DataLoader with 2 workers iterates a whole epoch of each format, and its batches equal the
+    HDF5 layout's batch for batch."""
+    torch = pytest.importorskip("torch")
+    root, reference = every_format / f"{arch}_{fmt}", every_format / f"{arch}_hdf5"
+    sys.path.insert(0, str(root))
+    try:
+        import importlib
+
+        import loader
+
+        importlib.reload(loader)
+    finally:
+        sys.path.pop(0)
+    assert loader.ChunkedDataset(str(root)).meta["data_format"] == fmt
+    dl = loader.make_dataloader(str(root), "train", batch_size=256, num_workers=2, shuffle=False)
+    ref = loader.make_dataloader(str(reference), "train", batch_size=256, num_workers=2, shuffle=False)
+    seen = 0
+    for batch, want in zip(dl, ref):
+        assert set(batch) == set(want)
+        for key in batch:
+            torch.testing.assert_close(batch[key], want[key], rtol=0, atol=0)
+        seen += len(batch["action"])
+    assert seen == len(dl.dataset) == len(ref.dataset)
