@@ -5,9 +5,11 @@
 //! happens in the same order whatever the thread count. A panic inside an episode job becomes an
 //! error naming the episode.
 //!
+//! - `finish`: a profile's last writes once the statistics are known.
 //! - `staging`: the staging directory and the final renames.
 //! - `progress`: progress bars (hidden when stderr is not a terminal).
 
+mod finish;
 mod progress;
 mod staging;
 
@@ -18,16 +20,14 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
-use crate::chunk::Sampling;
-use crate::error::{Error, IoContext, Result};
+use crate::error::{Error, Result};
 use crate::lock::{self, Lock, LockedProfile, SpecLock, LOCK_VERSION};
-use crate::plan::{self, Plan, ProfilePlan, META_FILE, STATS_FILE};
+use crate::plan::{self, Plan, ProfilePlan};
 use crate::render;
-use crate::sink::documents;
 use crate::sink::{self, encode_frame, FrameEncoding, Sink, SinkContext};
 use crate::source::{self, ChannelData, ChannelKind, Episode, Source};
 use crate::spec::{LoadedSpec, SplitFrom};
-use crate::stats::{self, normalize::Normalizer, ChannelStats, ImagePartial};
+use crate::stats::{self, ChannelStats, ImagePartial};
 
 pub use staging::{BUILD_LOCK_FILE, STAGING_DIR};
 
@@ -585,126 +585,14 @@ fn run(
     }
 
     let mut hashes = BTreeMap::new();
-    for ((p, (r, mut sink)), dir) in stale.iter().zip(sinks).zip(&dirs) {
-        let rate = &rates[r];
-        let stats = &stats_by_rate[r];
-        let mut normalizers = BTreeMap::new();
-        for (c, ch) in p.channels.iter().enumerate() {
-            let n = Normalizer::fit(ch.normalize, &stats[&ch.name]);
-            if ch.kind == ChannelKind::Lowdim {
-                sink.write_lowdim(c, &rate.lowdim[c], &n)?;
-            }
-            normalizers.insert(ch.name.clone(), n);
-        }
-        let mut train = Vec::new();
-        let mut val = Vec::new();
-        let mut segments = Vec::new();
-        for (e, ep) in p.episodes.iter().enumerate() {
-            let start = if e == 0 { 0 } else { rate.ends[e - 1] as usize };
-            let watched = match &p.sampling {
-                Sampling::Segment { channel, .. } => {
-                    let width = manifest.channels[*channel].width();
-                    let values = &rate.lowdim[*channel][start * width..(start + ep.len) * width];
-                    Some((values, width))
-                }
-                _ => None,
-            };
-            let samples = p.sampling.samples(ep.len, watched);
-            if matches!(p.sampling, Sampling::Segment { .. }) {
-                segments.push(
-                    samples
-                        .iter()
-                        .map(|s| [s.t, s.t + s.limit])
-                        .collect::<Vec<_>>(),
-                );
-            }
-            let rows = if ep.split == "train" {
-                &mut train
-            } else {
-                &mut val
-            };
-            rows.extend(
-                samples
-                    .into_iter()
-                    .map(|s| [e as i64, s.t as i64, s.limit as i64, s.sub as i64]),
-            );
-        }
-        sink.write_index(&train, &val)?;
-        let data_file = sink.data_file().to_string();
-        let normalized = sink.stores_normalized();
-        sink.finish()?;
-
-        let write = |name: &str, text: String| -> Result<()> {
-            let path = dir.join(name);
-            std::fs::write(&path, text).at("write", &path)
-        };
-        write(
-            META_FILE,
-            documents::meta_json(
-                plan,
-                p,
-                &documents::Built {
-                    episode_ends: &rate.ends,
-                    normalizers: &normalizers,
-                    num_samples: [train.len(), val.len()],
-                    segments: &segments,
-                },
-                &data_file,
-                normalized,
-            ),
-        )?;
-        write(STATS_FILE, documents::stats_json(stats))?;
-        if p.values.format == crate::spec::OutputFormat::Parquet {
-            // LeRobot v3.0 reads its statistics from `meta/stats.json`.
-            let path = dir.join(sink::lerobot::STATS_PATH);
-            std::fs::write(&path, render::codebase::lerobot(p, stats)).at("write", &path)?;
-        }
-        let mut stats_files = Vec::new();
-        if !p.values.stats_formats.is_empty() {
-            // ACT's `example_qpos`: the state of the first training episode, in raw units.
-            let example_state = render::codebase::state_channel(p).and_then(|state| {
-                let c = p.channels.iter().position(|ch| ch.name == state.name)?;
-                let e = p.episodes.iter().position(|ep| ep.split == "train")?;
-                let width = manifest.channels[c].width();
-                let start = if e == 0 { 0 } else { rate.ends[e - 1] as usize };
-                let end = rate.ends[e] as usize;
-                Some((&rate.lowdim[c][start * width..end * width], width))
-            });
-            let inputs = render::codebase::Inputs {
-                profile: p,
-                stats,
-                normalizers: &normalizers,
-                example_state,
-                renderer,
-            };
-            for f in render::codebase::files(&p.values.stats_formats, &inputs)? {
-                let path = dir.join(&f.name);
-                std::fs::write(&path, f.bytes).at("write", &path)?;
-                stats_files.push((f.name, f.what));
-            }
-        }
-        let hint = Path::new(&spec.spec.output.dir).join(&p.name);
-        let generated = render::profile_files(
+    for ((p, (r, sink)), dir) in stale.iter().zip(sinks).zip(&dirs) {
+        let shared = finish::Shared {
+            spec,
+            plan,
+            manifest,
             renderer,
-            &render::ProfileContext {
-                plan,
-                profile: p,
-                spec_file: &spec.file.file_name().unwrap_or_default().to_string_lossy(),
-                output_hint: &hint.to_string_lossy(),
-                data_file: &data_file,
-                num_samples: [train.len(), val.len()],
-                stats_files: &stats_files,
-            },
-        )?;
-        for (name, text) in generated {
-            write(name, text)?;
-        }
-
-        let mut files = BTreeMap::new();
-        for rel in source::fingerprint::list_files(dir)? {
-            let name = rel.to_string_lossy().replace('\\', "/");
-            files.insert(name, lock::hash_file(&dir.join(&rel))?);
-        }
+        };
+        let files = finish::profile(&shared, p, &rates[r], &stats_by_rate[r], sink, dir)?;
         hashes.insert(p.name.clone(), files);
     }
     Ok(Ok(hashes))
