@@ -1,6 +1,7 @@
 """Shared helpers: the chunkc binary, spec writing, and an independent reading of the source."""
 
 import os
+import sys
 import subprocess
 from pathlib import Path
 
@@ -84,3 +85,16 @@ def make_replay_buffer(path: Path, episodes):
     for key in episodes[0]:
         data.array(key, np.concatenate([e[key] for e in episodes]), chunks=(64,) + episodes[0][key].shape[1:])
     return path
+
+
+def import_loader(root):
+    """The generated `loader` module of the profile directory `root`, freshly imported."""
+    import importlib
+
+    sys.path.insert(0, str(root))
+    try:
+        import loader
+
+        return importlib.reload(loader)
+    finally:
+        sys.path.pop(0)

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import RawSource, run_chunkc, write_spec
+from conftest import RawSource, import_loader, run_chunkc, write_spec
 from reference import action_window, norm_params
 
 FULL = os.environ.get("CHUNKC_FULL_PUSHT")
@@ -41,11 +41,7 @@ def test_full_pusht_builds_and_matches_numpy(tmp_path):
     train = np.concatenate([raw.episode("action", e) for e in meta["split"]["train"]]).astype(np.float64)
     np.testing.assert_allclose(stats["action"]["p999"], np.percentile(train, 99.9, axis=0), rtol=1e-6)
 
-    import sys
-
-    sys.path.insert(0, str(tmp_path / "out" / "dp"))
-    import loader
-
+    loader = import_loader(tmp_path / "out" / "dp")
     ds = loader.ChunkedDataset(str(tmp_path / "out" / "dp"))
     params = norm_params(meta["normalization"]["action"]["mode"], train)
     lead = meta["action_lead"]

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import run_chunkc, write_spec
+from conftest import import_loader, run_chunkc, write_spec
 
 PROFILES = """
 [profiles.dp]
@@ -49,15 +49,7 @@ def test_loader_works_without_torch(built):
 @pytest.mark.parametrize("profile", ["dp", "act"])
 def test_torch_dataloader_full_epoch_with_workers(built, profile):
     torch = pytest.importorskip("torch")
-    sys.path.insert(0, str(built / profile))
-    try:
-        import importlib
-
-        import loader
-
-        importlib.reload(loader)
-    finally:
-        sys.path.pop(0)
+    loader = import_loader(built / profile)
     ds = loader.ChunkedDataset(str(built / profile), "train")
     assert isinstance(ds, torch.utils.data.Dataset)
     dl = loader.make_dataloader(str(built / profile), "train", batch_size=128, shuffle=False, num_workers=2)
@@ -78,15 +70,7 @@ def test_torch_dataloader_full_epoch_with_workers(built, profile):
 
 
 def test_in_memory_and_float_images_match_lazy_reads(built):
-    sys.path.insert(0, str(built / "dp"))
-    try:
-        import importlib
-
-        import loader
-
-        importlib.reload(loader)
-    finally:
-        sys.path.pop(0)
+    loader = import_loader(built / "dp")
     lazy = loader.ChunkedDataset(str(built / "dp"), "val")
     memory = loader.ChunkedDataset(str(built / "dp"), "val", in_memory=True, image_dtype="float32")
     assert len(lazy) == len(memory)
@@ -134,15 +118,7 @@ def test_full_epoch_with_two_workers_in_every_format(every_format, arch, fmt):
     HDF5 layout's batch for batch."""
     torch = pytest.importorskip("torch")
     root, reference = every_format / f"{arch}_{fmt}", every_format / f"{arch}_hdf5"
-    sys.path.insert(0, str(root))
-    try:
-        import importlib
-
-        import loader
-
-        importlib.reload(loader)
-    finally:
-        sys.path.pop(0)
+    loader = import_loader(root)
     assert loader.ChunkedDataset(str(root)).meta["data_format"] == fmt
     dl = loader.make_dataloader(str(root), "train", batch_size=256, num_workers=2, shuffle=False)
     ref = loader.make_dataloader(str(reference), "train", batch_size=256, num_workers=2, shuffle=False)

@@ -1,26 +1,16 @@
 """Presets reproduce their codebases' sampling and normalization; segments and hierarchies."""
 
 import json
-import sys
 
 import numpy as np
 import pytest
 
-from conftest import make_replay_buffer, run_chunkc, write_spec
+from conftest import import_loader, make_replay_buffer, run_chunkc, write_spec
 from reference import norm_params, normalize
 
 
 def load(root, split="train"):
-    sys.path.insert(0, str(root))
-    try:
-        import importlib
-
-        import loader
-
-        importlib.reload(loader)
-        return loader.ChunkedDataset(str(root), split)
-    finally:
-        sys.path.pop(0)
+    return import_loader(root).ChunkedDataset(str(root), split)
 
 
 # --- Diffusion Policy's sampler, reimplemented from its description in TARGETS.md -------------

@@ -1,12 +1,11 @@
 """stats.json against numpy on the training split, and the normalize/denormalize round trip."""
 
 import json
-import sys
 
 import numpy as np
 import pytest
 
-from conftest import run_chunkc, write_spec
+from conftest import import_loader, run_chunkc, write_spec
 
 PROFILES = """
 [profiles.dp]
@@ -85,15 +84,7 @@ def test_validation_episodes_do_not_leak_into_stats(built, raw):
 @pytest.mark.parametrize("profile", ["dp", "act"])
 def test_normalize_denormalize_round_trip(built, raw, profile):
     root = built / profile
-    sys.path.insert(0, str(root))
-    try:
-        import importlib
-
-        import loader
-
-        importlib.reload(loader)
-    finally:
-        sys.path.pop(0)
+    loader = import_loader(root)
     ds = loader.ChunkedDataset(str(root), "train")
     meta = ds.meta
     for name, key in [("action", "action"), ("observation.state", "state")]:

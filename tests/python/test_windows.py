@@ -1,13 +1,12 @@
 """Every training window of a build equals an independent numpy computation from the source."""
 
 import json
-import sys
 
 import h5py
 import numpy as np
 import pytest
 
-from conftest import run_chunkc, write_spec
+from conftest import import_loader, run_chunkc, write_spec
 from reference import action_window, expected_starts, norm_params, normalize, obs_window
 
 PROFILES = """
@@ -54,19 +53,6 @@ def built(tmp_path_factory):
     return d / "out"
 
 
-def load_loader(profile_dir):
-    sys.path.insert(0, str(profile_dir))
-    try:
-        import importlib
-
-        import loader
-
-        importlib.reload(loader)
-        return loader
-    finally:
-        sys.path.pop(0)
-
-
 @pytest.mark.parametrize("profile", ["dp", "act", "zero", "mask", "trunc", "half"])
 def test_every_training_window_matches_numpy(built, raw, profile):
     root = built / profile
@@ -111,7 +97,7 @@ def test_every_training_window_matches_numpy(built, raw, profile):
     assert meta["num_samples"]["train"] == len(index)
 
     # Every training sample the loader returns equals the numpy window.
-    loader = load_loader(root)
+    loader = import_loader(root)
     ds = loader.ChunkedDataset(str(root), "train")
     assert len(ds) == len(index)
     for i, (pos, t, _, _) in enumerate(index):
