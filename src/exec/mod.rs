@@ -511,6 +511,11 @@ fn run(
                     )))
                 })
             })
+            // Collect every episode's result before looking at any: when several episodes of a
+            // batch fail, the error reported is the first in episode order, whatever finished
+            // first (rayon's `collect::<Result<_>>` would return whichever failure it met).
+            .collect::<Vec<Result<_>>>()
+            .into_iter()
             .collect::<Result<Vec<_>>>()?
             .into_iter()
             .map(|r| {
