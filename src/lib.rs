@@ -14,18 +14,21 @@
 //!    robomimic/robosuite, LeRobot v2.1/v3.0) gives a [`source::Manifest`] (metadata only) and
 //!    reads [`source::Episode`]s one at a time; [`source::mapping`] applies `[source.channels]`
 //!    (rename, column slices, concatenation, kind) the same way for all of them.
-//! 3. **Resolve** ([`plan`]): spec + manifest + [`lock`] → [`plan::Plan`]: per profile the
+//! 3. **Audit** ([`audit`]): inter-frame intervals per episode → verdicts and repairs
+//!    ([`audit::AuditReport`]).
+//! 4. **Resolve** ([`plan`]): spec + manifest + [`lock`] → [`plan::Plan`]: per profile the
 //!    episodes and split, rate conversion, window count, files, fingerprint and whether it must
 //!    run. Shared work (the source read, statistics per rate and channel) appears once.
-//! 4. **Execute** ([`exec`]): the only module with threads. Reads the source once, decimates per
+//! 5. **Execute** ([`exec`]): the only module with threads. Reads the source once, decimates per
 //!    rate, computes [`stats`], normalizes, and writes through [`sink`] into a staging directory
 //!    renamed into place on success; then writes `chunkc.lock`.
-//! 5. **Render** ([`render`]): minijinja templates (embedded) for the generated Python loader.
+//! 6. **Render** ([`render`]): minijinja templates (embedded) for the generated Python loader.
 //!
 //! Supporting pieces: [`chunk`] decides which rows every window reads (the invariants "never
 //! across an episode" and "the observation belongs to the chunk's first step" live there);
 //! [`error`] holds the error type and exit codes.
 
+pub mod audit;
 pub mod chunk;
 pub mod error;
 pub mod exec;
