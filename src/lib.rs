@@ -22,12 +22,17 @@
 //! 5. **Execute** ([`exec`]): the only module with threads. Reads the source once, decimates per
 //!    rate, computes [`stats`], normalizes, and writes through [`sink`] into a staging directory
 //!    renamed into place on success; then writes `chunkc.lock`.
-//! 6. **Render** ([`render`]): minijinja templates (embedded) for the generated Python loader.
+//! 6. **Render** ([`render`]): minijinja templates (embedded) for the generated Python loader;
+//!    [`report`]: the self-contained HTML reports (inline SVG charts) of `audit` and `analyze`.
+//!
+//! Beside the pipeline, [`analyze`] (`chunkc analyze`) reads the action channel and suggests a
+//! chunk length K from its autocorrelation, checking every profile's K against it.
 //!
 //! Supporting pieces: [`chunk`] decides which rows every window reads (the invariants "never
 //! across an episode" and "the observation belongs to the chunk's first step" live there);
 //! [`error`] holds the error type and exit codes.
 
+pub mod analyze;
 pub mod audit;
 pub mod chunk;
 pub mod error;
@@ -35,6 +40,7 @@ pub mod exec;
 pub mod lock;
 pub mod plan;
 pub mod render;
+pub mod report;
 pub mod sink;
 pub mod source;
 pub mod spec;

@@ -7,7 +7,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use chunkc::exec::{self, BuildOptions};
 use chunkc::spec::{self, LoadedSpec};
-use chunkc::{plan, Error};
+use chunkc::{analyze, plan, report, Error};
 
 #[derive(Parser)]
 #[command(
@@ -42,6 +42,18 @@ enum Command {
         /// No progress bars.
         #[arg(long, short)]
         quiet: bool,
+    },
+    /// Suggest an action chunk length K from the autocorrelation of the action signal, and check
+    /// every profile's K; writes <output.dir>/audit/analyze.{json,html}.
+    Analyze {
+        spec: PathBuf,
+        /// The channel to analyze (low-dimensional).
+        #[arg(long, default_value = "action")]
+        channel: String,
+        /// Largest lag, in source steps (default: 200, or the longest profile K if larger;
+        /// capped at the longest episode - 1).
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+        max_lag: Option<u64>,
     },
     /// Print the JSON Schema of the spec format.
     Schema,
@@ -125,6 +137,28 @@ fn run(cli: Cli) -> Result<(), Error> {
                     eprintln!("up to date: {}", report.up_to_date.join(", "));
                 }
             }
+        }
+        Command::Analyze {
+            spec,
+            channel,
+            max_lag,
+        } => {
+            let spec = LoadedSpec::load(&spec)?;
+            let options = analyze::AnalyzeOptions {
+                channel,
+                max_lag: max_lag.map(|n| n as usize),
+            };
+            let result = analyze::analyze(&spec, &options)?;
+            let title = format!("chunkc analyze: {}", spec.file.display());
+            let html = report::analyze_html(&result, &title);
+            let [json_path, html_path] =
+                analyze::write(&analyze::audit_dir(&spec), &result, &html)?;
+            print!("{}", result.summary());
+            eprintln!(
+                "wrote {} and {}",
+                tidy(&json_path).display(),
+                tidy(&html_path).display()
+            );
         }
         Command::Schema => print!("{}", spec::json_schema()),
     }

@@ -200,7 +200,7 @@ impl Plan {
 }
 
 /// Integer decimation factor from `source_fps` to `fps`, or a message saying why there is none.
-fn rate_factor(source_fps: f64, fps: f64) -> std::result::Result<usize, String> {
+pub fn rate_factor(source_fps: f64, fps: f64) -> std::result::Result<usize, String> {
     if fps > source_fps * (1.0 + 1e-9) {
         return Err(format!(
             "{fps} Hz is faster than the source's {source_fps} Hz; chunkc does not upsample"

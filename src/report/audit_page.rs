@@ -1,0 +1,116 @@
+//! The `chunkc audit` page: verdict counts, the interval histogram, per-episode timing, the
+//! episodes that need attention, and before/after charts of repaired episodes.
+
+use super::page::Page;
+use super::plot::{self, verdict_name};
+use crate::audit::{AuditReport, Flag, Verdict};
+
+fn flag_name(f: Flag) -> &'static str {
+    match f {
+        Flag::Jitter => "jitter",
+        Flag::Gap => "gap",
+        Flag::Count => "count",
+        Flag::NonMonotonic => "non_monotonic",
+    }
+}
+
+fn ms(seconds: f64) -> String {
+    format!("{:.2}", seconds * 1000.0)
+}
+
+pub fn render(r: &AuditReport, title: &str) -> String {
+    let n = r.episodes.len();
+    let mut page = Page::new(
+        title,
+        &format!(
+            "{n} episodes at {} Hz (expected interval {} ms); {}.",
+            r.source_fps,
+            ms(r.expected_interval),
+            if r.timestamps {
+                "intervals from the source's timestamps"
+            } else {
+                "the source stores no timestamps, so every interval is the declared one"
+            }
+        ),
+    );
+
+    let verdicts = [Verdict::Ok, Verdict::Interpolate, Verdict::Resample, Verdict::Exclude];
+    let rows: Vec<Vec<String>> = verdicts
+        .iter()
+        .map(|&v| {
+            let count = r.episodes.iter().filter(|e| e.verdict == v).count();
+            vec![verdict_name(v).to_string(), count.to_string()]
+        })
+        .collect();
+    page.table(&["verdict", "episodes"], &rows);
+    page.paragraph(&format!(
+        "Repaired: {:.1} % of episodes; excluded: {:.1} %. Thresholds: jitter when the interval std \
+         exceeds {} of the mean, gap when an interval exceeds {} expected intervals, count when the \
+         frame count deviates from duration × rate by more than {}.",
+        r.repaired_fraction * 100.0,
+        r.excluded_fraction * 100.0,
+        r.thresholds.jitter,
+        r.thresholds.gap,
+        r.thresholds.count
+    ));
+    for w in &r.warnings {
+        page.note("warn", w);
+    }
+
+    page.heading("Intervals");
+    page.figure(
+        &plot::interval_histogram(&r.histogram, r.expected_interval),
+        "Every inter-frame interval of every episode, binned; the dashed line is 1 / fps.",
+    );
+    page.figure(
+        &plot::episode_timing(&r.episodes, r.expected_interval),
+        "One column per episode in source order, colored by verdict.",
+    );
+
+    page.heading("Episodes that need attention");
+    let flagged: Vec<Vec<String>> = r
+        .episodes
+        .iter()
+        .filter(|e| e.verdict != Verdict::Ok || !e.flags.is_empty())
+        .map(|e| {
+            vec![
+                e.id.to_string(),
+                e.n_frames.to_string(),
+                ms(e.interval_mean),
+                ms(e.interval_std),
+                ms(e.interval_min),
+                ms(e.interval_max),
+                e.flags.iter().map(|&f| flag_name(f)).collect::<Vec<_>>().join(", "),
+                verdict_name(e.verdict).to_string(),
+                e.repaired_frames.to_string(),
+                e.detail.clone(),
+            ]
+        })
+        .collect();
+    if flagged.is_empty() {
+        page.note("ok", "Every episode is on time: no flags, nothing to repair.");
+    } else {
+        page.table(
+            &[
+                "episode", "frames", "mean (ms)", "std (ms)", "min (ms)", "max (ms)", "flags",
+                "verdict", "frames after", "why",
+            ],
+            &flagged,
+        );
+    }
+
+    if !r.examples.is_empty() {
+        page.heading("Repairs, before and after");
+        for ex in &r.examples {
+            page.figure(
+                &plot::repair_example(ex),
+                &format!(
+                    "Episode {}: recorded frames (grey circles) and the {} series the build uses.",
+                    ex.episode,
+                    verdict_name(ex.verdict)
+                ),
+            );
+        }
+    }
+    page.finish()
+}
