@@ -22,7 +22,14 @@ pub fn acf(x: &[f64], max_lag: usize) -> Option<Vec<f64>> {
     let lags = max_lag.min(n - 1);
     Some(
         (0..=lags)
-            .map(|k| d[..n - k].iter().zip(&d[k..]).map(|(a, b)| a * b).sum::<f64>() / denom)
+            .map(|k| {
+                d[..n - k]
+                    .iter()
+                    .zip(&d[k..])
+                    .map(|(a, b)| a * b)
+                    .sum::<f64>()
+                    / denom
+            })
             .collect(),
     )
 }
@@ -45,7 +52,12 @@ mod tests {
     fn hand_computed_values() {
         // x = 1..=4: mean 2.5, d = -1.5 -0.5 0.5 1.5, Σd² = 5.
         let r = acf(&[1.0, 2.0, 3.0, 4.0], 3).unwrap();
-        let expected = [1.0, (0.75 - 0.25 + 0.75) / 5.0, (-0.75 - 0.75) / 5.0, -2.25 / 5.0];
+        let expected = [
+            1.0,
+            (0.75 - 0.25 + 0.75) / 5.0,
+            (-0.75 - 0.75) / 5.0,
+            -2.25 / 5.0,
+        ];
         for (a, b) in r.iter().zip(expected) {
             assert!((a - b).abs() < 1e-15, "{r:?}");
         }

@@ -58,7 +58,13 @@ impl Default for AnalyzeOptions {
 pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeReport> {
     let name = &options.channel;
     if !spec.spec.source.channels.contains_key(name) {
-        let known: Vec<&str> = spec.spec.source.channels.keys().map(|k| k.as_str()).collect();
+        let known: Vec<&str> = spec
+            .spec
+            .source
+            .channels
+            .keys()
+            .map(|k| k.as_str())
+            .collect();
         return Err(spec.error_at(
             &["source", "channels"],
             format!("`chunkc analyze --channel {name}`: the spec maps no channel `{name}`"),
@@ -81,12 +87,18 @@ pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeRep
     if info.kind != ChannelKind::Lowdim {
         return Err(spec.error_at(
             &["source", "channels", name],
-            format!("channel `{name}` holds images; `chunkc analyze` needs a low-dimensional channel"),
+            format!(
+                "channel `{name}` holds images; `chunkc analyze` needs a low-dimensional channel"
+            ),
             None,
         ));
     }
     let width = info.width();
-    let position = manifest.channels.iter().position(|c| &c.name == name).unwrap_or(0);
+    let position = manifest
+        .channels
+        .iter()
+        .position(|c| &c.name == name)
+        .unwrap_or(0);
     let longest = manifest.episodes.iter().map(|e| e.len).max().unwrap_or(0);
     if longest < 2 {
         return Err(Error::source(format!(
@@ -116,7 +128,11 @@ pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeRep
             warning: None,
         });
     }
-    let longest_k = profiles.iter().map(|p| p.chunk_source_steps).max().unwrap_or(0);
+    let longest_k = profiles
+        .iter()
+        .map(|p| p.chunk_source_steps)
+        .max()
+        .unwrap_or(0);
     let max_lag = options
         .max_lag
         .unwrap_or(DEFAULT_MAX_LAG.max(longest_k))
@@ -127,7 +143,9 @@ pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeRep
     for index in 0..manifest.episodes.len() {
         let episode = source.read_episode(index)?;
         let ChannelData::Lowdim(values) = &episode.channels[position] else {
-            return Err(Error::Internal(format!("channel `{name}` is not low-dimensional")));
+            return Err(Error::Internal(format!(
+                "channel `{name}` is not low-dimensional"
+            )));
         };
         steps += episode.len;
         acc.add(episode.id, values, width);
@@ -187,7 +205,7 @@ fn finish(
         let k = p.chunk_source_steps;
         p.warning = match p.acf_at_chunk {
             None => Some(format!(
-                "K = {} ({k} source steps) is beyond the lags analyzed (up to {}); raise --max-lag or check that episodes are that long",
+                "not analyzed: K = {} ({k} source steps) is beyond the lags analyzed (up to {}); raise --max-lag or check that episodes are that long",
                 p.chunk,
                 mean_acf.len().saturating_sub(1)
             )),
@@ -269,7 +287,9 @@ impl AnalyzeReport {
             None => out += &format!("suggested K: none (the mean ACF stays above {})\n", self.threshold),
         }
         for p in &self.profiles {
-            let acf = p.acf_at_chunk.map_or("n/a".to_string(), |r| format!("{r:.3}"));
+            let acf = p
+                .acf_at_chunk
+                .map_or("n/a".to_string(), |r| format!("{r:.3}"));
             out += &format!(
                 "  profile {}: K = {} at {} Hz ({} source steps), ACF {acf}{}\n",
                 p.name,
@@ -325,11 +345,19 @@ mod tests {
         let r = finish("action", 10.0, 1, 11, 10, dims, mean, vec![1; 11], profiles);
         // 0.3 at lag 7 is not below 0.3 (rounding aside): lag 8 (0.2) is the first below.
         assert_eq!(r.suggested_k, Some(8));
-        assert!(r.profiles[0].warning.as_deref().unwrap().starts_with("redundant"));
+        assert!(r.profiles[0]
+            .warning
+            .as_deref()
+            .unwrap()
+            .starts_with("redundant"));
         assert_eq!(r.profiles[1].acf_at_chunk, Some(0.4));
         assert!(r.profiles[1].warning.is_none());
         assert_eq!(r.profiles[1].suggested_chunk, Some(4));
-        assert!(r.profiles[2].warning.as_deref().unwrap().starts_with("long chunk"));
+        assert!(r.profiles[2]
+            .warning
+            .as_deref()
+            .unwrap()
+            .starts_with("long chunk"));
         assert!(r.profiles[3].acf_at_chunk.is_none());
         assert!(r.profiles[3].warning.as_deref().unwrap().contains("beyond"));
         assert!(r.summary().contains("suggested K: 8 steps"));

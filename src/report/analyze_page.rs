@@ -63,12 +63,24 @@ pub fn render(r: &AnalyzeReport, title: &str) -> String {
                 p.chunk_source_steps.to_string(),
                 fixed(p.acf_at_chunk),
                 p.suggested_chunk.map_or("–".into(), |k| k.to_string()),
-                p.warning.clone().unwrap_or_else(|| "ok".into()),
+                // The full sentence follows the table as a note.
+                p.warning
+                    .as_deref()
+                    .map_or("ok", |w| w.split(':').next().unwrap_or(w))
+                    .to_string(),
             ]
         })
         .collect();
     page.table(
-        &["profile", "fps", "K", "K in source steps", "ACF at K", "suggested K at its rate", "verdict"],
+        &[
+            "profile",
+            "fps",
+            "K",
+            "K in source steps",
+            "ACF at K",
+            "suggested K at its rate",
+            "verdict",
+        ],
         &rows,
     );
     for p in &r.profiles {

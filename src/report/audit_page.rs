@@ -34,7 +34,12 @@ pub fn render(r: &AuditReport, title: &str) -> String {
         ),
     );
 
-    let verdicts = [Verdict::Ok, Verdict::Interpolate, Verdict::Resample, Verdict::Exclude];
+    let verdicts = [
+        Verdict::Ok,
+        Verdict::Interpolate,
+        Verdict::Resample,
+        Verdict::Exclude,
+    ];
     let rows: Vec<Vec<String>> = verdicts
         .iter()
         .map(|&v| {
@@ -80,7 +85,11 @@ pub fn render(r: &AuditReport, title: &str) -> String {
                 ms(e.interval_std),
                 ms(e.interval_min),
                 ms(e.interval_max),
-                e.flags.iter().map(|&f| flag_name(f)).collect::<Vec<_>>().join(", "),
+                e.flags
+                    .iter()
+                    .map(|&f| flag_name(f))
+                    .collect::<Vec<_>>()
+                    .join(", "),
                 verdict_name(e.verdict).to_string(),
                 e.repaired_frames.to_string(),
                 e.detail.clone(),
@@ -88,12 +97,23 @@ pub fn render(r: &AuditReport, title: &str) -> String {
         })
         .collect();
     if flagged.is_empty() {
-        page.note("ok", "Every episode is on time: no flags, nothing to repair.");
+        page.note(
+            "ok",
+            "Every episode is on time: no flags, nothing to repair.",
+        );
     } else {
         page.table(
             &[
-                "episode", "frames", "mean (ms)", "std (ms)", "min (ms)", "max (ms)", "flags",
-                "verdict", "frames after", "why",
+                "episode",
+                "frames",
+                "mean (ms)",
+                "std (ms)",
+                "min (ms)",
+                "max (ms)",
+                "flags",
+                "verdict",
+                "frames after",
+                "why",
             ],
             &flagged,
         );

@@ -76,7 +76,11 @@ impl Page {
         for row in rows {
             self.body += "<tr>";
             for cell in row {
-                let class = if cell.parse::<f64>().is_ok() { " class=\"num\"" } else { "" };
+                let class = if cell.parse::<f64>().is_ok() {
+                    " class=\"num\""
+                } else {
+                    ""
+                };
                 self.body += &format!("<td{class}>{}</td>", escape(cell));
             }
             self.body += "</tr>\n";
@@ -109,7 +113,9 @@ impl Page {
 /// An `<?xml …?>` line is not allowed inside HTML.
 fn strip_xml_declaration(svg: &str) -> &str {
     match svg.trim_start().strip_prefix("<?xml") {
-        Some(rest) => rest.split_once("?>").map_or(svg, |(_, after)| after.trim_start()),
+        Some(rest) => rest
+            .split_once("?>")
+            .map_or(svg, |(_, after)| after.trim_start()),
         None => svg,
     }
 }
@@ -132,7 +138,10 @@ mod tests {
 
     #[test]
     fn xml_declaration_is_dropped_from_inline_svg() {
-        assert_eq!(strip_xml_declaration("<?xml version=\"1.0\"?>\n<svg/>"), "<svg/>");
+        assert_eq!(
+            strip_xml_declaration("<?xml version=\"1.0\"?>\n<svg/>"),
+            "<svg/>"
+        );
         assert_eq!(strip_xml_declaration("<svg/>"), "<svg/>");
     }
 }

@@ -61,13 +61,29 @@ fn svg(draw: impl FnOnce(&Area) -> Fallible) -> String {
             let mut fallback = String::new();
             let root = SVGBackend::with_string(&mut fallback, (WIDTH, 60)).into_drawing_area();
             let text = format!("chart failed: {e}");
-            let _ = root.draw_text(&text, &(FONT, 16).into_font().color(&THRESHOLD_RED), (10, 20));
+            let _ = root.draw_text(
+                &text,
+                &(FONT, 16).into_font().color(&THRESHOLD_RED),
+                (10, 20),
+            );
             let _ = root.present();
             drop(root);
             fallback
         }
     }
 }
+
+/// Axis numbers without trailing zeros (`20`, `0.2`, never `-0.0`).
+fn tick(v: &f64) -> String {
+    let rounded = (v * 1e6).round() / 1e6;
+    if rounded == 0.0 {
+        "0".into()
+    } else {
+        format!("{rounded}")
+    }
+}
+
+const GRID: RGBColor = RGBColor(238, 238, 238);
 
 /// `lo..hi`, widened when empty so that plotters gets a usable range.
 fn span(lo: f64, hi: f64) -> std::ops::Range<f64> {
@@ -106,32 +122,43 @@ pub fn interval_histogram(h: &Histogram, expected: f64) -> String {
         let ms = |s: f64| s * 1000.0;
         let lo = h.edges.first().copied().unwrap_or(expected).min(expected);
         let hi = h.edges.last().copied().unwrap_or(expected).max(expected);
-        let top = h.counts.iter().copied().max().unwrap_or(1).max(1) as f64 * 1.08;
+        // Log scale: a handful of long gaps among thousands of regular intervals must show.
+        let top = h.counts.iter().copied().max().unwrap_or(1).max(1) as f64 * 2.0;
+        let floor = 0.7;
         let mut chart = ChartBuilder::on(root)
             .caption("Inter-frame intervals, all episodes", (FONT, 18))
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(70)
-            .build_cartesian_2d(span(ms(lo), ms(hi)), 0.0..top)?;
+            .build_cartesian_2d(span(ms(lo), ms(hi)), (floor..top).log_scale())?;
         chart
             .configure_mesh()
             .x_desc("interval (ms)")
-            .y_desc("intervals")
+            .y_desc("intervals (log scale)")
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
+            .light_line_style(GRID)
             .label_style((FONT, 12))
             .axis_desc_style((FONT, 14))
             .draw()?;
         chart
-            .draw_series(h.counts.iter().enumerate().map(|(i, &c)| {
-                Rectangle::new(
-                    [(ms(h.edges[i]), 0.0), (ms(h.edges[i + 1]), c as f64)],
-                    PALETTE[0].mix(0.75).filled(),
-                )
-            }))?
+            .draw_series(
+                h.counts
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, &c)| c > 0)
+                    .map(|(i, &c)| {
+                        Rectangle::new(
+                            [(ms(h.edges[i]), floor), (ms(h.edges[i + 1]), c as f64)],
+                            PALETTE[0].mix(0.75).filled(),
+                        )
+                    }),
+            )?
             .label("intervals per bin")
             .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], PALETTE[0].filled()));
         chart
             .draw_series(DashedLineSeries::new(
-                [(ms(expected), 0.0), (ms(expected), top)],
+                [(ms(expected), floor), (ms(expected), top)],
                 8,
                 5,
                 THRESHOLD_RED.stroke_width(2),
@@ -149,12 +176,21 @@ pub fn episode_timing(episodes: &[EpisodeAudit], expected: f64) -> String {
     svg(|root| {
         root.fill(&WHITE)?;
         let ms = |s: f64| s * 1000.0;
-        let lo = episodes.iter().map(|e| e.interval_min).fold(expected, f64::min);
-        let hi = episodes.iter().map(|e| e.interval_max).fold(expected, f64::max);
+        let lo = episodes
+            .iter()
+            .map(|e| e.interval_min)
+            .fold(expected, f64::min);
+        let hi = episodes
+            .iter()
+            .map(|e| e.interval_max)
+            .fold(expected, f64::max);
         let pad = (hi - lo).max(expected * 0.1) * 0.08;
         let n = episodes.len().max(1) as f64;
         let mut chart = ChartBuilder::on(root)
-            .caption("Interval per episode: mean (dot) and min–max (bar)", (FONT, 18))
+            .caption(
+                "Interval per episode: mean (dot) and min–max (bar)",
+                (FONT, 18),
+            )
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(70)
@@ -163,28 +199,40 @@ pub fn episode_timing(episodes: &[EpisodeAudit], expected: f64) -> String {
             .configure_mesh()
             .x_desc("episode (position in source order)")
             .y_desc("interval (ms)")
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
+            .light_line_style(GRID)
             .label_style((FONT, 12))
             .axis_desc_style((FONT, 14))
             .draw()?;
-        for verdict in [Verdict::Ok, Verdict::Interpolate, Verdict::Resample, Verdict::Exclude] {
+        for verdict in [
+            Verdict::Ok,
+            Verdict::Interpolate,
+            Verdict::Resample,
+            Verdict::Exclude,
+        ] {
             let color = verdict_color(verdict);
-            let of_verdict: Vec<(usize, &EpisodeAudit)> =
-                episodes.iter().enumerate().filter(|(_, e)| e.verdict == verdict).collect();
+            let of_verdict: Vec<(usize, &EpisodeAudit)> = episodes
+                .iter()
+                .enumerate()
+                .filter(|(_, e)| e.verdict == verdict)
+                .collect();
             if of_verdict.is_empty() {
                 continue;
             }
             chart.draw_series(of_verdict.iter().map(|&(i, e)| {
                 PathElement::new(
-                    vec![(i as f64, ms(e.interval_min)), (i as f64, ms(e.interval_max))],
+                    vec![
+                        (i as f64, ms(e.interval_min)),
+                        (i as f64, ms(e.interval_max)),
+                    ],
                     color.mix(0.6).stroke_width(2),
                 )
             }))?;
             chart
-                .draw_series(
-                    of_verdict
-                        .iter()
-                        .map(|&(i, e)| Circle::new((i as f64, ms(e.interval_mean)), 3, color.filled())),
-                )?
+                .draw_series(of_verdict.iter().map(|&(i, e)| {
+                    Circle::new((i as f64, ms(e.interval_mean)), 3, color.filled())
+                }))?
                 .label(format!("{} ({})", verdict_name(verdict), of_verdict.len()))
                 .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
         }
@@ -226,6 +274,9 @@ pub fn acf_curves(r: &AnalyzeReport) -> String {
             .configure_mesh()
             .x_desc("lag (source steps)")
             .y_desc("ACF")
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
+            .light_line_style(GRID)
             .label_style((FONT, 12))
             .axis_desc_style((FONT, 14))
             .draw()?;
@@ -234,7 +285,11 @@ pub fn acf_curves(r: &AnalyzeReport) -> String {
             if d.acf.is_empty() {
                 continue;
             }
-            let color = if few { PALETTE[i].mix(0.7) } else { GREY.mix(0.5) };
+            let color = if few {
+                PALETTE[i].mix(0.7)
+            } else {
+                GREY.mix(0.5)
+            };
             let series = chart.draw_series(LineSeries::new(
                 d.acf.iter().enumerate().map(|(k, &v)| (k as f64, v)),
                 color.stroke_width(1),
@@ -266,7 +321,7 @@ pub fn acf_curves(r: &AnalyzeReport) -> String {
         let label = |text: String, x: f64, row: usize, color: RGBColor| {
             Text::new(
                 text,
-                (x + last * 0.005, 1.0 - 0.07 * row as f64),
+                (x + last * 0.008, 1.0 - 0.07 * row as f64),
                 (FONT, 13).into_font().color(&color),
             )
         };
@@ -289,7 +344,12 @@ pub fn acf_curves(r: &AnalyzeReport) -> String {
                 vec![(k, low - 0.05), (k, 1.05)],
                 color.stroke_width(2),
             )])?;
-            chart.draw_series([label(format!("{} K = {}", p.name, p.chunk), k, i + 1, color)])?;
+            chart.draw_series([label(
+                format!("{} K = {}", p.name, p.chunk),
+                k,
+                i + 1,
+                color,
+            )])?;
         }
         draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
         Ok(())
@@ -302,9 +362,13 @@ pub fn repair_example(ex: &RepairExample) -> String {
     svg(|root| {
         root.fill(&WHITE)?;
         let all_t = ex.before_t.iter().chain(&ex.after_t).copied();
-        let (t0, t1) = all_t.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| (a.min(t), b.max(t)));
+        let (t0, t1) = all_t.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| {
+            (a.min(t), b.max(t))
+        });
         let all_v = ex.before.iter().chain(&ex.after).copied();
-        let (v0, v1) = all_v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+        let (v0, v1) = all_v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
         let pad = ((v1 - v0) * 0.08).max(1e-6);
         let color = verdict_color(ex.verdict);
         let mut chart = ChartBuilder::on(root)
@@ -326,6 +390,9 @@ pub fn repair_example(ex: &RepairExample) -> String {
             .configure_mesh()
             .x_desc("time (s)")
             .y_desc(format!("{}[{}]", ex.channel, ex.dim))
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
+            .light_line_style(GRID)
             .label_style((FONT, 12))
             .axis_desc_style((FONT, 14))
             .draw()?;

@@ -5,7 +5,14 @@ use super::*;
 use crate::analyze::{DimAcf, ProfileCheck};
 use crate::audit::{EpisodeAudit, Flag, Histogram, RepairExample, Thresholds, Verdict};
 
-fn episode(id: u64, mean: f64, min: f64, max: f64, verdict: Verdict, flags: Vec<Flag>) -> EpisodeAudit {
+fn episode(
+    id: u64,
+    mean: f64,
+    min: f64,
+    max: f64,
+    verdict: Verdict,
+    flags: Vec<Flag>,
+) -> EpisodeAudit {
     EpisodeAudit {
         id,
         n_frames: 100,
@@ -15,7 +22,11 @@ fn episode(id: u64, mean: f64, min: f64, max: f64, verdict: Verdict, flags: Vec<
         interval_max: max,
         flags,
         verdict,
-        detail: if verdict == Verdict::Ok { String::new() } else { format!("episode {id} <needs> & repair") },
+        detail: if verdict == Verdict::Ok {
+            String::new()
+        } else {
+            format!("episode {id} <needs> & repair")
+        },
         repaired_frames: if verdict == Verdict::Exclude { 0 } else { 100 },
     }
 }
@@ -24,12 +35,29 @@ pub(crate) fn sample_audit() -> AuditReport {
     let mut episodes = Vec::new();
     for i in 0..40u64 {
         let wobble = (i as f64 * 0.7).sin() * 0.001;
-        episodes.push(episode(i, 0.05 + wobble, 0.048 + wobble, 0.052 + wobble, Verdict::Ok, vec![]));
+        episodes.push(episode(
+            i,
+            0.05 + wobble,
+            0.048 + wobble,
+            0.052 + wobble,
+            Verdict::Ok,
+            vec![],
+        ));
     }
     episodes[7] = episode(7, 0.053, 0.049, 0.1, Verdict::Interpolate, vec![Flag::Gap]);
     episodes[19] = episode(19, 0.056, 0.03, 0.08, Verdict::Resample, vec![Flag::Jitter]);
-    episodes[31] = episode(31, 0.08, 0.02, 0.4, Verdict::Exclude, vec![Flag::Gap, Flag::Count]);
-    let before_t: Vec<f64> = (0..40).filter(|&i| i != 12 && i != 13).map(|i| i as f64 * 0.05).collect();
+    episodes[31] = episode(
+        31,
+        0.08,
+        0.02,
+        0.4,
+        Verdict::Exclude,
+        vec![Flag::Gap, Flag::Count],
+    );
+    let before_t: Vec<f64> = (0..40)
+        .filter(|&i| i != 12 && i != 13)
+        .map(|i| i as f64 * 0.05)
+        .collect();
     let before: Vec<f64> = before_t.iter().map(|t| (t * 3.0).sin()).collect();
     let after_t: Vec<f64> = (0..40).map(|i| i as f64 * 0.05).collect();
     let after: Vec<f64> = after_t.iter().map(|t| (t * 3.0).sin()).collect();
@@ -37,12 +65,18 @@ pub(crate) fn sample_audit() -> AuditReport {
         expected_interval: 0.05,
         source_fps: 20.0,
         timestamps: true,
-        thresholds: Thresholds { jitter: 0.1, gap: 1.5, count: 0.05 },
+        thresholds: Thresholds {
+            jitter: 0.1,
+            gap: 1.5,
+            count: 0.05,
+        },
         repaired_fraction: 2.0 / 40.0,
         excluded_fraction: 1.0 / 40.0,
         histogram: Histogram {
             edges: (0..=20).map(|i| 0.02 + i as f64 * 0.004).collect(),
-            counts: vec![1, 0, 2, 0, 0, 30, 900, 2500, 880, 25, 0, 0, 0, 3, 0, 0, 0, 0, 0, 2],
+            counts: vec![
+                1, 0, 2, 0, 0, 30, 900, 2500, 880, 25, 0, 0, 0, 3, 0, 0, 0, 0, 0, 2,
+            ],
         },
         warnings: vec!["3 of 40 episodes flagged".into()],
         examples: vec![RepairExample {
@@ -63,7 +97,9 @@ pub(crate) fn sample_analyze() -> AnalyzeReport {
     let dims: Vec<DimAcf> = (0..3)
         .map(|d| DimAcf {
             dim: d,
-            acf: (0..=60).map(|k| (-(k as f64) / (5.0 + 3.0 * d as f64)).exp()).collect(),
+            acf: (0..=60)
+                .map(|k| (-(k as f64) / (5.0 + 3.0 * d as f64)).exp())
+                .collect(),
             constant_episodes: if d == 2 { vec![4] } else { vec![] },
         })
         .collect();
@@ -110,10 +146,14 @@ fn assert_svg(svg: &str) {
 
 /// The page parses as XML, loads nothing from outside, and runs no script.
 fn assert_self_contained(html: &str) {
-    let body = html.strip_prefix("<!DOCTYPE html>\n").expect("doctype first");
+    let body = html
+        .strip_prefix("<!DOCTYPE html>\n")
+        .expect("doctype first");
     roxmltree::Document::parse(body).unwrap_or_else(|e| panic!("{e}"));
     let lower = html.to_lowercase();
-    for bad in ["<script", "<link", "<img", "<iframe", "src=", "href=", "url(", "@import"] {
+    for bad in [
+        "<script", "<link", "<img", "<iframe", "src=", "href=", "url(", "@import",
+    ] {
         assert!(!lower.contains(bad), "{bad} in the page");
     }
     let without_namespace = lower.replace("xmlns=\"http://www.w3.org/2000/svg\"", "");
@@ -143,10 +183,18 @@ fn every_chart_is_well_formed_svg() {
 fn audit_page_is_self_contained_and_lists_flagged_episodes() {
     let html = audit_html(&sample_audit(), "Audit <of> test");
     assert_self_contained(&html);
-    assert_eq!(html.matches("<svg").count(), 3, "histogram, timing, one repair");
+    assert_eq!(
+        html.matches("<svg").count(),
+        3,
+        "histogram, timing, one repair"
+    );
     assert!(html.contains("episode 31 &lt;needs&gt; &amp; repair"));
     assert!(html.contains("<td>gap, count</td>"));
-    assert_eq!(html, audit_html(&sample_audit(), "Audit <of> test"), "deterministic");
+    assert_eq!(
+        html,
+        audit_html(&sample_audit(), "Audit <of> test"),
+        "deterministic"
+    );
 }
 
 #[test]
@@ -163,7 +211,10 @@ fn empty_reports_still_render() {
     let mut audit = sample_audit();
     audit.episodes.clear();
     audit.examples.clear();
-    audit.histogram = Histogram { edges: vec![], counts: vec![] };
+    audit.histogram = Histogram {
+        edges: vec![],
+        counts: vec![],
+    };
     assert_self_contained(&audit_html(&audit, "empty"));
     let mut analyze = sample_analyze();
     analyze.suggested_k = None;
@@ -177,6 +228,10 @@ fn empty_reports_still_render() {
 #[test]
 fn write_sample_audit_page_on_request() {
     if let Some(path) = std::env::var_os("CHUNKC_SAMPLE_REPORT") {
-        std::fs::write(path, audit_html(&sample_audit(), "chunkc audit (sample data)")).unwrap();
+        std::fs::write(
+            path,
+            audit_html(&sample_audit(), "chunkc audit (sample data)"),
+        )
+        .unwrap();
     }
 }
