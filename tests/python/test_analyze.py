@@ -174,3 +174,18 @@ def test_report_opens_in_headless_chromium(tmp_path):
     assert page_errors == []
     dom = proc.stdout
     assert dom.count("<svg") == 1 and "Suggested K:" in dom
+
+
+FULL = os.environ.get("CHUNKC_FULL_PUSHT")
+
+
+@pytest.mark.skipif(not FULL, reason="set CHUNKC_FULL_PUSHT to the full Push-T zarr")
+def test_full_pusht_acf(tmp_path):
+    spec = write_spec(tmp_path, PROFILES, source=Path(FULL))
+    proc, report = run_analyze(spec)
+    raw = RawSource(Path(FULL))
+    episodes = [raw.episode("action", e) for e in range(len(raw.ends))]
+    assert report["max_lag"] == 200 and report["episodes"] == 206
+    mean = check_against_reference(report, episodes, 200)
+    k = int(np.flatnonzero(mean[1:] < 0.3)[0]) + 1
+    assert report["suggested_k"] == k and f"suggested K: {k} steps" in proc.stdout
