@@ -244,24 +244,33 @@ pub fn audit_dir(spec: &LoadedSpec) -> PathBuf {
     spec.resolve(&spec.spec.output.dir).join("audit")
 }
 
-/// Writes `analyze.json` and `analyze.html` into `dir`, each through a temporary file renamed
-/// into place, and returns their paths.
+/// Writes `analyze.json` and `analyze.html` into `dir` and returns their paths. Both are written
+/// to temporary files first and renamed into place only when both were written.
 pub fn write(dir: &Path, report: &AnalyzeReport, html: &str) -> Result<[PathBuf; 2]> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io_path("create", dir, e))?;
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| Error::Internal(format!("analyze.json: {e}")))?
         + "\n";
-    let json_path = dir.join("analyze.json");
-    let html_path = dir.join("analyze.html");
-    write_atomic(&json_path, json.as_bytes())?;
-    write_atomic(&html_path, html.as_bytes())?;
+    let files = [
+        (dir.join("analyze.json"), json.into_bytes()),
+        (dir.join("analyze.html"), html.as_bytes().to_vec()),
+    ];
+    let tmp_of = |path: &Path| {
+        path.with_extension(format!(
+            "{}.tmp",
+            path.extension().unwrap_or_default().to_string_lossy()
+        ))
+    };
+    for (path, bytes) in &files {
+        let tmp = tmp_of(path);
+        std::fs::write(&tmp, bytes).map_err(|e| Error::io_path("write", &tmp, e))?;
+    }
+    for (path, _) in &files {
+        let tmp = tmp_of(path);
+        std::fs::rename(&tmp, path).map_err(|e| Error::io_path("rename", &tmp, e))?;
+    }
+    let [(json_path, _), (html_path, _)] = files;
     Ok([json_path, html_path])
-}
-
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, bytes).map_err(|e| Error::io_path("write", &tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::io_path("rename", &tmp, e))
 }
 
 impl AnalyzeReport {
