@@ -74,6 +74,7 @@ pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeRep
     if options.max_lag == Some(0) {
         return Err(Error::Spec("`--max-lag` must be at least 1".into()));
     }
+    crate::exec::check_output_location(spec, &spec.resolve(&spec.spec.output.dir))?;
     // Only the analyzed channel is opened, so images are never read.
     let mut narrow = spec.clone();
     narrow.spec.source.channels.retain(|k, _| k == name);

@@ -72,7 +72,7 @@ pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
     Ok((source, plan))
 }
 
-fn check_output_location(spec: &LoadedSpec, out_dir: &Path) -> Result<()> {
+pub(crate) fn check_output_location(spec: &LoadedSpec, out_dir: &Path) -> Result<()> {
     let source_dir = spec.resolve(&spec.spec.source.path);
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
     let (out_real, source_real) = (real_path(out_dir), real_path(&source_dir));

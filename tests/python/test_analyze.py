@@ -149,6 +149,16 @@ def test_analyze_output_is_deterministic_and_bad_channels_are_refused(tmp_path):
     assert image.returncode == 2 and "holds images" in image.stderr
 
 
+
+def test_analyze_never_writes_into_the_source(tmp_path):
+    source = make_replay_buffer(tmp_path / "src.zarr", [{"action": np.arange(20, dtype=np.float32)[:, None]}])
+    spec = write_spec(tmp_path, '[profiles.p]\nchunk = 4', source=source, channels={"action": "action"})
+    spec.write_text(spec.read_text().replace('dir = "out"', 'dir = "src.zarr/out"'))
+    proc = run_chunkc("analyze", spec, check=False)
+    assert proc.returncode == 2 and "inside the source" in proc.stderr
+    assert not (source / "out").exists()
+
+
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 
