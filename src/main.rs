@@ -43,6 +43,8 @@ enum Command {
         #[arg(long, short)]
         quiet: bool,
     },
+    /// Audit the timing of every episode; write `<output.dir>/audit/audit.json`.
+    Audit { spec: PathBuf },
     /// Print the JSON Schema of the spec format.
     Schema,
 }
@@ -125,6 +127,22 @@ fn run(cli: Cli) -> Result<(), Error> {
                     eprintln!("up to date: {}", report.up_to_date.join(", "));
                 }
             }
+        }
+        Command::Audit { spec } => {
+            let spec = LoadedSpec::load(&spec)?;
+            let (source, mut report, repairs) = exec::audit(&spec)?;
+            report.examples = chunkc::audit::examples(source.as_ref(), &report, &repairs)?;
+            let dir = spec.resolve(&spec.spec.output.dir).join("audit");
+            let path = dir.join("audit.json");
+            let write = || -> std::io::Result<()> {
+                std::fs::create_dir_all(&dir)?;
+                let tmp = dir.join(".audit.json.tmp");
+                std::fs::write(&tmp, report.to_json())?;
+                std::fs::rename(&tmp, &path)
+            };
+            write().map_err(|e| Error::io_path("write", &path, e))?;
+            print!("{}", report.summary());
+            eprintln!("wrote {}", tidy(&path).display());
         }
         Command::Schema => print!("{}", spec::json_schema()),
     }

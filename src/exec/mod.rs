@@ -20,6 +20,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
+use crate::audit::{self, AuditReport};
 use crate::error::{Error, Result};
 use crate::lock::{self, Lock, LockedProfile, SpecLock, LOCK_VERSION};
 use crate::plan::{self, Plan, ProfilePlan};
@@ -49,10 +50,32 @@ pub struct BuildReport {
     pub episode_reads: Vec<usize>,
 }
 
-/// Opens the source and resolves the plan against the lock (what `chunkc plan` shows).
-pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
+/// Opens the source and audits it: the source as read, the audit, and each episode's repair.
+pub fn audit(spec: &LoadedSpec) -> Result<(Box<dyn Source>, AuditReport, Vec<audit::Repair>)> {
+    check_output_location(spec, &spec.resolve(&spec.spec.output.dir))?;
     let source = source::open(spec)?;
+    let (report, repairs) = audit::run(spec, source.as_ref())?;
+    Ok((source, report, repairs))
+}
+
+/// Opens the source, audits it, and resolves the plan against the lock (what `chunkc plan`
+/// shows). The source returned is the audited one: exclusions gone, repairs applied on read.
+pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
+    let (raw, report, repairs) = audit(spec)?;
+    let applied = spec.spec.audit.repair;
+    let source: Box<dyn Source> = Box::new(audit::Audited::new(raw, &report, repairs, applied));
     let manifest = source.manifest();
+    if manifest.episodes.is_empty() {
+        return Err(Error::source(format!(
+            "{}: the audit excluded every episode ({}); see `chunkc audit`, or relax `[audit]`",
+            spec.spec.source.path,
+            report
+                .episodes
+                .first()
+                .map(|e| format!("episode {}: {}", e.id, e.detail))
+                .unwrap_or_default()
+        )));
+    }
     for warning in &manifest.warnings {
         eprintln!("warning: {warning}");
     }
@@ -68,7 +91,8 @@ pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
     let entry = lock
         .as_ref()
         .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
-    let plan = plan::resolve(spec, source.manifest(), entry, &out_dir)?;
+    let mut plan = plan::resolve(spec, source.manifest(), entry, &out_dir)?;
+    plan::apply_audit(&mut plan, &report, applied);
     Ok((source, plan))
 }
 
@@ -186,13 +210,19 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
                     .as_ref()
                     .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
                 let mut replan = plan::resolve(spec, kept.manifest(), entry, &out_dir)?;
-                for p in &mut replan.profiles {
-                    p.excluded = excluded
+                replan.audit = plan.audit.clone();
+                for (p, before) in replan.profiles.iter_mut().zip(&plan.profiles) {
+                    p.excluded = before.excluded.clone();
+                    p.excluded.extend(excluded.iter().map(|(&id, reason)| plan::Excluded {
+                        id,
+                        reason: reason.clone(),
+                    }));
+                    p.excluded.sort_by_key(|e| e.id);
+                    p.repaired = before
+                        .repaired
                         .iter()
-                        .map(|(&id, reason)| plan::Excluded {
-                            id,
-                            reason: reason.clone(),
-                        })
+                        .filter(|r| !excluded.contains_key(&r.id))
+                        .cloned()
                         .collect();
                 }
                 let names: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();

@@ -19,6 +19,7 @@ use serde::Serialize;
 pub use split::Split;
 pub use text::render_text;
 
+use crate::audit::{AuditReport, Verdict};
 use crate::chunk::segment::SegmentParams;
 use crate::chunk::{decimated_len, Sampling, Window};
 use crate::error::Result;
@@ -47,7 +48,37 @@ pub struct Plan {
     /// One job per (rate, channel): statistics over the training split, shared by the profiles
     /// listed.
     pub statistics: Vec<StatsJob>,
+    /// The temporal audit, summed up (`chunkc audit` writes the whole of it).
+    pub audit: AuditSummary,
     pub profiles: Vec<ProfilePlan>,
+}
+
+/// What the temporal audit found and what `build` does about it.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct AuditSummary {
+    /// Seconds per step the episodes should have: `1 / source.fps`.
+    pub expected_interval: f64,
+    /// Whether the source stores timestamps (without them every episode is `ok`).
+    pub timestamps: bool,
+    /// Whether `build` applies the verdicts (`[audit] repair`).
+    pub applied: bool,
+    /// Episodes per verdict.
+    pub verdicts: BTreeMap<&'static str, usize>,
+    pub repaired_fraction: f64,
+    pub excluded_fraction: f64,
+    pub warnings: Vec<String>,
+}
+
+/// An episode the audit repaired before anything else happens to it.
+#[derive(Debug, Clone, Serialize)]
+pub struct RepairedEpisode {
+    pub id: u64,
+    pub verdict: Verdict,
+    /// Steps as recorded.
+    pub recorded_len: usize,
+    /// Steps after repair, at the source rate.
+    pub len: usize,
+    pub detail: String,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -92,6 +123,8 @@ pub struct ProfilePlan {
     pub channels: Vec<ProfileChannel>,
     pub episodes: Vec<ProfileEpisode>,
     pub excluded: Vec<Excluded>,
+    /// Episodes the audit repaired (re-gridded or resampled) before they were used.
+    pub repaired: Vec<RepairedEpisode>,
     pub warnings: Vec<String>,
     pub num_samples: SplitCounts,
     pub steps: usize,
@@ -311,8 +344,48 @@ pub fn resolve(
         split,
         rates: rates.into_values().collect(),
         statistics: statistics.into_values().collect(),
+        audit: AuditSummary::default(),
         profiles,
     })
+}
+
+/// Puts the audit into a resolved plan: the summary, and per profile the episodes it repaired
+/// and left out (when `applied`, that is `[audit] repair = true`).
+pub fn apply_audit(plan: &mut Plan, report: &AuditReport, applied: bool) {
+    plan.audit = AuditSummary {
+        expected_interval: report.expected_interval,
+        timestamps: report.timestamps,
+        applied,
+        verdicts: report
+            .verdict_counts()
+            .into_iter()
+            .map(|(v, k)| (v.name(), k))
+            .collect(),
+        repaired_fraction: report.repaired_fraction,
+        excluded_fraction: report.excluded_fraction,
+        warnings: report.warnings.clone(),
+    };
+    if !applied {
+        return;
+    }
+    for p in &mut plan.profiles {
+        for e in &report.episodes {
+            match e.verdict {
+                Verdict::Ok => {}
+                Verdict::Exclude => p.excluded.push(Excluded {
+                    id: e.id,
+                    reason: format!("audit: {}", e.detail),
+                }),
+                Verdict::Interpolate | Verdict::Resample => p.repaired.push(RepairedEpisode {
+                    id: e.id,
+                    verdict: e.verdict,
+                    recorded_len: e.n_frames,
+                    len: e.repaired_frames,
+                    detail: e.detail.clone(),
+                }),
+            }
+        }
+    }
 }
 
 fn resolve_profile(
@@ -500,6 +573,7 @@ fn resolve_profile(
         channels,
         episodes,
         excluded: Vec::new(),
+        repaired: Vec::new(),
         warnings,
         num_samples: counts,
         steps,

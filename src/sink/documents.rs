@@ -117,6 +117,7 @@ pub fn meta_json(
         "channels": channels,
         "normalization": normalization,
         "excluded": profile.excluded,
+        "repaired": profile.repaired,
         "warnings": profile.warnings,
         "source": {
             "format": plan.source.format,
