@@ -50,7 +50,7 @@ pub fn interpolate(x: &[f64], y: &[f64], width: usize, at: &[f64]) -> Vec<f64> {
             sup[i] = dx[i - 1];
         }
         sub[n - 1] = x[n - 1] - x[n - 3];
-        diag[n - 1] = dx[n - 2];
+        diag[n - 1] = dx[n - 3];
         let rhs = |i: usize, c: usize| -> f64 {
             if i == 0 {
                 let d = x[2] - x[0];

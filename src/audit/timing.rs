@@ -8,16 +8,19 @@
 //!   duration = last − first timestamp (a regular recording of n frames spans n − 1 intervals);
 //! - `non_monotonic`: some interval ≤ 0.
 //!
-//! The verdict follows from the flags of the intervals left once repeated timestamps are dropped:
+//! The verdict is decided on the intervals left once repeated timestamps are dropped. Timing is
+//! *regular* when at least 90% of them lie within `jitter_threshold` × median of the median
+//! (dropped frames leave a recording regular; alternating rates and jitter do not).
 //! 1. repeated or decreasing timestamps: `[audit] non_monotonic` (drop the repeats, keeping the
 //!    first frame of each run, and go on; decreasing timestamps or fewer than two distinct ones
 //!    exclude the episode);
 //! 2. nothing flagged: `ok` (`interpolate` when repeats were dropped);
-//! 3. only `count` (regular intervals at the wrong rate): `[audit] rate_error`, by default
-//!    `resample` to round(n × mean interval / T) steps;
-//! 4. `gap` without `jitter` (dropped frames in a regular recording): `interpolate` when the
-//!    frames missing, Σ max(0, round(interval / T) − 1), are at most `max_dropped`; else exclude;
-//! 5. `jitter`: exclude when one interval exceeds (`max_dropped` + 1) × T (a hole); else
+//! 3. regular, with the median off T by more than `count_threshold` (recorded at the wrong
+//!    rate): `[audit] rate_error`, by default `resample` to round(n × mean interval / T) steps
+//!    (excluded when it also has gaps);
+//! 4. regular otherwise (dropped frames): `interpolate` when the frames missing,
+//!    Σ max(0, round(interval / T) − 1), are at most `max_dropped`; else exclude;
+//! 5. irregular: exclude when one interval exceeds (`max_dropped` + 1) × T (a hole); else
 //!    `[audit] irregular`, by default `interpolate`.
 //!
 //! `interpolate` re-grids onto `first + k T`, k = 0 … floor((last − first) / T), so no step is
@@ -45,6 +48,8 @@ pub enum Repair {
     Exclude,
 }
 
+/// Share of intervals within `jitter_threshold` of the median that makes timing regular.
+pub const REGULAR_SHARE: f64 = 0.9;
 /// Share of all intervals a group needs to count as a mode.
 pub const MODE_SHARE: f64 = 0.05;
 /// Bins of the dataset-wide histogram.
@@ -213,9 +218,6 @@ pub fn judge(
         audit.repaired_frames = steps;
         Ok((audit, Repair::Regrid { steps }))
     };
-    let jitter = fl.contains(&Flag::Jitter);
-    let gap = fl.contains(&Flag::Gap);
-    let count = fl.contains(&Flag::Count);
     if fl.is_empty() || t.len() < 2 {
         if repeats > 0 {
             return regrid(audit, "the rest is regular".into());
@@ -223,14 +225,38 @@ pub fn judge(
         audit.detail = "regular".into();
         return Ok((audit, Repair::None));
     }
-    if count && !jitter && !gap {
+    // Regular timing: nearly all intervals close to their median.
+    let mut sorted = dt.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let close = dt
+        .iter()
+        .filter(|&&d| (d - median).abs() <= cfg.jitter_threshold * median)
+        .count();
+    let regular = close as f64 >= REGULAR_SHARE * dt.len() as f64;
+    let gaps: Vec<usize> = (0..dt.len())
+        .filter(|&i| dt[i] > cfg.gap_threshold * expected)
+        .collect();
+    if regular && (median / expected - 1.0).abs() > cfg.count_threshold {
         let why = format!(
-            "regular intervals of {:.6} s instead of {expected} s ({:.3} Hz instead of {fps} Hz)",
-            s.mean,
-            1.0 / s.mean
+            "regular intervals of {median:.6} s instead of {expected} s ({:.3} Hz instead of {fps} Hz)",
+            1.0 / median
         );
+        if !gaps.is_empty() {
+            return exclude(
+                audit,
+                format!(
+                    "{prefix}{why} and gaps before step(s) {}",
+                    steps_list(&gaps.iter().map(|g| g + 1).collect::<Vec<_>>())
+                ),
+            );
+        }
         return match cfg.rate_error {
             RateError::Exclude => exclude(audit, format!("{prefix}{why}")),
+            RateError::Resample if repeats > 0 => {
+                // Resampling assumes evenly spaced steps: re-grid the repeats away instead.
+                regrid(audit, why)
+            }
             RateError::Resample => {
                 let steps = ((t.len() as f64) * s.mean / expected).round() as usize;
                 let method = cfg.resample;
@@ -239,20 +265,13 @@ pub fn judge(
                     ResampleMethod::Linear => "linear",
                 };
                 audit.verdict = Verdict::Resample;
-                audit.detail = format!(
-                    "{prefix}{why}; resampled ({name}): {} -> {steps} steps",
-                    t.len()
-                );
+                audit.detail = format!("{why}; resampled ({name}): {} -> {steps} steps", t.len());
                 audit.repaired_frames = steps;
-                if repeats > 0 {
-                    // Resampling assumes the repeats are gone: re-grid them away instead.
-                    return regrid(audit, why);
-                }
                 Ok((audit, Repair::Resample { steps, method }))
             }
         };
     }
-    if !jitter {
+    if regular {
         let mut missing = 0usize;
         let mut at = Vec::new();
         for (i, &d) in dt.iter().enumerate() {
@@ -261,6 +280,16 @@ pub fn judge(
                 missing += m;
                 at.push(i + 1);
             }
+        }
+        if missing == 0 {
+            return regrid(
+                audit,
+                format!(
+                    "{} of {} intervals off the median {median:.6} s",
+                    dt.len() - close,
+                    dt.len()
+                ),
+            );
         }
         let why = format!(
             "{missing} dropped frame(s) (before step(s) {})",
@@ -291,9 +320,11 @@ pub fn judge(
         );
     }
     let why = format!(
-        "irregular intervals (std {:.1}% of the mean {:.6} s)",
+        "irregular intervals (std {:.1}% of the mean {:.6} s, {:.0}% within {:.0}% of the median {median:.6} s)",
         100.0 * s.std / s.mean,
-        s.mean
+        s.mean,
+        100.0 * close as f64 / dt.len() as f64,
+        100.0 * cfg.jitter_threshold
     );
     match cfg.irregular {
         Irregular::Exclude => exclude(audit, format!("{prefix}{why}")),
@@ -369,7 +400,7 @@ mod tests {
         dropped.remove(30);
         dropped.remove(10);
         let (a, r) = judge(1, &dropped, 10.0, &cfg).unwrap();
-        assert_eq!(a.flags, vec![Flag::Gap]);
+        assert_eq!(a.flags, vec![Flag::Jitter, Flag::Gap]);
         assert_eq!((a.verdict, r), (Verdict::Interpolate, Repair::Regrid { steps: 52 }));
         let (a, r) = judge(2, &regular(40, 0.125), 10.0, &cfg).unwrap();
         assert_eq!(a.flags, vec![Flag::Count]);

@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use crate::audit::{self, AuditReport};
 use crate::error::{Error, Result};
 use crate::lock::{self, Lock, LockedProfile, SpecLock, LOCK_VERSION};
-use crate::plan::{self, Plan, ProfilePlan};
+use crate::plan::{self, Conversion, Plan, ProfilePlan};
 use crate::render;
 use crate::sink::{self, encode_frame, FrameEncoding, Sink, SinkContext};
 use crate::source::{self, ChannelData, ChannelKind, Episode, Source};
@@ -318,7 +318,7 @@ fn run_staged(
 /// Per-rate state: the decimated low-dimensional data of every episode, and the streaming
 /// statistics of image channels.
 struct RateState {
-    factor: usize,
+    conversion: Conversion,
     /// Exclusive ends of each episode in the decimated per-step arrays.
     ends: Vec<u64>,
     /// Per channel (manifest order): concatenated low-dim values; empty for images.
@@ -360,25 +360,35 @@ fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
 fn process(
     episode: Episode,
     source: &dyn Source,
-    rates: &[(usize, Vec<FrameEncoding>)],
+    rates: &[(Conversion, Vec<FrameEncoding>)],
     train: bool,
 ) -> Processed {
     let channels = &source.manifest().channels;
     let mut data = Vec::with_capacity(rates.len());
     let mut partials = Vec::with_capacity(rates.len());
-    for (factor, encodings) in rates {
-        let factor = *factor;
+    for (conversion, encodings) in rates {
         let mut per_channel = Vec::with_capacity(channels.len());
         let mut per_partial = Vec::with_capacity(channels.len());
         for (ch, values) in channels.iter().zip(&episode.channels) {
             let width = ch.width();
-            match values {
+            let converted = match *conversion {
+                Conversion::Decimate { factor } => match values {
+                    ChannelData::Lowdim(v) => ChannelData::Lowdim(decimate(v, width, factor)),
+                    ChannelData::Image(v) => ChannelData::Image(decimate(v, width, factor)),
+                },
+                Conversion::Resample { method, .. } => audit::repair::convert_rate(
+                    values,
+                    width,
+                    conversion.len(episode.len),
+                    method,
+                ),
+            };
+            match converted {
                 ChannelData::Lowdim(v) => {
-                    per_channel.push(Prepared::Lowdim(decimate(v, width, factor)));
+                    per_channel.push(Prepared::Lowdim(v));
                     per_partial.push(None);
                 }
-                ChannelData::Image(v) => {
-                    let d = decimate(v, width, factor);
+                ChannelData::Image(d) => {
                     let frames = d.len() / width.max(1);
                     let colors = *ch.shape.last().unwrap_or(&1);
                     per_partial.push(train.then(|| ImagePartial::of_frames(&d, frames, colors)));
@@ -431,21 +441,25 @@ fn run(
         .as_deref()
         .map(|t| spec.resolve(t));
     let renderer = &render::Renderer::new(overrides.as_deref())?;
-    let mut factors: Vec<usize> = stale.iter().map(|p| p.rate_factor).collect();
-    factors.sort_unstable();
-    factors.dedup();
-
-    let mut rates: Vec<RateState> = factors
+    // In plan order (fastest first), once each.
+    let conversions: Vec<Conversion> = plan
+        .rates
         .iter()
-        .map(|&factor| {
+        .map(|r| r.conversion)
+        .filter(|c| stale.iter().any(|p| p.conversion == *c))
+        .collect();
+
+    let mut rates: Vec<RateState> = conversions
+        .iter()
+        .map(|&conversion| {
             let mut ends = Vec::with_capacity(manifest.episodes.len());
             let mut total = 0u64;
             for e in &manifest.episodes {
-                total += crate::chunk::decimated_len(e.len, factor) as u64;
+                total += conversion.len(e.len) as u64;
                 ends.push(total);
             }
             RateState {
-                factor,
+                conversion,
                 ends,
                 lowdim: manifest
                     .channels
@@ -474,7 +488,7 @@ fn run(
         let dir = staging.profile_dir(&p.name)?;
         let rate = rates
             .iter()
-            .position(|r| r.factor == p.rate_factor)
+            .position(|r| r.conversion == p.conversion)
             .unwrap();
         let sink = sink::create(&SinkContext {
             profile: p,
@@ -486,7 +500,7 @@ fn run(
         dirs.push(dir);
     }
     // Frames are encoded once per rate and encoding, however many sinks share them.
-    let jobs: Vec<(usize, Vec<FrameEncoding>)> = rates
+    let jobs: Vec<(Conversion, Vec<FrameEncoding>)> = rates
         .iter()
         .enumerate()
         .map(|(r, rate)| {
@@ -497,7 +511,7 @@ fn run(
                 .collect();
             encodings.sort();
             encodings.dedup();
-            (rate.factor, encodings)
+            (rate.conversion, encodings)
         })
         .collect();
 

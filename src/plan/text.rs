@@ -68,9 +68,18 @@ pub fn render_text(plan: &Plan) -> String {
     for r in &plan.rates {
         let _ = writeln!(
             s,
-            "rate    {} Hz (every {} step(s), {} steps) for {}",
+            "rate    {} Hz ({}, {} steps) for {}",
             r.fps,
-            r.factor,
+            match r.conversion {
+                super::Conversion::Decimate { factor } => format!("every {factor} step(s)"),
+                super::Conversion::Resample { method, .. } => format!(
+                    "resampled, {}",
+                    match method {
+                        crate::spec::ResampleMethod::Fourier => "fourier",
+                        crate::spec::ResampleMethod::Linear => "linear",
+                    }
+                ),
+            },
             r.steps,
             r.profiles.join(", ")
         );
