@@ -167,7 +167,12 @@ pub fn examples(
             continue;
         };
         let before = column(&episode.channels[c]);
-        let after_ep = repair::apply(episode, repair, &manifest.channels, report.expected_interval);
+        let after_ep = repair::apply(
+            episode,
+            repair,
+            &manifest.channels,
+            report.expected_interval,
+        );
         out.push(RepairExample {
             episode: audit.id,
             verdict: audit.verdict,
@@ -233,7 +238,14 @@ impl AuditReport {
         if !flagged.is_empty() {
             s.push_str(&format!(
                 "\n  {:>8}  {:>7}  {:>10}  {:>10}  {:>10}  {:>10}  {:<28}  {:<11}  detail\n",
-                "episode", "frames", "mean (s)", "std (s)", "min (s)", "max (s)", "flags", "verdict"
+                "episode",
+                "frames",
+                "mean (s)",
+                "std (s)",
+                "min (s)",
+                "max (s)",
+                "flags",
+                "verdict"
             ));
             for e in flagged {
                 let flags: Vec<&str> = e.flags.iter().map(|f| f.name()).collect();

@@ -40,7 +40,12 @@ fn to_f32(v: &[f64]) -> Vec<f32> {
 
 /// The repaired episode. `expected` is the source's interval in seconds. Episodes without
 /// timestamps, and `Repair::None`, come back unchanged.
-pub fn apply(episode: Episode, repair: &Repair, channels: &[ChannelInfo], expected: f64) -> Episode {
+pub fn apply(
+    episode: Episode,
+    repair: &Repair,
+    channels: &[ChannelInfo],
+    expected: f64,
+) -> Episode {
     let Some(stamps) = episode.timestamps.as_deref() else {
         return episode;
     };
@@ -64,7 +69,10 @@ pub fn apply(episode: Episode, repair: &Repair, channels: &[ChannelInfo], expect
                 ChannelData::Lowdim(to_f32(&resample::resample(&y, width, steps, *method)))
             }
             (ChannelData::Image(v), Repair::Regrid { .. }) => {
-                let pick: Vec<usize> = grid.iter().map(|&t| kept[nearest_time(&times, t)]).collect();
+                let pick: Vec<usize> = grid
+                    .iter()
+                    .map(|&t| kept[nearest_time(&times, t)])
+                    .collect();
                 ChannelData::Image(rows(v, width, &pick))
             }
             (ChannelData::Image(v), Repair::Resample { .. }) => {
@@ -94,9 +102,12 @@ pub fn convert_rate(
     method: crate::spec::ResampleMethod,
 ) -> ChannelData {
     match values {
-        ChannelData::Lowdim(v) => {
-            ChannelData::Lowdim(to_f32(&resample::resample(&to_f64(v), width, steps, method)))
-        }
+        ChannelData::Lowdim(v) => ChannelData::Lowdim(to_f32(&resample::resample(
+            &to_f64(v),
+            width,
+            steps,
+            method,
+        ))),
         ChannelData::Image(v) => {
             let n = v.len() / width.max(1);
             let pick: Vec<usize> = (0..steps).map(|k| resample::nearest(k, n, steps)).collect();

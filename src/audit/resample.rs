@@ -38,7 +38,7 @@ pub fn nearest(k: usize, n: usize, num: usize) -> usize {
 }
 
 pub fn fourier(y: &[f64], width: usize, num: usize) -> Vec<f64> {
-    let n = if width == 0 { 0 } else { y.len() / width };
+    let n = y.len().checked_div(width).unwrap_or(0);
     let mut out = vec![0.0; num * width];
     if n == 0 || num == 0 || width == 0 {
         return out;
@@ -58,17 +58,19 @@ pub fn fourier(y: &[f64], width: usize, num: usize) -> Vec<f64> {
         forward.process(&mut column);
         // The one-sided spectrum scipy keeps, with its unpaired-bin rule.
         let mut half: Vec<Complex<f64>> = column[..kept.min(n)].to_vec();
-        if m % 2 == 0 && num != n {
+        if m.is_multiple_of(2) && num != n {
             half[m / 2] *= if num < n { 2.0 } else { 0.5 };
         }
         // The inverse real FFT of length `num`: a Hermitian spectrum whose bin 0 and (for even
         // `num`) bin `num / 2` count with their real part only.
-        spectrum.iter_mut().for_each(|v| *v = Complex::new(0.0, 0.0));
+        spectrum
+            .iter_mut()
+            .for_each(|v| *v = Complex::new(0.0, 0.0));
         for (k, &v) in half.iter().enumerate() {
             if k > num / 2 {
                 break;
             }
-            if k == 0 || (num % 2 == 0 && k == num / 2) {
+            if k == 0 || (num.is_multiple_of(2) && k == num / 2) {
                 spectrum[k] = Complex::new(v.re, 0.0);
             } else {
                 spectrum[k] = v;
@@ -84,7 +86,7 @@ pub fn fourier(y: &[f64], width: usize, num: usize) -> Vec<f64> {
 }
 
 pub fn linear(y: &[f64], width: usize, num: usize) -> Vec<f64> {
-    let n = if width == 0 { 0 } else { y.len() / width };
+    let n = y.len().checked_div(width).unwrap_or(0);
     let mut out = Vec::with_capacity(num * width);
     if n == 0 {
         return vec![0.0; num * width];
@@ -132,9 +134,7 @@ mod tests {
     #[test]
     fn columns_are_independent_and_constants_stay() {
         let n = 25;
-        let y: Vec<f64> = (0..n)
-            .flat_map(|i| [2.5, (i as f64 * 0.3).cos()])
-            .collect();
+        let y: Vec<f64> = (0..n).flat_map(|i| [2.5, (i as f64 * 0.3).cos()]).collect();
         let both = fourier(&y, 2, 37);
         let single: Vec<f64> = (0..n).map(|i| (i as f64 * 0.3).cos()).collect();
         let alone = fourier(&single, 1, 37);

@@ -39,7 +39,9 @@ pub enum Repair {
     /// Used as read.
     None,
     /// Repeats dropped, then every channel evaluated at `first + k T`, k < `steps`.
-    Regrid { steps: usize },
+    Regrid {
+        steps: usize,
+    },
     /// The whole episode resampled to `steps` steps.
     Resample {
         steps: usize,
@@ -401,7 +403,10 @@ mod tests {
         dropped.remove(10);
         let (a, r) = judge(1, &dropped, 10.0, &cfg).unwrap();
         assert_eq!(a.flags, vec![Flag::Jitter, Flag::Gap]);
-        assert_eq!((a.verdict, r), (Verdict::Interpolate, Repair::Regrid { steps: 52 }));
+        assert_eq!(
+            (a.verdict, r),
+            (Verdict::Interpolate, Repair::Regrid { steps: 52 })
+        );
         let (a, r) = judge(2, &regular(40, 0.125), 10.0, &cfg).unwrap();
         assert_eq!(a.flags, vec![Flag::Count]);
         assert_eq!(a.verdict, Verdict::Resample);
@@ -416,7 +421,10 @@ mod tests {
         rep.insert(5, rep[5]);
         let (a, r) = judge(3, &rep, 10.0, &cfg).unwrap();
         assert!(a.flags.contains(&Flag::NonMonotonic));
-        assert_eq!((a.verdict, r), (Verdict::Interpolate, Repair::Regrid { steps: 20 }));
+        assert_eq!(
+            (a.verdict, r),
+            (Verdict::Interpolate, Repair::Regrid { steps: 20 })
+        );
         let strict = AuditSpec {
             non_monotonic: NonMonotonic::Error,
             ..AuditSpec::default()

@@ -213,10 +213,11 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
                 replan.audit = plan.audit.clone();
                 for (p, before) in replan.profiles.iter_mut().zip(&plan.profiles) {
                     p.excluded = before.excluded.clone();
-                    p.excluded.extend(excluded.iter().map(|(&id, reason)| plan::Excluded {
-                        id,
-                        reason: reason.clone(),
-                    }));
+                    p.excluded
+                        .extend(excluded.iter().map(|(&id, reason)| plan::Excluded {
+                            id,
+                            reason: reason.clone(),
+                        }));
                     p.excluded.sort_by_key(|e| e.id);
                     p.repaired = before
                         .repaired
@@ -376,12 +377,9 @@ fn process(
                     ChannelData::Lowdim(v) => ChannelData::Lowdim(decimate(v, width, factor)),
                     ChannelData::Image(v) => ChannelData::Image(decimate(v, width, factor)),
                 },
-                Conversion::Resample { method, .. } => audit::repair::convert_rate(
-                    values,
-                    width,
-                    conversion.len(episode.len),
-                    method,
-                ),
+                Conversion::Resample { method, .. } => {
+                    audit::repair::convert_rate(values, width, conversion.len(episode.len), method)
+                }
             };
             match converted {
                 ChannelData::Lowdim(v) => {

@@ -57,9 +57,17 @@ pub fn render_text(plan: &Plan) -> String {
         s,
         "audit   {} s steps{}: {}{}",
         a.expected_interval,
-        if a.timestamps { "" } else { " (declared, no timestamps)" },
+        if a.timestamps {
+            ""
+        } else {
+            " (declared, no timestamps)"
+        },
         verdicts.join(", "),
-        if a.applied { "" } else { " (not applied: `[audit] repair = false`)" }
+        if a.applied {
+            ""
+        } else {
+            " (not applied: `[audit] repair = false`)"
+        }
     );
     for w in &a.warnings {
         let _ = writeln!(s, "        warning: {w}");

@@ -117,6 +117,14 @@ def test_verdicts_and_flags(faulty):
     assert report["repaired_fraction"] == pytest.approx(4 / 5)
     assert any("fix the recording setup" in w for w in report["warnings"])
     assert "interpolate 3" in stdout and "resample 1" in stdout
+
+
+def test_audit_json_is_deterministic(faulty):
+    d, _, _, _ = faulty
+    first = (d / "out/audit/audit.json").read_bytes()
+    run_chunkc("-j", "1", "audit", d / "spec.toml")
+    assert (d / "out/audit/audit.json").read_bytes() == first
+    assert not list((d / "out/audit").glob(".*tmp"))
     # Interval statistics as numpy computes them.
     for e in report["episodes"]:
         dt = np.diff(_faulty_timestamps()[e["id"]])
