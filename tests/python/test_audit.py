@@ -118,6 +118,13 @@ def test_verdicts_and_flags(faulty):
     assert any("fix the recording setup" in w for w in report["warnings"])
     assert "interpolate 3" in stdout and "resample 1" in stdout
 
+    # Interval statistics as numpy computes them.
+    for e in report["episodes"]:
+        dt = np.diff(_faulty_timestamps()[e["id"]])
+        assert e["n_frames"] == len(dt) + 1
+        for key, want in [("mean", dt.mean()), ("std", dt.std()), ("min", dt.min()), ("max", dt.max())]:
+            assert e[f"interval_{key}"] == pytest.approx(want, abs=1e-12), (e["id"], key)
+
 
 def test_audit_json_is_deterministic(faulty):
     d, _, _, _ = faulty
@@ -125,12 +132,6 @@ def test_audit_json_is_deterministic(faulty):
     run_chunkc("-j", "1", "audit", d / "spec.toml")
     assert (d / "out/audit/audit.json").read_bytes() == first
     assert not list((d / "out/audit").glob(".*tmp"))
-    # Interval statistics as numpy computes them.
-    for e in report["episodes"]:
-        dt = np.diff(_faulty_timestamps()[e["id"]])
-        assert e["n_frames"] == len(dt) + 1
-        for key, want in [("mean", dt.mean()), ("std", dt.std()), ("min", dt.min()), ("max", dt.max())]:
-            assert e[f"interval_{key}"] == pytest.approx(want, abs=1e-12), (e["id"], key)
 
 
 def test_repairs_match_scipy(faulty):
