@@ -14,12 +14,15 @@
 //!    robomimic/robosuite, LeRobot v2.1/v3.0) gives a [`source::Manifest`] (metadata only) and
 //!    reads [`source::Episode`]s one at a time; [`source::mapping`] applies `[source.channels]`
 //!    (rename, column slices, concatenation, kind) the same way for all of them.
-//! 3. **Audit** ([`audit`]): inter-frame intervals per episode → verdicts and repairs
-//!    ([`audit::AuditReport`]).
-//! 4. **Resolve** ([`plan`]): spec + manifest + [`lock`] → [`plan::Plan`]: per profile the
-//!    episodes and split, rate conversion, window count, files, fingerprint and whether it must
-//!    run. Shared work (the source read, statistics per rate and channel) appears once.
-//! 5. **Execute** ([`exec`]): the only module with threads. Reads the source once, decimates per
+//! 3. **Audit** ([`audit`]): inter-frame intervals per episode (timestamps only) → flags,
+//!    verdicts and repairs ([`audit::AuditReport`], `chunkc audit`). [`audit::Audited`] is the
+//!    source as the audit leaves it: exclusions gone, repaired lengths, each repair (cubic spline
+//!    re-grid, Fourier or linear resampling) applied right after the episode is read.
+//! 4. **Resolve** ([`plan`]): spec + audited manifest + audit + [`lock`] → [`plan::Plan`]: per
+//!    profile the episodes and split, repairs and exclusions, rate conversion (decimation or
+//!    resampling), window count, files, fingerprint and whether it must run. Shared work (the
+//!    source read, statistics per rate and channel) appears once.
+//! 5. **Execute** ([`exec`]): the only module with threads. Reads the source once, converts per
 //!    rate, computes [`stats`], normalizes, and writes through [`sink`] into a staging directory
 //!    renamed into place on success; then writes `chunkc.lock`.
 //! 6. **Render** ([`render`]): minijinja templates (embedded) for the generated Python loader;

@@ -55,6 +55,8 @@ enum Command {
         #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
         max_lag: Option<u64>,
     },
+    /// Audit the timing of every episode; write `<output.dir>/audit/audit.json` and `report.html`.
+    Audit { spec: PathBuf },
     /// Print the JSON Schema of the spec format.
     Schema,
 }
@@ -151,13 +153,32 @@ fn run(cli: Cli) -> Result<(), Error> {
             let result = analyze::analyze(&spec, &options)?;
             let title = format!("chunkc analyze: {}", spec.file.display());
             let html = report::analyze_html(&result, &title);
-            let [json_path, html_path] =
-                analyze::write(&analyze::audit_dir(&spec), &result, &html)?;
+            let paths = analyze::write(&analyze::audit_dir(&spec), &result, &html)?;
             print!("{}", result.summary());
             eprintln!(
                 "wrote {} and {}",
-                tidy(&json_path).display(),
-                tidy(&html_path).display()
+                tidy(&paths[0]).display(),
+                tidy(&paths[1]).display()
+            );
+        }
+        Command::Audit { spec } => {
+            let spec = LoadedSpec::load(&spec)?;
+            let (source, mut report, repairs) = exec::audit(&spec)?;
+            report.examples = chunkc::audit::examples(source.as_ref(), &report, &repairs)?;
+            let title = format!("chunkc audit: {}", spec.file.display());
+            let html = report::audit_html(&report, &title);
+            let paths = report::write_files(
+                &analyze::audit_dir(&spec),
+                &[
+                    ("audit.json", report.to_json().into_bytes()),
+                    ("report.html", html.into_bytes()),
+                ],
+            )?;
+            print!("{}", report.summary());
+            eprintln!(
+                "wrote {} and {}",
+                tidy(&paths[0]).display(),
+                tidy(&paths[1]).display()
             );
         }
         Command::Schema => print!("{}", spec::json_schema()),

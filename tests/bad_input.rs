@@ -314,11 +314,27 @@ fn cases() -> Vec<Case> {
             name: "duplicate_timestamps",
             setup: |d| {
                 robosuite_with_time(d, |t, cols| t[10 * cols] = t[9 * cols]);
-                ROBOSUITE_SPEC.to_string()
+                ROBOSUITE_SPEC.replace("[output]", "[audit]\nnon_monotonic = \"error\"\n\n[output]")
             },
             damage: None,
         },
         Case {
+            // Every timestamp equal: the audit excludes the only episode.
+            name: "all_duplicate_timestamps",
+            setup: |d| {
+                robosuite_with_time(d, |t, cols| {
+                    for row in 0..t.len() / cols {
+                        t[row * cols] = 0.5;
+                    }
+                });
+                // With `fps` set (no rate can be derived from equal timestamps).
+                ROBOSUITE_SPEC.replace("path = \"src.hdf5\"", "path = \"src.hdf5\"\nfps = 20")
+            },
+            damage: None,
+        },
+        Case {
+            // Time goes back: `drop_duplicates` cannot repair it, the audit excludes the only
+            // episode.
             name: "non_monotonic_timestamps",
             setup: |d| {
                 robosuite_with_time(d, |t, cols| t[100 * cols] = 1.0);

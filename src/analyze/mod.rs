@@ -111,19 +111,21 @@ pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeRep
     let mut profiles = Vec::new();
     for p in &spec.profiles {
         let fps = p.fps.unwrap_or(manifest.fps);
-        let rate_factor = crate::plan::rate_factor(manifest.fps, fps).map_err(|msg| {
+        // Only refuses upsampling; the method does not matter for the step ratio.
+        crate::plan::conversion(manifest.fps, fps, spec.spec.audit.resample).map_err(|msg| {
             spec.error_at(
                 &["profiles", &p.name, "fps"],
                 format!("profile `{}` runs at {msg}", p.name),
                 None,
             )
         })?;
+        let rate_factor = manifest.fps / fps;
         profiles.push(ProfileCheck {
             name: p.name.clone(),
             fps,
             rate_factor,
             chunk: p.chunk,
-            chunk_source_steps: p.chunk as usize * rate_factor,
+            chunk_source_steps: (p.chunk as f64 * rate_factor).round() as usize,
             acf_at_chunk: None,
             suggested_chunk: None,
             warning: None,
@@ -202,7 +204,7 @@ fn finish(
     }
     for p in &mut profiles {
         p.acf_at_chunk = mean_acf.get(p.chunk_source_steps).copied();
-        p.suggested_chunk = suggested_k.map(|k| k.div_ceil(p.rate_factor));
+        p.suggested_chunk = suggested_k.map(|k| (k as f64 / p.rate_factor - 1e-9).ceil() as usize);
         let k = p.chunk_source_steps;
         p.warning = match p.acf_at_chunk {
             None => Some(format!(
@@ -245,33 +247,19 @@ pub fn audit_dir(spec: &LoadedSpec) -> PathBuf {
     spec.resolve(&spec.spec.output.dir).join("audit")
 }
 
-/// Writes `analyze.json` and `analyze.html` into `dir` and returns their paths. Both are written
-/// to temporary files first and renamed into place only when both were written.
-pub fn write(dir: &Path, report: &AnalyzeReport, html: &str) -> Result<[PathBuf; 2]> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io_path("create", dir, e))?;
+/// Writes `analyze.json` and `analyze.html` into `dir` and returns their paths, both renamed into
+/// place only when both were written.
+pub fn write(dir: &Path, report: &AnalyzeReport, html: &str) -> Result<Vec<PathBuf>> {
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| Error::Internal(format!("analyze.json: {e}")))?
         + "\n";
-    let files = [
-        (dir.join("analyze.json"), json.into_bytes()),
-        (dir.join("analyze.html"), html.as_bytes().to_vec()),
-    ];
-    let tmp_of = |path: &Path| {
-        path.with_extension(format!(
-            "{}.tmp",
-            path.extension().unwrap_or_default().to_string_lossy()
-        ))
-    };
-    for (path, bytes) in &files {
-        let tmp = tmp_of(path);
-        std::fs::write(&tmp, bytes).map_err(|e| Error::io_path("write", &tmp, e))?;
-    }
-    for (path, _) in &files {
-        let tmp = tmp_of(path);
-        std::fs::rename(&tmp, path).map_err(|e| Error::io_path("rename", &tmp, e))?;
-    }
-    let [(json_path, _), (html_path, _)] = files;
-    Ok([json_path, html_path])
+    crate::report::write_files(
+        dir,
+        &[
+            ("analyze.json", json.into_bytes()),
+            ("analyze.html", html.as_bytes().to_vec()),
+        ],
+    )
 }
 
 impl AnalyzeReport {
@@ -328,7 +316,7 @@ mod tests {
         ProfileCheck {
             name: name.into(),
             fps: 10.0 / factor as f64,
-            rate_factor: factor,
+            rate_factor: factor as f64,
             chunk,
             chunk_source_steps: chunk as usize * factor,
             acf_at_chunk: None,

@@ -55,9 +55,9 @@ pub struct DimAcf {
 pub struct ProfileCheck {
     pub name: String,
     pub fps: f64,
-    /// Source steps per profile step.
-    pub rate_factor: usize,
-    /// K in the profile's steps, and converted to source steps (`chunk × rate_factor`).
+    /// Source steps per profile step (not an integer when the profile's rate is resampled).
+    pub rate_factor: f64,
+    /// K in the profile's steps, and converted to source steps (`chunk × rate_factor`, rounded).
     pub chunk: u32,
     pub chunk_source_steps: usize,
     /// The mean ACF at lag `chunk_source_steps`; `None` when that lag was not analyzed.

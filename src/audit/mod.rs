@@ -1,8 +1,293 @@
 //! Stage 3, audit: inter-frame intervals per episode → a verdict (ok, interpolate dropped frames,
-//! resample, exclude) under the thresholds in `[audit]`.
+//! resample, exclude) under the thresholds in `[audit]`, and the repairs `build` applies.
 //!
 //! - `report`: the result as data ([`AuditReport`]), written as `audit/audit.json`.
+//! - `timing`: interval statistics, flags, the verdict rules, the histogram and its modes.
+//! - `spline`: the not-a-knot cubic spline (as `scipy.interpolate.CubicSpline`).
+//! - `resample`: Fourier (as `scipy.signal.resample`) and linear resampling along time.
+//! - `repair`: a verdict applied to an [`Episode`](crate::source::Episode).
+//! - `audited`: the source as the audit leaves it ([`Audited`]): exclusions gone, repaired
+//!   lengths, repairs applied as episodes are read.
 
+mod audited;
+pub mod repair;
 pub mod report;
+pub mod resample;
+pub mod spline;
+pub mod timing;
 
+pub use audited::Audited;
 pub use report::{AuditReport, EpisodeAudit, Flag, Histogram, RepairExample, Thresholds, Verdict};
+pub use timing::Repair;
+
+use crate::error::{Error, Result};
+use crate::source::{ChannelKind, Source};
+use crate::spec::LoadedSpec;
+
+/// Above this share of repaired episodes the audit warns.
+pub const REPAIR_WARNING: f64 = 0.1;
+
+/// Audits every episode of `source` from its timestamps (no other data is read). Sources without
+/// timestamps are judged at their declared rate: every episode `ok`.
+pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<Repair>)> {
+    let cfg = &spec.spec.audit;
+    let manifest = source.manifest();
+    let fps = manifest.fps;
+    let expected = 1.0 / fps;
+    let shown = &spec.spec.source.path;
+    let mut episodes = Vec::with_capacity(manifest.episodes.len());
+    let mut repairs = Vec::with_capacity(manifest.episodes.len());
+    let mut intervals = Vec::new();
+    for (i, info) in manifest.episodes.iter().enumerate() {
+        let stamps = if manifest.timestamps {
+            source.read_timestamps(i)?
+        } else {
+            None
+        };
+        let place = format!("{shown}: episode {}", info.id);
+        let t = match stamps {
+            Some(t) => {
+                if t.len() != info.len {
+                    return Err(Error::source(format!(
+                        "{place}: {} timestamps for {} steps",
+                        t.len(),
+                        info.len
+                    )));
+                }
+                if let Some(k) = t.iter().position(|x| !x.is_finite()) {
+                    return Err(Error::source(format!(
+                        "{place}: timestamp at step {k} is {}",
+                        t[k]
+                    )));
+                }
+                t
+            }
+            // The declared rate: a regular grid.
+            None => (0..info.len).map(|k| k as f64 * expected).collect(),
+        };
+        intervals.extend(t.windows(2).map(|w| w[1] - w[0]));
+        let (audit, repair) = timing::judge(info.id, &t, fps, cfg)
+            .map_err(|msg| Error::source(format!("{place}: {msg}")))?;
+        episodes.push(audit);
+        repairs.push(repair);
+    }
+    let total = episodes.len().max(1) as f64;
+    let count = |v: Verdict| episodes.iter().filter(|e| e.verdict == v).count();
+    let repaired = count(Verdict::Interpolate) + count(Verdict::Resample);
+    let repaired_fraction = repaired as f64 / total;
+    let excluded_fraction = count(Verdict::Exclude) as f64 / total;
+    let mut warnings = Vec::new();
+    let modes = timing::modes(&intervals, expected, cfg.jitter_threshold);
+    if modes.len() >= 2 {
+        let shown: Vec<String> = modes
+            .iter()
+            .map(|(c, share)| format!("{c:.6} s ({:.0}%)", 100.0 * share))
+            .collect();
+        warnings.push(format!(
+            "the interval histogram is bimodal: {}; the recording alternates between rates",
+            shown.join(", ")
+        ));
+    }
+    if repaired_fraction > REPAIR_WARNING {
+        warnings.push(format!(
+            "{repaired} of {} episodes ({:.0}%) need repair: fix the recording setup",
+            episodes.len(),
+            100.0 * repaired_fraction
+        ));
+    }
+    if !cfg.repair && episodes.iter().any(|e| e.verdict != Verdict::Ok) {
+        warnings.push(
+            "`[audit] repair = false`: the verdicts are reported, and `build` uses every episode as recorded".into(),
+        );
+    }
+    let report = AuditReport {
+        expected_interval: expected,
+        source_fps: fps,
+        timestamps: manifest.timestamps,
+        thresholds: Thresholds {
+            jitter: cfg.jitter_threshold,
+            gap: cfg.gap_threshold,
+            count: cfg.count_threshold,
+        },
+        episodes,
+        repaired_fraction,
+        excluded_fraction,
+        histogram: timing::histogram(&intervals, expected),
+        warnings,
+        examples: Vec::new(),
+    };
+    Ok((report, repairs))
+}
+
+/// Up to three repaired episodes, one dimension of one channel before and after repair
+/// (`observation.state` if there is one, else the first low-dimensional channel; dimension 0).
+/// Reads those episodes in full.
+pub fn examples(
+    source: &dyn Source,
+    report: &AuditReport,
+    repairs: &[Repair],
+) -> Result<Vec<RepairExample>> {
+    let manifest = source.manifest();
+    let Some(c) = manifest
+        .channels
+        .iter()
+        .position(|c| c.name == "observation.state" && c.kind == ChannelKind::Lowdim)
+        .or_else(|| {
+            manifest
+                .channels
+                .iter()
+                .position(|c| c.kind == ChannelKind::Lowdim)
+        })
+    else {
+        return Ok(Vec::new());
+    };
+    let ch = &manifest.channels[c];
+    let width = ch.width();
+    if width == 0 {
+        return Ok(Vec::new());
+    }
+    let column = |data: &crate::source::ChannelData| -> Vec<f64> {
+        match data {
+            crate::source::ChannelData::Lowdim(v) => {
+                v.iter().step_by(width).map(|&x| f64::from(x)).collect()
+            }
+            crate::source::ChannelData::Image(_) => Vec::new(),
+        }
+    };
+    let mut out = Vec::new();
+    for (i, (audit, repair)) in report.episodes.iter().zip(repairs).enumerate() {
+        if out.len() == 3 {
+            break;
+        }
+        if !matches!(audit.verdict, Verdict::Interpolate | Verdict::Resample) {
+            continue;
+        }
+        let episode = source.read_episode(i)?;
+        let Some(before_t) = episode.timestamps.clone() else {
+            continue;
+        };
+        let before = column(&episode.channels[c]);
+        let after_ep = repair::apply(
+            episode,
+            repair,
+            &manifest.channels,
+            report.expected_interval,
+        );
+        out.push(RepairExample {
+            episode: audit.id,
+            verdict: audit.verdict,
+            channel: ch.name.clone(),
+            dim: 0,
+            before_t,
+            before,
+            after_t: after_ep.timestamps.clone().unwrap_or_default(),
+            after: column(&after_ep.channels[c]),
+        });
+    }
+    Ok(out)
+}
+
+impl AuditReport {
+    /// Pretty, deterministic JSON (`audit/audit.json`).
+    pub fn to_json(&self) -> String {
+        let mut s = serde_json::to_string_pretty(self).expect("the audit serializes");
+        s.push('\n');
+        s
+    }
+
+    /// Episodes per verdict, in verdict order.
+    pub fn verdict_counts(&self) -> Vec<(Verdict, usize)> {
+        [
+            Verdict::Ok,
+            Verdict::Interpolate,
+            Verdict::Resample,
+            Verdict::Exclude,
+        ]
+        .into_iter()
+        .map(|v| (v, self.episodes.iter().filter(|e| e.verdict == v).count()))
+        .collect()
+    }
+
+    /// The short text summary `chunkc audit` prints.
+    pub fn summary(&self) -> String {
+        let mut s = format!(
+            "expected interval {} s ({} Hz){}\n",
+            self.expected_interval,
+            self.source_fps,
+            if self.timestamps {
+                ""
+            } else {
+                "; the source stores no timestamps: every episode is judged at the declared rate"
+            }
+        );
+        let counts: Vec<String> = self
+            .verdict_counts()
+            .into_iter()
+            .map(|(v, k)| format!("{} {k}", v.name()))
+            .collect();
+        s.push_str(&format!(
+            "episodes: {} ({})\n",
+            self.episodes.len(),
+            counts.join(", ")
+        ));
+        let flagged: Vec<&EpisodeAudit> = self
+            .episodes
+            .iter()
+            .filter(|e| !e.flags.is_empty() || e.verdict != Verdict::Ok)
+            .collect();
+        if !flagged.is_empty() {
+            s.push_str(&format!(
+                "\n  {:>8}  {:>7}  {:>10}  {:>10}  {:>10}  {:>10}  {:<28}  {:<11}  detail\n",
+                "episode",
+                "frames",
+                "mean (s)",
+                "std (s)",
+                "min (s)",
+                "max (s)",
+                "flags",
+                "verdict"
+            ));
+            for e in flagged {
+                let flags: Vec<&str> = e.flags.iter().map(|f| f.name()).collect();
+                s.push_str(&format!(
+                    "  {:>8}  {:>7}  {:>10.6}  {:>10.6}  {:>10.6}  {:>10.6}  {:<28}  {:<11}  {}\n",
+                    e.id,
+                    e.n_frames,
+                    e.interval_mean,
+                    e.interval_std,
+                    e.interval_min,
+                    e.interval_max,
+                    flags.join(","),
+                    e.verdict.name(),
+                    e.detail
+                ));
+            }
+        }
+        for w in &self.warnings {
+            s.push_str(&format!("warning: {w}\n"));
+        }
+        s
+    }
+}
+
+impl Verdict {
+    pub fn name(self) -> &'static str {
+        match self {
+            Verdict::Ok => "ok",
+            Verdict::Interpolate => "interpolate",
+            Verdict::Resample => "resample",
+            Verdict::Exclude => "exclude",
+        }
+    }
+}
+
+impl Flag {
+    pub fn name(self) -> &'static str {
+        match self {
+            Flag::Jitter => "jitter",
+            Flag::Gap => "gap",
+            Flag::Count => "count",
+            Flag::NonMonotonic => "non_monotonic",
+        }
+    }
+}

@@ -20,9 +20,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
+use crate::audit::{self, AuditReport};
 use crate::error::{Error, Result};
 use crate::lock::{self, Lock, LockedProfile, SpecLock, LOCK_VERSION};
-use crate::plan::{self, Plan, ProfilePlan};
+use crate::plan::{self, Conversion, Plan, ProfilePlan};
 use crate::render;
 use crate::sink::{self, encode_frame, FrameEncoding, Sink, SinkContext};
 use crate::source::{self, ChannelData, ChannelKind, Episode, Source};
@@ -49,10 +50,32 @@ pub struct BuildReport {
     pub episode_reads: Vec<usize>,
 }
 
-/// Opens the source and resolves the plan against the lock (what `chunkc plan` shows).
-pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
+/// Opens the source and audits it: the source as read, the audit, and each episode's repair.
+pub fn audit(spec: &LoadedSpec) -> Result<(Box<dyn Source>, AuditReport, Vec<audit::Repair>)> {
+    check_output_location(spec, &spec.resolve(&spec.spec.output.dir))?;
     let source = source::open(spec)?;
+    let (report, repairs) = audit::run(spec, source.as_ref())?;
+    Ok((source, report, repairs))
+}
+
+/// Opens the source, audits it, and resolves the plan against the lock (what `chunkc plan`
+/// shows). The source returned is the audited one: exclusions gone, repairs applied on read.
+pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
+    let (raw, report, repairs) = audit(spec)?;
+    let applied = spec.spec.audit.repair;
+    let source: Box<dyn Source> = Box::new(audit::Audited::new(raw, &report, repairs, applied));
     let manifest = source.manifest();
+    if manifest.episodes.is_empty() {
+        return Err(Error::source(format!(
+            "{}: the audit excluded every episode ({}); see `chunkc audit`, or relax `[audit]`",
+            spec.spec.source.path,
+            report
+                .episodes
+                .first()
+                .map(|e| format!("episode {}: {}", e.id, e.detail))
+                .unwrap_or_default()
+        )));
+    }
     for warning in &manifest.warnings {
         eprintln!("warning: {warning}");
     }
@@ -68,7 +91,8 @@ pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
     let entry = lock
         .as_ref()
         .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
-    let plan = plan::resolve(spec, source.manifest(), entry, &out_dir)?;
+    let mut plan = plan::resolve(spec, source.manifest(), entry, &out_dir)?;
+    plan::apply_audit(&mut plan, &report, applied);
     Ok((source, plan))
 }
 
@@ -186,13 +210,20 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
                     .as_ref()
                     .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
                 let mut replan = plan::resolve(spec, kept.manifest(), entry, &out_dir)?;
-                for p in &mut replan.profiles {
-                    p.excluded = excluded
-                        .iter()
-                        .map(|(&id, reason)| plan::Excluded {
+                replan.audit = plan.audit.clone();
+                for (p, before) in replan.profiles.iter_mut().zip(&plan.profiles) {
+                    p.excluded = before.excluded.clone();
+                    p.excluded
+                        .extend(excluded.iter().map(|(&id, reason)| plan::Excluded {
                             id,
                             reason: reason.clone(),
-                        })
+                        }));
+                    p.excluded.sort_by_key(|e| e.id);
+                    p.repaired = before
+                        .repaired
+                        .iter()
+                        .filter(|r| !excluded.contains_key(&r.id))
+                        .cloned()
                         .collect();
                 }
                 let names: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
@@ -288,7 +319,7 @@ fn run_staged(
 /// Per-rate state: the decimated low-dimensional data of every episode, and the streaming
 /// statistics of image channels.
 struct RateState {
-    factor: usize,
+    conversion: Conversion,
     /// Exclusive ends of each episode in the decimated per-step arrays.
     ends: Vec<u64>,
     /// Per channel (manifest order): concatenated low-dim values; empty for images.
@@ -330,25 +361,32 @@ fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
 fn process(
     episode: Episode,
     source: &dyn Source,
-    rates: &[(usize, Vec<FrameEncoding>)],
+    rates: &[(Conversion, Vec<FrameEncoding>)],
     train: bool,
 ) -> Processed {
     let channels = &source.manifest().channels;
     let mut data = Vec::with_capacity(rates.len());
     let mut partials = Vec::with_capacity(rates.len());
-    for (factor, encodings) in rates {
-        let factor = *factor;
+    for (conversion, encodings) in rates {
         let mut per_channel = Vec::with_capacity(channels.len());
         let mut per_partial = Vec::with_capacity(channels.len());
         for (ch, values) in channels.iter().zip(&episode.channels) {
             let width = ch.width();
-            match values {
+            let converted = match *conversion {
+                Conversion::Decimate { factor } => match values {
+                    ChannelData::Lowdim(v) => ChannelData::Lowdim(decimate(v, width, factor)),
+                    ChannelData::Image(v) => ChannelData::Image(decimate(v, width, factor)),
+                },
+                Conversion::Resample { method, .. } => {
+                    audit::repair::convert_rate(values, width, conversion.len(episode.len), method)
+                }
+            };
+            match converted {
                 ChannelData::Lowdim(v) => {
-                    per_channel.push(Prepared::Lowdim(decimate(v, width, factor)));
+                    per_channel.push(Prepared::Lowdim(v));
                     per_partial.push(None);
                 }
-                ChannelData::Image(v) => {
-                    let d = decimate(v, width, factor);
+                ChannelData::Image(d) => {
                     let frames = d.len() / width.max(1);
                     let colors = *ch.shape.last().unwrap_or(&1);
                     per_partial.push(train.then(|| ImagePartial::of_frames(&d, frames, colors)));
@@ -401,21 +439,25 @@ fn run(
         .as_deref()
         .map(|t| spec.resolve(t));
     let renderer = &render::Renderer::new(overrides.as_deref())?;
-    let mut factors: Vec<usize> = stale.iter().map(|p| p.rate_factor).collect();
-    factors.sort_unstable();
-    factors.dedup();
-
-    let mut rates: Vec<RateState> = factors
+    // In plan order (fastest first), once each.
+    let conversions: Vec<Conversion> = plan
+        .rates
         .iter()
-        .map(|&factor| {
+        .map(|r| r.conversion)
+        .filter(|c| stale.iter().any(|p| p.conversion == *c))
+        .collect();
+
+    let mut rates: Vec<RateState> = conversions
+        .iter()
+        .map(|&conversion| {
             let mut ends = Vec::with_capacity(manifest.episodes.len());
             let mut total = 0u64;
             for e in &manifest.episodes {
-                total += crate::chunk::decimated_len(e.len, factor) as u64;
+                total += conversion.len(e.len) as u64;
                 ends.push(total);
             }
             RateState {
-                factor,
+                conversion,
                 ends,
                 lowdim: manifest
                     .channels
@@ -444,7 +486,7 @@ fn run(
         let dir = staging.profile_dir(&p.name)?;
         let rate = rates
             .iter()
-            .position(|r| r.factor == p.rate_factor)
+            .position(|r| r.conversion == p.conversion)
             .unwrap();
         let sink = sink::create(&SinkContext {
             profile: p,
@@ -456,7 +498,7 @@ fn run(
         dirs.push(dir);
     }
     // Frames are encoded once per rate and encoding, however many sinks share them.
-    let jobs: Vec<(usize, Vec<FrameEncoding>)> = rates
+    let jobs: Vec<(Conversion, Vec<FrameEncoding>)> = rates
         .iter()
         .enumerate()
         .map(|(r, rate)| {
@@ -467,7 +509,7 @@ fn run(
                 .collect();
             encodings.sort();
             encodings.dedup();
-            (rate.factor, encodings)
+            (rate.conversion, encodings)
         })
         .collect();
 

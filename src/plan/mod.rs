@@ -19,12 +19,13 @@ use serde::Serialize;
 pub use split::Split;
 pub use text::render_text;
 
+use crate::audit::{AuditReport, Verdict};
 use crate::chunk::segment::SegmentParams;
 use crate::chunk::{decimated_len, Sampling, Window};
 use crate::error::Result;
 use crate::lock::{self, SpecLock};
 use crate::source::{ChannelInfo, ChannelKind, Manifest};
-use crate::spec::{LoadedSpec, NormalizeMode, Profile, SplitFrom};
+use crate::spec::{LoadedSpec, NormalizeMode, Profile, ResampleMethod, SplitFrom};
 
 pub const PLAN_VERSION: u32 = 1;
 pub const TOOL_VERSION: &str = env!("CARGO_PKG_VERSION");
@@ -47,7 +48,37 @@ pub struct Plan {
     /// One job per (rate, channel): statistics over the training split, shared by the profiles
     /// listed.
     pub statistics: Vec<StatsJob>,
+    /// The temporal audit, summed up (`chunkc audit` writes the whole of it).
+    pub audit: AuditSummary,
     pub profiles: Vec<ProfilePlan>,
+}
+
+/// What the temporal audit found and what `build` does about it.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct AuditSummary {
+    /// Seconds per step the episodes should have: `1 / source.fps`.
+    pub expected_interval: f64,
+    /// Whether the source stores timestamps (without them every episode is `ok`).
+    pub timestamps: bool,
+    /// Whether `build` applies the verdicts (`[audit] repair`).
+    pub applied: bool,
+    /// Episodes per verdict.
+    pub verdicts: BTreeMap<&'static str, usize>,
+    pub repaired_fraction: f64,
+    pub excluded_fraction: f64,
+    pub warnings: Vec<String>,
+}
+
+/// An episode the audit repaired before anything else happens to it.
+#[derive(Debug, Clone, Serialize)]
+pub struct RepairedEpisode {
+    pub id: u64,
+    pub verdict: Verdict,
+    /// Steps as recorded.
+    pub recorded_len: usize,
+    /// Steps after repair, at the source rate.
+    pub len: usize,
+    pub detail: String,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -65,8 +96,7 @@ pub struct SourcePlan {
 #[derive(Debug, Clone, Serialize)]
 pub struct RateJob {
     pub fps: f64,
-    /// Keep every `factor`-th source step.
-    pub factor: usize,
+    pub conversion: Conversion,
     pub steps: usize,
     pub profiles: Vec<String>,
 }
@@ -85,13 +115,15 @@ pub struct ProfilePlan {
     /// Every value, fully resolved.
     pub values: Profile,
     pub fps: f64,
-    pub rate_factor: usize,
+    pub conversion: Conversion,
     pub rate: String,
     /// How episodes become samples (window parameters included).
     pub sampling: Sampling,
     pub channels: Vec<ProfileChannel>,
     pub episodes: Vec<ProfileEpisode>,
     pub excluded: Vec<Excluded>,
+    /// Episodes the audit repaired (re-gridded or resampled) before they were used.
+    pub repaired: Vec<RepairedEpisode>,
     pub warnings: Vec<String>,
     pub num_samples: SplitCounts,
     pub steps: usize,
@@ -199,8 +231,49 @@ impl Plan {
     }
 }
 
-/// Integer decimation factor from `source_fps` to `fps`, or a message saying why there is none.
-pub fn rate_factor(source_fps: f64, fps: f64) -> std::result::Result<usize, String> {
+/// How a profile's rate is reached from the source's.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Conversion {
+    /// Keep steps 0, `factor`, 2 `factor`, … of each episode (`factor` 1: the source rate).
+    Decimate { factor: usize },
+    /// A rate that does not divide the source's: each whole episode of n steps resampled to
+    /// round(n × `to` / `from`) steps (`[audit] resample`: Fourier or linear; images take the
+    /// nearest frame).
+    Resample {
+        from: f64,
+        to: f64,
+        method: ResampleMethod,
+    },
+}
+
+impl Conversion {
+    /// Steps of an episode of `len` source steps after conversion.
+    pub fn len(&self, len: usize) -> usize {
+        match *self {
+            Conversion::Decimate { factor } => decimated_len(len, factor),
+            Conversion::Resample { from, to, .. } => {
+                ((len as f64 * to / from).round() as usize).max(usize::from(len > 0))
+            }
+        }
+    }
+
+    /// The decimation factor, if this is one.
+    pub fn factor(&self) -> Option<usize> {
+        match *self {
+            Conversion::Decimate { factor } => Some(factor),
+            Conversion::Resample { .. } => None,
+        }
+    }
+}
+
+/// How to get from `source_fps` to `fps`: integer decimation when the ratio is an integer, else
+/// resampling; or a message saying why neither works.
+pub fn conversion(
+    source_fps: f64,
+    fps: f64,
+    method: ResampleMethod,
+) -> std::result::Result<Conversion, String> {
     if fps > source_fps * (1.0 + 1e-9) {
         return Err(format!(
             "{fps} Hz is faster than the source's {source_fps} Hz; chunkc does not upsample"
@@ -209,11 +282,20 @@ pub fn rate_factor(source_fps: f64, fps: f64) -> std::result::Result<usize, Stri
     let ratio = source_fps / fps;
     let factor = ratio.round();
     if (ratio - factor).abs() > 1e-6 * ratio {
-        return Err(format!(
-            "the source's {source_fps} Hz is not an integer multiple of {fps} Hz (ratio {ratio:.4}); only integer decimation is supported so far"
-        ));
+        return Ok(Conversion::Resample {
+            from: source_fps,
+            to: fps,
+            method,
+        });
     }
-    Ok(factor as usize)
+    Ok(Conversion::Decimate {
+        factor: factor as usize,
+    })
+}
+
+/// Orders rates from the fastest: the source rate first, as decimation factors 1, 2, … did.
+fn rate_order(fps: f64) -> usize {
+    usize::MAX - (fps * 1e6).round() as usize
 }
 
 /// Bytes one step of a channel takes in the output.
@@ -271,19 +353,27 @@ pub fn resolve(
         )?);
     }
 
-    let mut rates: BTreeMap<usize, RateJob> = BTreeMap::new();
+    let mut rates: Vec<RateJob> = Vec::new();
     let mut statistics: BTreeMap<(usize, String), StatsJob> = BTreeMap::new();
     for p in &profiles {
-        let job = rates.entry(p.rate_factor).or_insert_with(|| RateJob {
-            fps: p.fps,
-            factor: p.rate_factor,
-            steps: p.steps,
-            profiles: Vec::new(),
-        });
-        job.profiles.push(p.name.clone());
+        let r = match rates.iter().position(|r| r.conversion == p.conversion) {
+            Some(r) => r,
+            None => {
+                rates.push(RateJob {
+                    fps: p.fps,
+                    conversion: p.conversion,
+                    steps: p.steps,
+                    profiles: Vec::new(),
+                });
+                rates.len() - 1
+            }
+        };
+        rates[r].profiles.push(p.name.clone());
+        // Highest rate first, as the integer factors used to sort.
+        let key = rate_order(p.fps);
         for ch in &p.channels {
             statistics
-                .entry((p.rate_factor, ch.name.clone()))
+                .entry((key, ch.name.clone()))
                 .or_insert_with(|| StatsJob {
                     fps: p.fps,
                     channel: ch.name.clone(),
@@ -309,10 +399,53 @@ pub fn resolve(
             channels: manifest.channels.clone(),
         },
         split,
-        rates: rates.into_values().collect(),
+        rates: {
+            rates.sort_by_key(|r| rate_order(r.fps));
+            rates
+        },
         statistics: statistics.into_values().collect(),
+        audit: AuditSummary::default(),
         profiles,
     })
+}
+
+/// Puts the audit into a resolved plan: the summary, and per profile the episodes it repaired
+/// and left out (when `applied`, that is `[audit] repair = true`).
+pub fn apply_audit(plan: &mut Plan, report: &AuditReport, applied: bool) {
+    plan.audit = AuditSummary {
+        expected_interval: report.expected_interval,
+        timestamps: report.timestamps,
+        applied,
+        verdicts: report
+            .verdict_counts()
+            .into_iter()
+            .map(|(v, k)| (v.name(), k))
+            .collect(),
+        repaired_fraction: report.repaired_fraction,
+        excluded_fraction: report.excluded_fraction,
+        warnings: report.warnings.clone(),
+    };
+    if !applied {
+        return;
+    }
+    for p in &mut plan.profiles {
+        for e in &report.episodes {
+            match e.verdict {
+                Verdict::Ok => {}
+                Verdict::Exclude => p.excluded.push(Excluded {
+                    id: e.id,
+                    reason: format!("audit: {}", e.detail),
+                }),
+                Verdict::Interpolate | Verdict::Resample => p.repaired.push(RepairedEpisode {
+                    id: e.id,
+                    verdict: e.verdict,
+                    recorded_len: e.n_frames,
+                    len: e.repaired_frames,
+                    detail: e.detail.clone(),
+                }),
+            }
+        }
+    }
 }
 
 fn resolve_profile(
@@ -325,23 +458,33 @@ fn resolve_profile(
 ) -> Result<ProfilePlan> {
     let name = &profile.name;
     let fps = profile.fps.unwrap_or(manifest.fps);
-    let factor = rate_factor(manifest.fps, fps).map_err(|msg| {
+    let conv = conversion(manifest.fps, fps, spec.spec.audit.resample).map_err(|msg| {
         spec.error_at(
             &["profiles", name, "fps"],
             format!("profile `{name}` runs at {msg}"),
             Some(format!(
-                "set `profiles.{name}.fps` to the source rate ({} Hz) or an integer divisor of it",
+                "set `profiles.{name}.fps` to the source rate ({} Hz) or less",
                 manifest.fps
             )),
         )
     })?;
-    let rate = if factor == 1 {
-        format!("{fps} Hz (the source rate, no conversion)")
-    } else {
-        format!(
+    let rate = match conv {
+        Conversion::Decimate { factor: 1 } => {
+            format!("{fps} Hz (the source rate, no conversion)")
+        }
+        Conversion::Decimate { factor } => format!(
             "{} Hz -> {fps} Hz: keep every {factor}th step",
             manifest.fps
-        )
+        ),
+        Conversion::Resample { method, .. } => format!(
+            "{} Hz -> {fps} Hz: resample each episode ({}), n -> round(n × {fps} / {})",
+            manifest.fps,
+            match method {
+                ResampleMethod::Fourier => "fourier",
+                ResampleMethod::Linear => "linear",
+            },
+            manifest.fps
+        ),
     };
 
     let mut channels = Vec::new();
@@ -384,7 +527,7 @@ fn resolve_profile(
     };
     let mut steps = 0;
     for e in &manifest.episodes {
-        let len = decimated_len(e.len, factor);
+        let len = conv.len(e.len);
         let samples = sampling.count(len);
         let is_train = split.is_train(e.id);
         let slot = if is_train {
@@ -494,12 +637,13 @@ fn resolve_profile(
         name: name.clone(),
         values: profile.clone(),
         fps,
-        rate_factor: factor,
+        conversion: conv,
         rate,
         sampling,
         channels,
         episodes,
         excluded: Vec::new(),
+        repaired: Vec::new(),
         warnings,
         num_samples: counts,
         steps,
@@ -669,13 +813,23 @@ fn status_of(name: &str, fingerprint: &str, lock: Option<&SpecLock>, dir: &Path)
 
 #[cfg(test)]
 mod tests {
-    use super::rate_factor;
+    use super::{conversion, Conversion};
+    use crate::spec::ResampleMethod::Fourier;
 
     #[test]
-    fn integer_rates_only() {
-        assert_eq!(rate_factor(50.0, 10.0), Ok(5));
-        assert_eq!(rate_factor(10.0, 10.0), Ok(1));
-        assert!(rate_factor(30.0, 20.0).is_err());
-        assert!(rate_factor(10.0, 50.0).is_err());
+    fn decimate_or_resample() {
+        assert_eq!(
+            conversion(50.0, 10.0, Fourier),
+            Ok(Conversion::Decimate { factor: 5 })
+        );
+        assert_eq!(
+            conversion(10.0, 10.0, Fourier),
+            Ok(Conversion::Decimate { factor: 1 })
+        );
+        let c = conversion(30.0, 20.0, Fourier).unwrap();
+        assert_eq!(c.factor(), None);
+        assert_eq!(c.len(31), 21);
+        assert_eq!(c.len(30), 20);
+        assert!(conversion(10.0, 50.0, Fourier).is_err());
     }
 }

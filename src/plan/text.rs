@@ -48,13 +48,46 @@ pub fn render_text(plan: &Plan) -> String {
         plan.split.train.len(),
         plan.split.val.len()
     );
+    let a = &plan.audit;
+    let verdicts: Vec<String> = ["ok", "interpolate", "resample", "exclude"]
+        .iter()
+        .map(|v| format!("{} {}", a.verdicts.get(v).copied().unwrap_or(0), v))
+        .collect();
+    let _ = writeln!(
+        s,
+        "audit   {} s steps{}: {}{}",
+        a.expected_interval,
+        if a.timestamps {
+            ""
+        } else {
+            " (declared, no timestamps)"
+        },
+        verdicts.join(", "),
+        if a.applied {
+            ""
+        } else {
+            " (not applied: `[audit] repair = false`)"
+        }
+    );
+    for w in &a.warnings {
+        let _ = writeln!(s, "        warning: {w}");
+    }
     let _ = writeln!(s, "read    the source once, for all profiles");
     for r in &plan.rates {
         let _ = writeln!(
             s,
-            "rate    {} Hz (every {} step(s), {} steps) for {}",
+            "rate    {} Hz ({}, {} steps) for {}",
             r.fps,
-            r.factor,
+            match r.conversion {
+                super::Conversion::Decimate { factor } => format!("every {factor} step(s)"),
+                super::Conversion::Resample { method, .. } => format!(
+                    "resampled, {}",
+                    match method {
+                        crate::spec::ResampleMethod::Fourier => "fourier",
+                        crate::spec::ResampleMethod::Linear => "linear",
+                    }
+                ),
+            },
             r.steps,
             r.profiles.join(", ")
         );
@@ -100,6 +133,19 @@ pub fn render_text(plan: &Plan) -> String {
         );
         for e in &p.excluded {
             let _ = writeln!(s, "    excluded episode {}: {}", e.id, e.reason);
+        }
+        for r in p.repaired.iter().take(10) {
+            let _ = writeln!(
+                s,
+                "    repaired episode {} ({}): {} -> {} steps",
+                r.id,
+                r.verdict.name(),
+                r.recorded_len,
+                r.len
+            );
+        }
+        if p.repaired.len() > 10 {
+            let _ = writeln!(s, "    … {} more repaired episodes", p.repaired.len() - 10);
         }
         let count = |n: Option<usize>| n.map_or("(set by the data)".to_string(), |n| n.to_string());
         let _ = writeln!(

@@ -109,7 +109,7 @@ pub(crate) fn sample_analyze() -> AnalyzeReport {
     let profile = |name: &str, chunk: u32, acf: f64, warning: Option<&str>| ProfileCheck {
         name: name.into(),
         fps: 10.0,
-        rate_factor: 1,
+        rate_factor: 1.0,
         chunk,
         chunk_source_steps: chunk as usize,
         acf_at_chunk: Some(acf),

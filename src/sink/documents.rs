@@ -109,7 +109,11 @@ pub fn meta_json(
         "data_format": v.format.name(),
         "data_file": data_file,
         "stored_values": if normalized { "normalized" } else { "raw" },
-        "rate": { "source_fps": plan.source.fps, "factor": profile.rate_factor },
+        "rate": {
+            "source_fps": plan.source.fps,
+            "factor": profile.conversion.factor(),
+            "conversion": profile.conversion,
+        },
         "episode_ends": built.episode_ends,
         "episodes": ids,
         "split": { "train": plan.split.train, "val": plan.split.val },
@@ -117,6 +121,7 @@ pub fn meta_json(
         "channels": channels,
         "normalization": normalization,
         "excluded": profile.excluded,
+        "repaired": profile.repaired,
         "warnings": profile.warnings,
         "source": {
             "format": plan.source.format,

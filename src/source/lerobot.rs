@@ -490,6 +490,19 @@ impl Source for LerobotSource {
         &self.manifest
     }
 
+    fn read_timestamps(&self, index: usize) -> Result<Option<Vec<f64>>> {
+        if !self.has_timestamp {
+            return Ok(None);
+        }
+        let info = &self.manifest.episodes[index];
+        let (rel, rows) = &self.locations[index];
+        let path = self.root.join(rel);
+        let mut cols = read_columns(&path, &["timestamp"], rows.clone())?;
+        let t = cols.pop().expect("timestamp was asked for");
+        let place = format!("{}: episode {}: `timestamp`", path.display(), info.id);
+        Ok(Some(parquet_read::to_f64_rows(&t, 1, &place)?))
+    }
+
     fn read_episode(&self, index: usize) -> Result<Episode> {
         let info = &self.manifest.episodes[index];
         let (rel, rows) = &self.locations[index];

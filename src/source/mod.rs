@@ -127,6 +127,12 @@ pub trait Source: Send + Sync {
     fn manifest(&self) -> &Manifest;
     /// Reads the episode at position `index` of `manifest().episodes`.
     fn read_episode(&self, index: usize) -> Result<Episode>;
+    /// The timestamps of the episode at `index`, `None` when the source stores none. The audit
+    /// reads these for every episode before the build: adapters that can read them without the
+    /// rest of the episode override this.
+    fn read_timestamps(&self, index: usize) -> Result<Option<Vec<f64>>> {
+        Ok(self.read_episode(index)?.timestamps)
+    }
 }
 
 /// Opens the source a spec names.

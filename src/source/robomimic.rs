@@ -267,6 +267,10 @@ impl Source for RobomimicSource {
         &self.manifest
     }
 
+    fn read_timestamps(&self, index: usize) -> Result<Option<Vec<f64>>> {
+        Ok(self.timestamps.as_ref().map(|t| t[index].clone()))
+    }
+
     fn read_episode(&self, index: usize) -> Result<Episode> {
         let info = &self.manifest.episodes[index];
         let demo = &self.demos[index];

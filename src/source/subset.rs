@@ -72,4 +72,8 @@ impl Source for Subset {
     fn read_episode(&self, index: usize) -> Result<Episode> {
         self.inner.read_episode(self.positions[index])
     }
+
+    fn read_timestamps(&self, index: usize) -> Result<Option<Vec<f64>>> {
+        self.inner.read_timestamps(self.positions[index])
+    }
 }

@@ -215,8 +215,10 @@ impl Default for SplitSpec {
     }
 }
 
-/// `[audit]`: checks of the data itself, decided while the source is read.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+/// `[audit]`: checks of the data itself. The temporal audit (`chunkc audit`) judges every
+/// episode's inter-frame intervals against `1 / source.fps` and decides a verdict per episode
+/// (`ok`, `interpolate`, `resample`, `exclude`); `build` applies the verdicts when `repair` is on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct AuditSpec {
     /// A NaN or infinite value in a low-dimensional channel: stop the build with an error naming
@@ -224,12 +226,128 @@ pub struct AuditSpec {
     /// `excluded` in each profile's `meta.json`).
     #[serde(default)]
     pub non_finite: NonFinite,
+    /// Apply the audit's verdicts in `build` (re-grid, resample, exclude). When false, episodes
+    /// are used as recorded and the verdicts are only reported.
+    #[serde(default = "default_true")]
+    pub repair: bool,
+    /// Flag `jitter` when the standard deviation of an episode's intervals exceeds this fraction
+    /// of their mean.
+    #[serde(default = "default_jitter")]
+    pub jitter_threshold: f64,
+    /// Flag `gap` when an interval exceeds this many expected intervals.
+    #[serde(default = "default_gap")]
+    pub gap_threshold: f64,
+    /// Flag `count` when the frame count deviates from `duration × fps + 1` by more than this
+    /// fraction.
+    #[serde(default = "default_count")]
+    pub count_threshold: f64,
+    /// Dropped frames an episode may miss and still be repaired by interpolation; an episode
+    /// missing more (or, when its timing is irregular, with one hole longer than
+    /// `max_dropped + 1` intervals) is excluded.
+    #[serde(default = "default_max_dropped")]
+    pub max_dropped: u32,
+    /// Repeated or decreasing timestamps.
+    #[serde(default)]
+    pub non_monotonic: NonMonotonic,
+    /// Regular intervals at the wrong rate (only `count` flagged): resample the episode to the
+    /// source rate, or leave it out.
+    #[serde(default)]
+    pub rate_error: RateError,
+    /// Irregular intervals (`jitter`): re-grid the episode onto regular steps by cubic spline, or
+    /// leave it out.
+    #[serde(default)]
+    pub irregular: Irregular,
+    /// How a whole episode changes rate, both for `rate_error = "resample"` and for profiles
+    /// whose `fps` does not divide the source's: `fourier` (as `scipy.signal.resample`) or
+    /// `linear`.
+    #[serde(default)]
+    pub resample: ResampleMethod,
+}
+
+fn default_true() -> bool {
+    true
+}
+fn default_jitter() -> f64 {
+    0.1
+}
+fn default_gap() -> f64 {
+    2.0
+}
+fn default_count() -> f64 {
+    0.05
+}
+fn default_max_dropped() -> u32 {
+    2
+}
+
+impl Default for AuditSpec {
+    fn default() -> Self {
+        AuditSpec {
+            non_finite: NonFinite::default(),
+            repair: true,
+            jitter_threshold: default_jitter(),
+            gap_threshold: default_gap(),
+            count_threshold: default_count(),
+            max_dropped: default_max_dropped(),
+            non_monotonic: NonMonotonic::default(),
+            rate_error: RateError::default(),
+            irregular: Irregular::default(),
+            resample: ResampleMethod::default(),
+        }
+    }
 }
 
 impl AuditSpec {
     fn is_default(&self) -> bool {
         *self == AuditSpec::default()
     }
+}
+
+/// What to do with an episode whose timestamps repeat or go back.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum NonMonotonic {
+    /// Keep the first frame of every run of equal timestamps, then judge the rest; an episode
+    /// whose timestamps go back is excluded.
+    #[default]
+    DropDuplicates,
+    /// Leave the episode out.
+    Exclude,
+    /// Fail with an error naming the episode and step.
+    Error,
+}
+
+/// What to do with an episode recorded regularly at the wrong rate.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum RateError {
+    /// Resample the whole episode to the source rate (`[audit] resample` says how).
+    #[default]
+    Resample,
+    /// Leave the episode out.
+    Exclude,
+}
+
+/// What to do with an episode whose intervals are irregular.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Irregular {
+    /// Re-grid onto regular steps: cubic spline for numbers, the nearest frame for images.
+    #[default]
+    Interpolate,
+    /// Leave the episode out.
+    Exclude,
+}
+
+/// How an episode is resampled to another number of steps.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ResampleMethod {
+    /// The Fourier method of `scipy.signal.resample` (treats the episode as periodic).
+    #[default]
+    Fourier,
+    /// Linear interpolation between the neighbouring steps (as `numpy.interp`).
+    Linear,
 }
 
 /// What to do with an episode holding NaN or infinity.

@@ -68,6 +68,28 @@ impl Checker<'_> {
             });
             self.value(&["split", "val_fraction"], message, "out of range", help);
         }
+        let audit = &spec.audit;
+        let thresholds = [
+            (
+                "jitter_threshold",
+                audit.jitter_threshold,
+                0.0,
+                "greater than 0",
+            ),
+            ("gap_threshold", audit.gap_threshold, 1.0, "greater than 1"),
+            (
+                "count_threshold",
+                audit.count_threshold,
+                0.0,
+                "greater than 0",
+            ),
+        ];
+        for (k, value, above, what) in thresholds {
+            if !(value.is_finite() && value > above) {
+                let message = format!("`audit.{k}` must be {what}, not {value}");
+                self.value(&["audit", k], message, "out of range", None);
+            }
+        }
         if spec.profiles.is_empty() {
             let message = "the spec has no profiles".to_string();
             let help = Some(
@@ -185,6 +207,18 @@ impl Checker<'_> {
                 Some("profile names become directory names: use letters, digits, `_` and `-`");
             let label = "not a valid profile name";
             self.key(&["profiles", name], message, label, help.map(String::from));
+        }
+        if name == "audit" {
+            let message =
+                "`audit` is not a profile name: `chunkc audit` writes `<output.dir>/audit/`"
+                    .to_string();
+            let label = "reserved";
+            self.key(
+                &["profiles", name],
+                message,
+                label,
+                Some("rename the profile".into()),
+            );
         }
         self.fps(&key("fps"), profile.fps);
         let counts = [

@@ -6,6 +6,8 @@ Usage: python tests/data/make_source_subsets.py PATH/TO/shared/data
   412 steps; `states[:, 0]` is simulation time at 0.05 s steps).
 - robosuite_sawyer_lift.hdf5: robosuite 0.3 `SawyerLift/demo.hdf5`, copied whole (2 episodes,
   1058 and 837 steps; irregular 0.010 / 0.012 s steps; zero-width `left_dpos`, `left_dquat`).
+- robosuite_baxter_peg_in_hole.hdf5: robosuite 0.3 `BaxterPegInHole/demo.hdf5`, copied whole
+  (2 episodes, 1382 and 1138 steps; `states` only, no actions; repeated timestamps, dt = 0).
 - lerobot_g1_subset/: the first N_EPISODES episodes of the LeRobot v2.1 Unitree G1 dataset. The
   parquet files are copied byte for byte; meta/info.json totals and splits, episodes.jsonl and
   episodes_stats.jsonl are trimmed to the same episodes. The mp4 videos are absent upstream too.
@@ -51,6 +53,9 @@ def main(shared: str) -> None:
     shutil.copy(data / "robosuite-panda/LICENSE", HERE / "robosuite_panda_lift.LICENSE")
     shutil.copy(data / "robosuite-sawyer/SawyerLift/demo.hdf5", HERE / "robosuite_sawyer_lift.hdf5")
     shutil.copy(data / "robosuite-sawyer/LICENSE", HERE / "robosuite_sawyer_lift.LICENSE")
+    shutil.copy(data / "robosuite-sawyer/BaxterPegInHole/demo.hdf5",
+                HERE / "robosuite_baxter_peg_in_hole.hdf5")
+    shutil.copy(data / "robosuite-sawyer/LICENSE", HERE / "robosuite_baxter_peg_in_hole.LICENSE")
     lerobot(data / "lerobot-g1", HERE / "lerobot_g1_subset")
     shutil.copy(data / "lerobot-g1/LICENSE", HERE / "lerobot_g1_subset.LICENSE")
     for p in sorted(HERE.iterdir()):

@@ -110,7 +110,6 @@ def test_bad_data_keeps_previous_output(tmp_path):
 @pytest.mark.parametrize(
     "profiles, key",
     [
-        ("[profiles.x]\nchunk = 4\nfps = 3\n", "fps"),  # 10 Hz is not a multiple of 3 Hz
         ("[profiles.x]\nchunk = 4\nfps = 20\n", "fps"),  # no upsampling
         ("[profiles.x]\npreset = \"act\"\n", "fps"),  # the preset's 50 Hz exceeds the source
     ],

@@ -85,7 +85,9 @@ def test_robosuite_sawyer_concatenates_and_skips_zero_width(tmp_path):
     proc = build(tmp_path, "robomimic_hdf5", SAWYER, {
         "action": '{ concat = ["joint_velocities", "gripper_actuations", "left_dpos"] }',
         "observation.eef": '{ concat = ["right_dpos", "right_dquat"], columns = [1, 6] }',
-    }, fps=100, profile_fps=100)
+    }, fps=100, profile_fps=100,
+        # The values as recorded: the audit's re-grid of the irregular clock is test_audit's.
+        split="val_fraction = 0.0\n[audit]\nrepair = false")
     assert "left_dpos" in proc.stderr and "zero width" in proc.stderr
     meta, out = output(tmp_path)
     with h5py.File(SAWYER, "r") as f:
@@ -358,5 +360,10 @@ def test_example_spec_episodes_match_reference_readers(tmp_path, spec):
         meta = json.loads((out / profile / "meta.json").read_text())
         factor = meta["rate"]["factor"]
         assert meta["episodes"] == sorted(want)
+        # Episodes the audit re-gridded (robosuite's irregular clock; their lengths are checked
+        # against numpy in test_audit.py) start from their repaired length.
+        for r in meta["repaired"]:
+            assert r["recorded_len"] == want[r["id"]]
+            want[r["id"]] = r["len"]
         lengths = np.diff([0] + meta["episode_ends"]).tolist()
         assert lengths == [-(-want[e] // factor) for e in sorted(want)]  # every factor-th step
