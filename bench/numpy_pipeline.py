@@ -95,11 +95,10 @@ def main():
     t_of_sample = np.arange(len(action)) - starts[ep_of_sample]
     limit = np.minimum(args.chunk, lengths[ep_of_sample] - t_of_sample)
     index = np.stack([ep_of_sample, t_of_sample, limit, np.zeros_like(limit)], 1).astype(np.int64)
-    rows = (starts[ep_of_sample, None]
-            + np.minimum(t_of_sample[:, None] + np.arange(args.chunk),
-                         lengths[ep_of_sample, None] - 1))
-    assert rows.max() < len(action)  # the padded windows never leave their episode
-    del rows
+    for lo in range(0, len(index), 1 << 16):  # in blocks: (S, K) at once would be S*K*8 bytes
+        e, t = ep_of_sample[lo:lo + (1 << 16)], t_of_sample[lo:lo + (1 << 16)]
+        rows = starts[e, None] + np.minimum(t[:, None] + np.arange(args.chunk), lengths[e, None] - 1)
+        assert (rows < ends[e, None]).all()  # the padded windows never leave their episode
 
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "data.h5"
