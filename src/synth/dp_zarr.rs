@@ -80,7 +80,7 @@ impl DpZarrWriter {
         for g in ["", "data", "meta"] {
             write_json(
                 root,
-                &format!("{g}/.zgroup").trim_start_matches('/'),
+                format!("{g}/.zgroup").trim_start_matches('/'),
                 &json!({"zarr_format": 2}),
             )?;
         }

@@ -113,16 +113,20 @@ impl SynthWriter for RobomimicWriter {
             .write_scalar(&text(env)?)?;
         if !self.opts.robosuite {
             let mask = group(&self.file, "mask")?;
-            let (valid, train): (Vec<(usize, &String)>, Vec<(usize, &String)>) = self
-                .names
-                .iter()
-                .enumerate()
-                .partition(|(i, _)| i % 10 == 9);
+            let mut train: Vec<&String> = Vec::new();
+            let mut valid: Vec<&String> = Vec::new();
+            for (i, n) in self.names.iter().enumerate() {
+                if i % 10 == 9 {
+                    valid.push(n);
+                } else {
+                    train.push(n);
+                }
+            }
             for (key, names) in [("train", train), ("valid", valid)] {
-                let width = names.iter().map(|(_, n)| n.len()).max().unwrap_or(6).max(6);
+                let width = names.iter().map(|n| n.len()).max().unwrap_or(6).max(6);
                 // Fixed-length byte strings, as robomimic's h5py writes `np.array(names, "S")`.
                 let mut bytes = vec![0u8; names.len() * width];
-                for (j, (_, n)) in names.iter().enumerate() {
+                for (j, n) in names.iter().enumerate() {
                     bytes[j * width..j * width + n.len()].copy_from_slice(n.as_bytes());
                 }
                 write_fixed_strings(&mask, key, &bytes, names.len(), width)?;
