@@ -33,7 +33,8 @@
 //!
 //! Supporting pieces: [`chunk`] decides which rows every window reads (the invariants "never
 //! across an episode" and "the observation belongs to the chunk's first step" live there);
-//! [`error`] holds the error type and exit codes.
+//! [`error`] holds the error type and exit codes; [`synth`] writes synthetic sources in every
+//! input layout (`chunkc synth`, for the benchmarks and tests).
 
 pub mod analyze;
 pub mod audit;
@@ -48,5 +49,6 @@ pub mod sink;
 pub mod source;
 pub mod spec;
 pub mod stats;
+pub mod synth;
 
 pub use error::{Error, Result};

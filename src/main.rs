@@ -6,8 +6,8 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand, ValueEnum};
 
 use chunkc::exec::{self, BuildOptions};
-use chunkc::spec::{self, LoadedSpec};
-use chunkc::{analyze, plan, report, Error};
+use chunkc::spec::{self, LoadedSpec, SourceFormat};
+use chunkc::{analyze, plan, report, synth, Error};
 
 #[derive(Parser)]
 #[command(
@@ -59,6 +59,51 @@ enum Command {
     Audit { spec: PathBuf },
     /// Print the JSON Schema of the spec format.
     Schema,
+    /// Write a synthetic source (with a matching spec.toml) into a new directory.
+    Synth(SynthArgs),
+}
+
+#[derive(clap::Args)]
+struct SynthArgs {
+    /// The directory to create: it gets the source, spec.toml and (with faults) faults.json.
+    out: PathBuf,
+    #[arg(long, value_enum)]
+    format: SynthFormat,
+    #[arg(long, default_value_t = 10)]
+    episodes: usize,
+    /// Steps per episode (before any dropped frames).
+    #[arg(long, default_value_t = 100)]
+    steps: usize,
+    #[arg(long, default_value_t = 14)]
+    action_dim: usize,
+    #[arg(long, default_value_t = 14)]
+    state_dim: usize,
+    #[arg(long, default_value_t = 0)]
+    cameras: usize,
+    /// Camera frame size, HEIGHTxWIDTH.
+    #[arg(long, default_value = "96x96")]
+    resolution: String,
+    #[arg(long, default_value_t = 50.0)]
+    fps: f64,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Timing faults, comma-separated KIND:VALUE: drop:P, rate:HZ, jitter:F, dup:P.
+    #[arg(long, value_delimiter = ',')]
+    faults: Vec<synth::Fault>,
+    /// The fraction of episodes that get the faults.
+    #[arg(long, default_value_t = 0.2)]
+    fault_fraction: f64,
+    /// robomimic only: robosuite's older layout (no obs group; time in states[:, 0]).
+    #[arg(long)]
+    robosuite: bool,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SynthFormat {
+    AlohaHdf5,
+    RobomimicHdf5,
+    DiffusionPolicyZarr,
+    Lerobot,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -182,6 +227,40 @@ fn run(cli: Cli) -> Result<(), Error> {
             );
         }
         Command::Schema => print!("{}", spec::json_schema()),
+        Command::Synth(args) => {
+            let (height, width) = args
+                .resolution
+                .split_once('x')
+                .and_then(|(h, w)| Some((h.parse().ok()?, w.parse().ok()?)))
+                .ok_or_else(|| {
+                    Error::Spec(format!(
+                        "chunkc synth: --resolution `{}` is not HEIGHTxWIDTH",
+                        args.resolution
+                    ))
+                })?;
+            let opts = synth::SynthOptions {
+                format: match args.format {
+                    SynthFormat::AlohaHdf5 => SourceFormat::AlohaHdf5,
+                    SynthFormat::RobomimicHdf5 => SourceFormat::RobomimicHdf5,
+                    SynthFormat::DiffusionPolicyZarr => SourceFormat::DiffusionPolicyZarr,
+                    SynthFormat::Lerobot => SourceFormat::Lerobot,
+                },
+                episodes: args.episodes,
+                steps: args.steps,
+                action_dim: args.action_dim,
+                state_dim: args.state_dim,
+                cameras: args.cameras,
+                height,
+                width,
+                fps: args.fps,
+                seed: args.seed,
+                faults: args.faults,
+                fault_fraction: args.fault_fraction,
+                robosuite: args.robosuite,
+            };
+            let spec = synth::generate(&opts, &args.out)?;
+            eprintln!("wrote {}", tidy(&spec).display());
+        }
     }
     Ok(())
 }

@@ -29,6 +29,9 @@ const LOWDIM_CHUNK_BYTES: usize = 64 * 1024;
 /// Image frames are compressed with deflate at this level (fast, and lossless).
 const IMAGE_DEFLATE_LEVEL: u8 = 1;
 
+/// Low-dim channels are normalized and written about this many bytes at a time.
+const NORMALIZE_BLOCK_BYTES: usize = 4 << 20;
+
 /// gzip's level when the spec gives none.
 const DEFAULT_GZIP_LEVEL: u32 = 4;
 
@@ -221,7 +224,7 @@ impl Hdf5Writer {
     /// Writes one split's window index: rows of (episode position, current step, limit, sub);
     /// see `chunk::Sample`.
     fn write_index_of(&self, split: &str, rows: &[[i64; 4]]) -> Result<()> {
-        let flat: Vec<i64> = rows.iter().flatten().copied().collect();
+        let flat: &[i64] = rows.as_flattened();
         let ds = self
             .file
             .group("index")?
@@ -230,7 +233,7 @@ impl Hdf5Writer {
             .obj_track_times(false)
             .create(split)?;
         if !rows.is_empty() {
-            ds.write_raw(&flat)?;
+            ds.write_raw(flat)?;
         }
         Ok(())
     }
@@ -251,17 +254,38 @@ impl Sink for Hdf5Writer {
 
     /// chunkc's own layout stores normalized values; the loader inverts them.
     fn write_lowdim(&mut self, channel: usize, raw: &[f32], normalizer: &Normalizer) -> Result<()> {
-        let mut values = raw.to_vec();
-        normalizer.apply(&mut values);
-        self.write_f32(channel, &values)?;
         let wanted = match self.layout {
             Layout::Index => false,
             Layout::Materialized => true,
             Layout::Virtual => self.names[channel] == "action",
         };
-        if wanted {
-            self.kept[channel] = Some((values, normalizer.clone()));
+        if !wanted {
+            // Normalized and written a block of whole chunks at a time: no second copy of the
+            // whole channel in memory.
+            let width = self.shapes[channel].iter().product::<usize>().max(1);
+            let chunk_rows = self.data[channel]
+                .chunk()
+                .and_then(|c| c.first().copied())
+                .unwrap_or(1)
+                .max(1);
+            let block_rows = chunk_rows * (NORMALIZE_BLOCK_BYTES / (4 * width * chunk_rows)).max(1);
+            let mut block = Vec::with_capacity(block_rows * width);
+            for (b, part) in raw.chunks(block_rows * width).enumerate() {
+                block.clear();
+                block.extend_from_slice(part);
+                normalizer.apply(&mut block);
+                let rows = part.len() / width;
+                let view = self.view(channel, rows, &block)?;
+                self.data[channel]
+                    .write_slice(view, self.selection(channel, b * block_rows, rows))?;
+            }
+            return Ok(());
         }
+        let mut values = raw.to_vec();
+        normalizer.apply(&mut values);
+        self.write_f32(channel, &values)?;
+        // Kept for `/chunks` (materialized or virtual layouts).
+        self.kept[channel] = Some((values, normalizer.clone()));
         Ok(())
     }
 

@@ -223,14 +223,16 @@ impl Sink for ZarrWriter {
     }
 
     fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+        use rayon::prelude::*;
         let array = &self.data[channel];
         let rank = array.dimensionality();
-        for (i, frame) in frames.iter().enumerate() {
+        // One chunk (one file) per frame: compressing and writing them in parallel gives the
+        // same files whatever the order.
+        frames.par_iter().enumerate().try_for_each(|(i, frame)| {
             let mut idx = vec![0u64; rank];
             idx[0] = (row + i) as u64;
-            array.store_chunk(&idx, frame.as_slice()).map_err(err)?;
-        }
-        Ok(())
+            array.store_chunk(&idx, frame.as_slice()).map_err(err)
+        })
     }
 
     /// Raw values: Diffusion Policy fits its own normalizer on the replay buffer.

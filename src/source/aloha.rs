@@ -25,6 +25,9 @@ pub struct AlohaSource {
     mapped: Mapped,
     /// Keys stored as JPEG rows, with the decoded frame's (height, width).
     jpeg: Vec<(String, (usize, usize))>,
+    /// Per episode: where each mapped key's values lie in the file, when every one of them is
+    /// stored contiguously (see [`h5::direct`]); such an episode is read without HDF5.
+    direct: Vec<Option<Vec<(String, h5::Direct)>>>,
 }
 
 /// `episode_12.hdf5` → 12.
@@ -133,12 +136,22 @@ impl AlohaSource {
         jpeg_keys.retain(|(k, _)| wanted.contains(k));
 
         let mut episodes = Vec::with_capacity(files.len());
+        let mut direct = Vec::with_capacity(files.len());
         for ((id, _), path) in found.iter().zip(&files) {
             let file = h5::open(path)?;
             let here = path.display().to_string();
             let mut len: Option<(usize, &str)> = None;
+            let mut located = Some(Vec::with_capacity(wanted.len()));
             for key in &wanted {
                 let ds = h5::dataset(&file, key, path)?;
+                let is_jpeg = jpeg_keys.iter().any(|(k, _)| k == key);
+                located = match (located, h5::direct(&ds)) {
+                    (Some(mut v), Some(d)) if !is_jpeg => {
+                        v.push((key.clone(), d));
+                        Some(v)
+                    }
+                    _ => None,
+                };
                 let reference = keys.iter().find(|k| &k.key == key).expect("resolved");
                 let jpeg = jpeg_keys.iter().find(|(k, _)| k == key);
                 let shape_ok = match jpeg {
@@ -170,6 +183,7 @@ impl AlohaSource {
                 return Err(Error::source(format!("{here}: the episode is empty")));
             }
             episodes.push(EpisodeInfo { id: *id, len });
+            direct.push(located);
         }
 
         let names: Vec<PathBuf> = found.iter().map(|(_, n)| PathBuf::from(n)).collect();
@@ -188,6 +202,7 @@ impl AlohaSource {
             },
             mapped,
             jpeg: jpeg_keys,
+            direct,
         })
     }
 }
@@ -223,6 +238,24 @@ impl Source for AlohaSource {
         let info = &self.manifest.episodes[index];
         let path = &self.files[index];
         let place = path.display().to_string();
+        if let Some(located) = &self.direct[index] {
+            let file = std::fs::File::open(path)
+                .map_err(|e| Error::source(format!("{place}: cannot open: {e}")))?;
+            let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
+                let (_, d) = located
+                    .iter()
+                    .find(|(k, _)| k == key)
+                    .expect("every mapped key located");
+                h5::read_direct(&file, d)
+                    .map_err(|e| Error::source(format!("{place}: {key}: cannot read: {e}")))
+            })?;
+            return Ok(Episode {
+                id: info.id,
+                len: info.len,
+                timestamps: None,
+                channels,
+            });
+        }
         let file = h5::open(path)?;
         let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
             let ds = h5::dataset(&file, key, path)?;

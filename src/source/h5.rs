@@ -118,6 +118,94 @@ pub fn read(ds: &Dataset, what: impl Fn() -> String) -> Result<Raw> {
     }
 }
 
+/// Where a contiguous, unfiltered dataset's values lie in its file, so that they can be read with
+/// plain `pread`s outside HDF5's global lock (episodes then decode in parallel).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Direct {
+    /// Byte offset of the first element in the file.
+    pub offset: u64,
+    /// Number of elements.
+    pub elements: usize,
+    pub dtype: DirectType,
+}
+
+/// The little-endian element types read directly.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DirectType {
+    F32,
+    F64,
+    U8,
+}
+
+impl DirectType {
+    fn size(self) -> usize {
+        match self {
+            DirectType::F32 => 4,
+            DirectType::F64 => 8,
+            DirectType::U8 => 1,
+        }
+    }
+}
+
+/// The dataset's location for [`read_direct`], when its layout allows it: contiguous storage
+/// that is allocated, in the file itself (not external), holding f32, f64 or u8 little-endian
+/// values. `None` for anything else (chunked, compressed, compact, other types): those are read
+/// through HDF5.
+pub fn direct(ds: &Dataset) -> Option<Direct> {
+    use hdf5::types::{FloatSize, IntSize};
+    use hdf5_sys::h5t::{H5T_order_t, H5Tget_order};
+    let dtype = match ds.dtype().and_then(|t| t.to_descriptor()).ok()? {
+        TypeDescriptor::Float(FloatSize::U4) => DirectType::F32,
+        TypeDescriptor::Float(FloatSize::U8) => DirectType::F64,
+        TypeDescriptor::Unsigned(IntSize::U1) => DirectType::U8,
+        _ => return None,
+    };
+    let elements: usize = ds.shape().iter().product();
+    let file_type = ds.dtype().ok()?;
+    // SAFETY: both ids are valid while `ds` and `file_type` live; the calls only read metadata,
+    // under HDF5's global lock.
+    let (offset, storage, order) = hdf5::sync::sync(|| unsafe {
+        (
+            hdf5_sys::h5d::H5Dget_offset(ds.id()),
+            hdf5_sys::h5d::H5Dget_storage_size(ds.id()),
+            H5Tget_order(file_type.id()),
+        )
+    });
+    // HADDR_UNDEF (all ones): not contiguous, not allocated, or external.
+    let little = order == H5T_order_t::H5T_ORDER_LE || dtype == DirectType::U8;
+    if offset == u64::MAX || !little || storage != (elements * dtype.size()) as u64 {
+        return None;
+    }
+    Some(Direct {
+        offset,
+        elements,
+        dtype,
+    })
+}
+
+/// Reads a dataset located by [`direct`] from `file` (opened with std, no HDF5 involved):
+/// `uint8` as bytes, floats converted to `f32` as [`read`] does.
+pub fn read_direct(file: &std::fs::File, d: &Direct) -> std::io::Result<Raw> {
+    use std::os::unix::fs::FileExt;
+    let mut bytes = vec![0u8; d.elements * d.dtype.size()];
+    file.read_exact_at(&mut bytes, d.offset)?;
+    Ok(match d.dtype {
+        DirectType::U8 => Raw::U8(bytes),
+        DirectType::F32 => Raw::F32(
+            bytes
+                .chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect(),
+        ),
+        DirectType::F64 => Raw::F32(
+            bytes
+                .chunks_exact(8)
+                .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")) as f32)
+                .collect(),
+        ),
+    })
+}
+
 /// Reads a 1-D array of strings (fixed- or variable-length), as robomimic's masks are stored.
 pub fn read_strings(ds: &Dataset) -> std::result::Result<Vec<String>, String> {
     use hdf5::types::{FixedAscii, VarLenAscii, VarLenUnicode};

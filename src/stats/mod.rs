@@ -13,7 +13,9 @@ pub mod normalize;
 mod percentile;
 
 pub use moments::Moments;
-pub use percentile::{percentile, percentile_of_histogram};
+pub use percentile::{percentile, percentile_of_histogram, percentiles};
+
+use rayon::prelude::*;
 
 use serde::Serialize;
 
@@ -44,27 +46,33 @@ pub struct ChannelStats {
 
 /// Statistics of a low-dimensional channel from row-major per-episode blocks (`dims` values per
 /// step), merged in the given order.
-pub fn lowdim<'a>(blocks: impl Iterator<Item = &'a [f32]> + Clone, dims: usize) -> ChannelStats {
+pub fn lowdim<'a>(
+    blocks: impl Iterator<Item = &'a [f32]> + Clone + Send + Sync,
+    dims: usize,
+) -> ChannelStats {
     let mut m = Moments::new(dims);
     for block in blocks.clone() {
         m.merge(&Moments::of_rows(block, dims));
     }
     let rows = m.count as usize;
-    let mut pct = vec![Vec::with_capacity(dims); PERCENTILES.len()];
-    let mut column = Vec::with_capacity(rows);
-    for d in 0..dims {
-        column.clear();
-        for block in blocks.clone() {
-            column.extend(block.iter().skip(d).step_by(dims));
-        }
-        for (out, q) in pct.iter_mut().zip(PERCENTILES) {
-            out.push(if column.is_empty() {
-                f64::NAN
+    // Columns are independent: one per task, results in column order (deterministic).
+    let columns: Vec<Vec<f64>> = (0..dims)
+        .into_par_iter()
+        .map(|d| {
+            let mut column = Vec::with_capacity(rows);
+            for block in blocks.clone() {
+                column.extend(block.iter().skip(d).step_by(dims));
+            }
+            if column.is_empty() {
+                vec![f64::NAN; PERCENTILES.len()]
             } else {
-                percentile(&mut column, q)
-            });
-        }
-    }
+                percentiles(&mut column, &PERCENTILES)
+            }
+        })
+        .collect();
+    let pct: Vec<Vec<f64>> = (0..PERCENTILES.len())
+        .map(|k| columns.iter().map(|c| c[k]).collect())
+        .collect();
     finish(m, pct, rows as u64)
 }
 

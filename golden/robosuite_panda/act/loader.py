@@ -104,6 +104,7 @@ class ChunkedDataset(_DatasetBase):
         self.episode_ends = np.asarray(self.meta["episode_ends"], dtype=np.int64)
         self.episode_starts = np.concatenate([[0], self.episode_ends[:-1]]).astype(np.int64)
         self.episode_ids = np.asarray(self.meta["episodes"], dtype=np.int64)
+        self._bounds = list(zip(self.episode_starts.tolist(), self.episode_ends.tolist()))
         self.action_lead = int(self.meta["action_lead"])
         self.sampling = self.meta["sampling"]["mode"]
         self.data_format = self.meta.get("data_format", "hdf5")
@@ -122,6 +123,7 @@ class ChunkedDataset(_DatasetBase):
             for name, p in self.meta["normalization"].items()
         }
         self._file = None
+        self._arrays = None
         self._pid = None
         self._memory = None
         self._images = {n for n, c in self.meta["channels"].items() if c["kind"] == "image"}
@@ -177,7 +179,10 @@ class ChunkedDataset(_DatasetBase):
         if self._file is None or self._pid != pid:
             self._file = self._open()
             self._pid = pid
-        return self._file
+            # Each array looked up once per process: h5py's lookup by path costs more than
+            # reading a few rows.
+            self._arrays = {"data/" + n: self._file["data/" + n] for n in CHANNELS}
+        return self._arrays
 
     def _rows(self, f, name, lo, hi):
         """Stored rows [lo, hi) of a channel, in normalized units."""
@@ -189,6 +194,7 @@ class ChunkedDataset(_DatasetBase):
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_file"] = None
+        state["_arrays"] = None
         state["_pid"] = None
         return state
 
@@ -236,8 +242,8 @@ class ChunkedDataset(_DatasetBase):
             i += len(self)
         if not 0 <= i < len(self):
             raise IndexError(i)
-        ep, t, limit, sub = (int(v) for v in self.index[i])
-        start, end = int(self.episode_starts[ep]), int(self.episode_ends[ep])
+        ep, t, limit, sub = self.index[i].tolist()
+        start, end = self._bounds[ep]
         length = end - start
         k, h = self.chunk_size, self.obs_history
         f = self._h5()

@@ -1,0 +1,302 @@
+"""chunkc's benchmark harness: one command, same generated data, one table of ratios.
+
+    .venv/bin/python bench/run.py [--quick] [--work /tmp/chunkc-bench] [--out bench/results.json]
+
+Generates ALOHA-layout sources with `chunkc synth` (cached under WORK/data by their parameters),
+then measures wall time, CPU time (user + sys) and peak RSS (`/usr/bin/time`) of:
+
+1. chunkc building one `act` profile (index layout), low-dim and with images;
+2. chunkc building 4 profiles at 4 rates from one spec, against 1 profile;
+   chunkc with 1 thread against 2 threads (low-dim);
+   chunkc on N and 2N episodes (low-dim) and N/2 and N (images) for peak RSS;
+3. bench/numpy_pipeline.py doing the same work with numpy + h5py;
+4. the I/O floor: `cat` of every source file to /dev/null, then `cat` of chunkc's output files
+   into one file with `dd conv=fsync` (chunkc fsyncs its outputs too);
+5. bench/loader_bench.py: samples/s of the generated loader (0 and 2 workers, and in memory)
+   against an open-the-file-per-item Dataset (ACT's pattern) and in-memory numpy chunks.
+
+The page cache is warm (every measured command runs once untimed first where it only reads);
+dropping caches needs privileges the harness does not assume (`cache` in the JSON says which).
+Generated data stays under about 6 GB (N/2 and 2N datasets are symlinks to the N files);
+outputs are deleted after each measurement. `--clean` removes WORK at the end.
+"""
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+BIN = REPO / "target" / "release" / "chunkc"
+PY = sys.executable
+
+SIZES = {
+    "full": {"lowdim": dict(episodes=5000, steps=400), "images": dict(episodes=200, steps=300),
+             "loader_episodes": 40, "loader_samples": 3000},
+    "quick": {"lowdim": dict(episodes=200, steps=400), "images": dict(episodes=10, steps=300),
+              "loader_episodes": 6, "loader_samples": 600},
+}
+DIMS = dict(action_dim=14, state_dim=14, fps=50, seed=0)
+
+ONE = '[profiles.act]\npreset = "act"\nfps = 50\nchunk = 100\nformat = "hdf5"\n'
+FOUR = ONE + (
+    '[profiles.act25]\npreset = "act"\nfps = 25\nchunk = 50\nformat = "hdf5"\n'
+    '[profiles.dp]\npreset = "diffusion_policy"\nfps = 10\nformat = "hdf5"\n'
+    '[profiles.pi5]\npreset = "openpi"\nfps = 5\nchunk = 10\nformat = "hdf5"\n')
+
+
+def log(msg):
+    print(msg, file=sys.stderr, flush=True)
+
+
+def timed(cmd, env=None, cwd=None):
+    """Runs cmd under /usr/bin/time; returns wall, cpu (s) and peak RSS (MiB) of the command."""
+    out = Path("/tmp/chunkc-bench-time.txt")
+    full = ["/usr/bin/time", "-o", str(out), "-f", "%e %U %S %M"] + [str(c) for c in cmd]
+    proc = subprocess.run(full, env={**os.environ, **(env or {})}, cwd=cwd, capture_output=True,
+                          text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"failed: {' '.join(map(str, cmd))}\n{proc.stdout}\n{proc.stderr}")
+    wall, user, sys_, rss = out.read_text().split()[-4:]
+    return {"wall_s": float(wall), "cpu_s": float(user) + float(sys_),
+            "peak_rss_mib": int(rss) / 1024, "stdout": proc.stdout}
+
+
+def du(path):
+    return sum(p.stat().st_size for p in Path(path).rglob("*") if p.is_file())
+
+
+def synth(work, name, episodes, steps, cameras):
+    params = dict(DIMS, episodes=episodes, steps=steps, cameras=cameras)
+    key = "-".join(f"{k}{v}" for k, v in sorted(params.items()))
+    root = work / "data" / f"{name}-{key}"
+    if not (root / "spec.toml").exists():
+        if root.exists():
+            shutil.rmtree(root)
+        log(f"generating {root.name}")
+        cmd = [BIN, "synth", root, "--format", "aloha-hdf5", "--episodes", episodes,
+               "--steps", steps, "--action-dim", DIMS["action_dim"], "--state-dim",
+               DIMS["state_dim"], "--cameras", cameras, "--resolution", "96x96", "--fps",
+               DIMS["fps"], "--seed", DIMS["seed"]]
+        subprocess.run([str(c) for c in cmd], check=True)
+    return root
+
+
+def linked(src_root, dest, count, repeat=1):
+    """A source directory of symlinks: the first `count` episodes, `repeat` times over (as new
+    episode numbers)."""
+    episodes = dest / "episodes"
+    if episodes.exists():
+        shutil.rmtree(episodes)
+    episodes.mkdir(parents=True)
+    for r in range(repeat):
+        for e in range(count):
+            (episodes / f"episode_{r * count + e}.hdf5").symlink_to(
+                src_root / "episodes" / f"episode_{e}.hdf5")
+    return dest
+
+
+def spec(root, cameras, profiles, out):
+    chans = "".join(f'"observation.cam{c}" = "observations/images/cam{c}"\n' for c in range(cameras))
+    text = (f'version = 1\n[source]\nformat = "aloha_hdf5"\npath = "{root / "episodes"}"\n'
+            f'fps = 50\n[source.channels]\naction = "action"\n'
+            f'"observation.state" = "observations/qpos"\n{chans}'
+            f'[split]\nval_fraction = 0.1\nseed = 0\n[output]\ndir = "{out}"\n{profiles}')
+    path = out.parent / f"{out.name}.toml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def chunkc(work, label, root, cameras, profiles=ONE, threads=2, keep=False):
+    out = work / "runs" / label
+    shutil.rmtree(out, ignore_errors=True)
+    path = spec(root, cameras, profiles, out)
+    lock = out.parent / "chunkc.lock"
+    lock.unlink(missing_ok=True)
+    log(f"chunkc {label} (threads={threads})")
+    r = timed([BIN, "build", "-q", "-j", threads, path])
+    r["output_bytes"] = du(out)
+    if not keep:
+        shutil.rmtree(out)
+    lock.unlink(missing_ok=True)
+    return r, out
+
+
+def io_floor(work, root, out):
+    files = sorted(str(p) for p in (root / "episodes").iterdir())
+    outputs = sorted(str(p) for p in out.rglob("*") if p.is_file())
+    copy = work / "runs" / "floor.bin"
+    script = ('xargs -0 cat < "$1" > /dev/null && xargs -0 cat < "$2" | '
+              'dd of="$3" bs=4M conv=fsync status=none')
+    lists = []
+    for name, items in (("src.lst", files), ("out.lst", outputs)):
+        p = work / "runs" / name
+        p.write_text("\0".join(items))
+        lists.append(p)
+    log("I/O floor")
+    r = timed(["bash", "-c", script, "floor", lists[0], lists[1], copy])
+    r["read_bytes"] = sum(os.path.getsize(f) for f in files)
+    r["write_bytes"] = copy.stat().st_size
+    copy.unlink()
+    return r
+
+
+def numpy_pipeline(work, label, root, cameras):
+    out = work / "runs" / label
+    shutil.rmtree(out, ignore_errors=True)
+    log(f"numpy pipeline {label}")
+    cams = ",".join(f"cam{c}" for c in range(cameras))
+    r = timed([PY, REPO / "bench" / "numpy_pipeline.py", root / "episodes", out, "--chunk", 100,
+               "--fps", 50, "--cameras", cams], env={"OMP_NUM_THREADS": "1"})
+    r["output_bytes"] = du(out)
+    shutil.rmtree(out)
+    return r
+
+
+def warm(root):
+    """Reads the source once so every measurement sees the same (warm) page cache."""
+    subprocess.run(["bash", "-c", f'cat "{root}"/episodes/* > /dev/null'], check=True)
+
+
+def loader(work, mode, profile, source, workers, samples):
+    log(f"loader {mode} workers={workers}")
+    r = timed([PY, REPO / "bench" / "loader_bench.py", mode, profile, source / "episodes",
+               "--workers", workers, "--samples", samples])
+    r.update(json.loads(r.pop("stdout").strip().splitlines()[-1]))
+    return r
+
+
+def machine():
+    load = Path("/proc/loadavg").read_text().split()[:3]
+    return {"cpus": os.cpu_count(), "platform": platform.platform(),
+            "loadavg_1_5_15": [float(x) for x in load],
+            "chunkc": subprocess.run([str(BIN), "--version"], capture_output=True,
+                                     text=True).stdout.strip()}
+
+
+def ratio(a, b):
+    return round(a / b, 3) if b else None
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="small sizes, for a smoke run")
+    ap.add_argument("--work", type=Path, default=Path("/tmp/chunkc-bench"))
+    ap.add_argument("--out", type=Path, default=REPO / "bench" / "results.json")
+    ap.add_argument("--only", choices=["lowdim", "images", "loader"], action="append")
+    ap.add_argument("--clean", action="store_true", help="delete WORK when done")
+    args = ap.parse_args()
+    if not BIN.exists():
+        raise SystemExit(f"{BIN} not found: run `cargo build --release` first")
+    size = SIZES["quick" if args.quick else "full"]
+    work = args.work.resolve()
+    (work / "runs").mkdir(parents=True, exist_ok=True)
+    parts = set(args.only or ["lowdim", "images", "loader"])
+    res = {"size": "quick" if args.quick else "full", "sizes": size, "dims": DIMS,
+           "cache": "warm (sources read once before timing; drop_caches not used)",
+           "machine_before": machine(), "runs": {}}
+    runs = res["runs"]
+    started = time.time()
+
+    if "lowdim" in parts:
+        n = size["lowdim"]["episodes"]
+        low = synth(work, "lowdim", cameras=0, **size["lowdim"])
+        low2 = linked(low, work / "data" / f"lowdim-2N-{low.name}", n, repeat=2)
+        warm(low)
+        runs["lowdim_numpy"] = numpy_pipeline(work, "np-low", low, 0)
+        runs["lowdim_1p"], out = chunkc(work, "low1", low, 0, keep=True)
+        runs["lowdim_floor"] = io_floor(work, low, out)
+        shutil.rmtree(out)
+        runs["lowdim_1p_1thread"], _ = chunkc(work, "low1t", low, 0, threads=1)
+        runs["lowdim_4p"], _ = chunkc(work, "low4", low, 0, profiles=FOUR)
+        runs["lowdim_1p_2N"], _ = chunkc(work, "low2n", low2, 0)
+    if "images" in parts:
+        n = size["images"]["episodes"]
+        img = synth(work, "images", cameras=2, **size["images"])
+        half = linked(img, work / "data" / f"images-half-{img.name}", n // 2)
+        warm(img)
+        runs["images_numpy"] = numpy_pipeline(work, "np-img", img, 2)
+        runs["images_1p"], out = chunkc(work, "img1", img, 2, keep=True)
+        runs["images_floor"] = io_floor(work, img, out)
+        shutil.rmtree(out)
+        runs["images_1p_half"], _ = chunkc(work, "imghalf", half, 2)
+    if "loader" in parts:
+        n = size["images"]["episodes"]
+        img = synth(work, "images", cameras=2, **size["images"])
+        sub = linked(img, work / "data" / "loader-source", min(n, size["loader_episodes"]))
+        _, out = chunkc(work, "loader", sub, 2, keep=True)
+        profile = out / "act"
+        samples = size["loader_samples"]
+        for mode, workers in (("chunkc", 0), ("act", 0), ("chunkc", 2), ("act", 2),
+                              ("chunkc_mem", 0), ("numpy_mem", 0)):
+            runs[f"loader_{mode}_w{workers}"] = loader(work, mode, profile, sub, workers, samples)
+        shutil.rmtree(out)
+
+    for r in runs.values():
+        r.pop("stdout", None)
+    g = lambda k, f="wall_s": runs[k][f] if k in runs else None  # noqa: E731
+    rows = []
+
+    def row(name, value, target, ok):
+        rows.append({"ratio": name, "value": value, "target": target,
+                     "met": None if value is None else ok(value)})
+
+    if "lowdim" in parts:
+        row("low-dim: numpy pipeline / chunkc (wall)", ratio(g("lowdim_numpy"), g("lowdim_1p")),
+            ">= 3", lambda v: v >= 3)
+        row("low-dim: chunkc / I/O floor (wall)", ratio(g("lowdim_1p"), g("lowdim_floor")),
+            "<= 3", lambda v: v <= 3)
+        row("low-dim: 4 profiles / 1 profile (wall)", ratio(g("lowdim_4p"), g("lowdim_1p")),
+            "<= 1.5", lambda v: v <= 1.5)
+        row("low-dim: 1 thread / 2 threads (wall)", ratio(g("lowdim_1p_1thread"), g("lowdim_1p")),
+            ">= 1.7", lambda v: v >= 1.7)
+        row("low-dim: peak RSS 2N / N", ratio(g("lowdim_1p_2N", "peak_rss_mib"),
+                                              g("lowdim_1p", "peak_rss_mib")),
+            "<= 1.1", lambda v: v <= 1.1)
+        row("low-dim: peak RSS MiB (2N)", round(g("lowdim_1p_2N", "peak_rss_mib"), 1), "< 512",
+            lambda v: v < 512)
+    if "images" in parts:
+        row("images: numpy pipeline / chunkc (wall)", ratio(g("images_numpy"), g("images_1p")),
+            ">= 2", lambda v: v >= 2)
+        row("images: chunkc / I/O floor (wall)", ratio(g("images_1p"), g("images_floor")),
+            "<= 2", lambda v: v <= 2)
+        row("images: peak RSS N / (N/2)", ratio(g("images_1p", "peak_rss_mib"),
+                                                g("images_1p_half", "peak_rss_mib")),
+            "<= 1.1", lambda v: v <= 1.1)
+        row("images: peak RSS MiB (N)", round(g("images_1p", "peak_rss_mib"), 1), "< 512",
+            lambda v: v < 512)
+    if "loader" in parts:
+        sps = lambda k: g(k, "samples_per_s")  # noqa: E731
+        for w in (0, 2):
+            row(f"loader: chunkc / open-per-item, {w} workers (samples/s)",
+                ratio(sps(f"loader_chunkc_w{w}"), sps(f"loader_act_w{w}")), ">= 3",
+                lambda v: v >= 3)
+        row("loader: numpy in-memory / chunkc in_memory (samples/s)",
+            ratio(sps("loader_numpy_mem_w0"), sps("loader_chunkc_mem_w0")), "<= 1.5",
+            lambda v: v <= 1.5)
+    res["table"] = rows
+    res["machine_after"] = machine()
+    res["total_s"] = round(time.time() - started, 1)
+    args.out.write_text(json.dumps(res, indent=2) + "\n")
+
+    print(f"\n{'measurement':34} {'wall s':>8} {'cpu s':>8} {'RSS MiB':>8}")
+    for k, r in runs.items():
+        extra = f"  {r['samples_per_s']:.0f} samples/s" if "samples_per_s" in r else ""
+        print(f"{k:34} {r['wall_s']:8.2f} {r['cpu_s']:8.2f} {r['peak_rss_mib']:8.1f}{extra}")
+    print(f"\n{'ratio':58} {'value':>8}  {'target':>7}  met")
+    for r in rows:
+        print(f"{r['ratio']:58} {r['value']!s:>8}  {r['target']:>7}  {r['met']}")
+    print(f"\nload average before {res['machine_before']['loadavg_1_5_15']}, "
+          f"after {res['machine_after']['loadavg_1_5_15']}; written to {args.out}")
+    if args.clean:
+        shutil.rmtree(work)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,246 @@
+//! LeRobot v3.0's layout (`lerobot/`): many episodes per parquet data file, one row group per
+//! episode, as LeRobot's `LeRobotDataset` writes it (low-dim only: LeRobot keeps camera frames in
+//! mp4 videos).
+//!
+//! ```text
+//! data/chunk-000/file-<f>.parquet  action, observation.state: FixedSizeList<float32>;
+//!                                  timestamp float32 (seconds: where the timing faults
+//!                                  show), frame_index, episode_index, index, task_index int64
+//! meta/episodes/chunk-000/file-000.parquet  episode_index, tasks, length,
+//!                                  data/chunk_index, data/file_index,
+//!                                  dataset_from_index, dataset_to_index
+//! meta/tasks.parquet               task_index, task
+//! meta/info.json                   codebase_version v3.0, fps, features, totals
+//! ```
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use arrow_array::builder::{ListBuilder, StringBuilder};
+use arrow_array::{
+    ArrayRef, FixedSizeListArray, Float32Array, Int64Array, RecordBatch, StringArray,
+};
+use arrow_schema::{DataType, Field, Schema};
+use parquet::arrow::ArrowWriter;
+use parquet::basic::Compression;
+use parquet::file::properties::WriterProperties;
+use serde_json::json;
+
+use super::{SynthEpisode, SynthOptions, SynthWriter};
+use crate::error::{Error, IoContext, Result};
+
+/// Data files hold about this many bytes of values, like LeRobot's `data_files_size_in_mb`.
+const FILE_BYTES: usize = 100 << 20;
+const TASK: &str = "reach the synthetic target";
+
+fn err(e: impl std::fmt::Display) -> Error {
+    Error::output(format!("parquet: {e}"))
+}
+
+struct EpisodeMeta {
+    id: u64,
+    len: usize,
+    file: u64,
+    from: usize,
+}
+
+pub struct LerobotWriter {
+    root: PathBuf,
+    opts: SynthOptions,
+    schema: Arc<Schema>,
+    props: WriterProperties,
+    writer: Option<ArrowWriter<File>>,
+    file_index: u64,
+    file_bytes: usize,
+    rows: usize,
+    episodes: Vec<EpisodeMeta>,
+}
+
+fn item() -> Arc<Field> {
+    Arc::new(Field::new("item", DataType::Float32, true))
+}
+
+fn list(values: &[f32], width: usize) -> Result<ArrayRef> {
+    Ok(Arc::new(
+        FixedSizeListArray::try_new(
+            item(),
+            width as i32,
+            Arc::new(Float32Array::from(values.to_vec())),
+            None,
+        )
+        .map_err(err)?,
+    ))
+}
+
+fn i64s(values: impl IntoIterator<Item = i64>) -> ArrayRef {
+    Arc::new(Int64Array::from_iter_values(values))
+}
+
+fn write_table(path: &Path, batch: RecordBatch, props: &WriterProperties) -> Result<()> {
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent).at("create", parent)?;
+    }
+    let file = File::create(path).at("create", path)?;
+    let mut w = ArrowWriter::try_new(file, batch.schema(), Some(props.clone())).map_err(err)?;
+    w.write(&batch).map_err(err)?;
+    w.close().map_err(err)?;
+    Ok(())
+}
+
+impl LerobotWriter {
+    pub fn create(opts: &SynthOptions, root: &Path) -> Result<Self> {
+        std::fs::create_dir_all(root).at("create", root)?;
+        let mut fields = vec![
+            Field::new(
+                "action",
+                DataType::FixedSizeList(item(), opts.action_dim as i32),
+                false,
+            ),
+            Field::new(
+                "observation.state",
+                DataType::FixedSizeList(item(), opts.state_dim as i32),
+                false,
+            ),
+            Field::new("timestamp", DataType::Float32, false),
+        ];
+        for name in ["frame_index", "episode_index", "index", "task_index"] {
+            fields.push(Field::new(name, DataType::Int64, false));
+        }
+        Ok(LerobotWriter {
+            root: root.to_path_buf(),
+            opts: opts.clone(),
+            schema: Arc::new(Schema::new(fields)),
+            props: WriterProperties::builder()
+                .set_created_by("chunkc synth".into())
+                .set_compression(Compression::SNAPPY)
+                .build(),
+            writer: None,
+            file_index: 0,
+            file_bytes: 0,
+            rows: 0,
+            episodes: Vec::new(),
+        })
+    }
+
+    fn data_path(&self, file: u64) -> PathBuf {
+        self.root
+            .join(format!("data/chunk-000/file-{file:03}.parquet"))
+    }
+}
+
+impl SynthWriter for LerobotWriter {
+    fn episode(&mut self, ep: &SynthEpisode) -> Result<()> {
+        let o = &self.opts;
+        let bytes = ep.steps * 4 * (o.action_dim + o.state_dim + 1) + ep.steps * 32;
+        if self.writer.is_some() && self.file_bytes + bytes > FILE_BYTES {
+            self.writer.take().expect("open").close().map_err(err)?;
+            self.file_index += 1;
+            self.file_bytes = 0;
+        }
+        if self.writer.is_none() {
+            let path = self.data_path(self.file_index);
+            std::fs::create_dir_all(path.parent().expect("has parent")).at("create", &path)?;
+            let file = File::create(&path).at("create", &path)?;
+            self.writer = Some(
+                ArrowWriter::try_new(file, self.schema.clone(), Some(self.props.clone()))
+                    .map_err(err)?,
+            );
+        }
+        let n = ep.steps;
+        let cols: Vec<ArrayRef> = vec![
+            list(&ep.action, o.action_dim)?,
+            list(&ep.state, o.state_dim)?,
+            Arc::new(Float32Array::from_iter_values(
+                ep.timestamps.iter().map(|&t| t as f32),
+            )),
+            i64s(0..n as i64),
+            i64s(std::iter::repeat_n(ep.id as i64, n)),
+            i64s(self.rows as i64..(self.rows + n) as i64),
+            i64s(std::iter::repeat_n(0, n)),
+        ];
+        let batch = RecordBatch::try_new(self.schema.clone(), cols).map_err(err)?;
+        let w = self.writer.as_mut().expect("open");
+        w.write(&batch).map_err(err)?;
+        w.flush().map_err(err)?; // one row group per episode
+        self.episodes.push(EpisodeMeta {
+            id: ep.id,
+            len: n,
+            file: self.file_index,
+            from: self.rows,
+        });
+        self.rows += n;
+        self.file_bytes += bytes;
+        Ok(())
+    }
+
+    fn finish(mut self: Box<Self>) -> Result<()> {
+        if let Some(w) = self.writer.take() {
+            w.close().map_err(err)?;
+        }
+        let eps = &self.episodes;
+        let mut tasks = ListBuilder::new(StringBuilder::new());
+        for _ in eps {
+            tasks.values().append_value(TASK);
+            tasks.append(true);
+        }
+        let meta = RecordBatch::try_from_iter(vec![
+            ("episode_index", i64s(eps.iter().map(|e| e.id as i64))),
+            ("tasks", Arc::new(tasks.finish()) as ArrayRef),
+            ("length", i64s(eps.iter().map(|e| e.len as i64))),
+            ("data/chunk_index", i64s(eps.iter().map(|_| 0))),
+            ("data/file_index", i64s(eps.iter().map(|e| e.file as i64))),
+            (
+                "dataset_from_index",
+                i64s(eps.iter().map(|e| e.from as i64)),
+            ),
+            (
+                "dataset_to_index",
+                i64s(eps.iter().map(|e| (e.from + e.len) as i64)),
+            ),
+        ])
+        .map_err(err)?;
+        write_table(
+            &self.root.join("meta/episodes/chunk-000/file-000.parquet"),
+            meta,
+            &self.props,
+        )?;
+        let tasks = RecordBatch::try_from_iter(vec![
+            ("task_index", i64s([0])),
+            ("task", Arc::new(StringArray::from(vec![TASK])) as ArrayRef),
+        ])
+        .map_err(err)?;
+        write_table(&self.root.join("meta/tasks.parquet"), tasks, &self.props)?;
+        let o = &self.opts;
+        let scalar = |dtype: &str| json!({"dtype": dtype, "shape": [1], "names": null});
+        let info = json!({
+            "codebase_version": "v3.0",
+            "robot_type": "chunkc_synth",
+            "total_episodes": eps.len(),
+            "total_frames": self.rows,
+            "total_tasks": 1,
+            "chunks_size": 1000,
+            "data_files_size_in_mb": FILE_BYTES >> 20,
+            "fps": o.fps,
+            "splits": {"train": format!("0:{}", eps.len())},
+            "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
+            "video_path": null,
+            "features": {
+                "action": {"dtype": "float32", "shape": [o.action_dim],
+                           "names": (0..o.action_dim).map(|d| format!("joint_{d}")).collect::<Vec<_>>()},
+                "observation.state": {"dtype": "float32", "shape": [o.state_dim],
+                           "names": (0..o.state_dim).map(|d| format!("joint_{d}")).collect::<Vec<_>>()},
+                "timestamp": scalar("float32"),
+                "frame_index": scalar("int64"),
+                "episode_index": scalar("int64"),
+                "index": scalar("int64"),
+                "task_index": scalar("int64"),
+            },
+        });
+        let path = self.root.join("meta/info.json");
+        let mut text = serde_json::to_string_pretty(&info).expect("JSON serializes");
+        text.push('\n');
+        std::fs::write(&path, text).at("write", &path)?;
+        Ok(())
+    }
+}
