@@ -26,12 +26,14 @@
 //!
 //! Supporting pieces: [`chunk`] decides which rows every window reads (the invariants "never
 //! across an episode" and "the observation belongs to the chunk's first step" live there);
-//! [`error`] holds the error type and exit codes.
+//! [`error`] holds the error type and exit codes;
+//! [`fuzzing`] has the fuzz targets' bodies (one per input parser; see `fuzz/`).
 
 pub mod audit;
 pub mod chunk;
 pub mod error;
 pub mod exec;
+pub mod fuzzing;
 pub mod lock;
 pub mod plan;
 pub mod render;
