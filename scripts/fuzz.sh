@@ -9,6 +9,8 @@
 # fuzz/artifacts/<target>/. New inputs the fuzzer finds go to fuzz/work/<target>/ (ignored by
 # git), never into the checked-in corpus; `cargo fuzz cmin` merges them (see the book).
 #
+# Exits 3 when cargo-fuzz is missing and cannot be installed.
+#
 # Works on stable Rust: installs cargo-fuzz (`cargo install cargo-fuzz --locked`, into cargo's
 # bin directory) if `cargo fuzz` is missing, and builds with `--sanitizer none`, which needs no
 # nightly (only the sanitizers do). The build is release with debug assertions and overflow
@@ -28,7 +30,10 @@ say() { printf 'fuzz: %s\n' "$*"; }
 
 if ! cargo fuzz --version >/dev/null 2>&1; then
     say "installing cargo-fuzz (cargo install cargo-fuzz --locked)"
-    cargo install cargo-fuzz --locked
+    if ! cargo install cargo-fuzz --locked; then
+        say "cannot install cargo-fuzz (offline?); nothing was fuzzed"
+        exit 3
+    fi
 fi
 
 targets=("$@")
