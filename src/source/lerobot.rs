@@ -55,26 +55,49 @@ struct EpisodeRow {
     videos: BTreeMap<String, PathBuf>,
 }
 
-/// Python-style `{name}` / `{name:03d}` formatting of info.json's path templates.
-fn fill(template: &str, values: &[(&str, String)]) -> String {
-    let mut out = template.to_string();
-    for (name, value) in values {
-        let plain = format!("{{{name}}}");
-        out = out.replace(&plain, value);
-        while let Some(start) = out.find(&format!("{{{name}:")) {
-            let Some(end) = out[start..].find('}') else {
-                break;
-            };
-            let spec = &out[start + name.len() + 2..start + end];
-            let width: usize = spec
-                .trim_start_matches('0')
-                .trim_end_matches('d')
-                .parse()
-                .unwrap_or(0);
-            let formatted = format!("{value:0>width$}");
-            out.replace_range(start..start + end + 1, &formatted);
-        }
+/// The widest zero-padded field a path template may ask for: a `u64` has 20 digits.
+const MAX_WIDTH: usize = 20;
+
+/// The `{name}` / `{name:spec}` fields of a path template: each one's byte range, name and spec.
+fn fields(template: &str) -> Vec<(Range<usize>, &str, &str)> {
+    let mut out = Vec::new();
+    let mut from = 0;
+    while let Some(open) = template[from..].find('{').map(|i| from + i) {
+        let Some(close) = template[open..].find('}').map(|i| open + i) else {
+            break;
+        };
+        let inner = &template[open + 1..close];
+        let (name, spec) = inner.split_once(':').unwrap_or((inner, ""));
+        out.push((open..close + 1, name, spec));
+        from = close + 1;
     }
+    out
+}
+
+/// The zero-padded width a field's spec asks for (`03d` → 3; `` → 0).
+fn width(spec: &str) -> usize {
+    spec.trim_start_matches('0')
+        .trim_end_matches('d')
+        .parse()
+        .unwrap_or(0)
+}
+
+/// Python-style `{name}` / `{name:03d}` formatting of info.json's path templates, in one pass
+/// (a value is never searched for fields again). A field whose name is not among `values` stays
+/// as written. Widths are at most [`MAX_WIDTH`] ([`Info::parse`] refuses wider ones).
+fn fill(template: &str, values: &[(&str, String)]) -> String {
+    let mut out = String::with_capacity(template.len());
+    let mut from = 0;
+    for (range, name, spec) in fields(template) {
+        let Some((_, value)) = values.iter().find(|(n, _)| *n == name) else {
+            continue;
+        };
+        out.push_str(&template[from..range.start]);
+        let width = width(spec).min(MAX_WIDTH);
+        out.push_str(&format!("{value:0>width$}"));
+        from = range.end;
+    }
+    out.push_str(&template[from..]);
     out
 }
 
@@ -152,6 +175,16 @@ impl Info {
             Version::V2 => "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet",
             Version::V3 => "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
         });
+        let video_path = info["video_path"].as_str();
+        for (key, template) in [("data_path", Some(data_path)), ("video_path", video_path)] {
+            let fields = template.map(fields).unwrap_or_default();
+            if let Some((_, name, spec)) = fields.iter().find(|(_, _, s)| width(s) > MAX_WIDTH) {
+                return Err(at_info(&format!(
+                    "`{key}` pads `{{{name}:{spec}}}` to {} digits; at most {MAX_WIDTH} make sense",
+                    width(spec)
+                )));
+            }
+        }
         let splits = info["splits"].as_object().map(|splits| {
             splits
                 .iter()
@@ -164,7 +197,7 @@ impl Info {
             features,
             chunks_size: info["chunks_size"].as_u64().unwrap_or(1000).max(1),
             data_path: data_path.to_string(),
-            video_path: info["video_path"].as_str().map(str::to_string),
+            video_path: video_path.map(str::to_string),
             splits,
         })
     }
@@ -592,6 +625,32 @@ mod tests {
             fill(t, &v),
             "videos/observation.images.top/chunk-001/file-012.mp4"
         );
+    }
+
+    #[test]
+    fn fills_in_one_pass() {
+        // A value that looks like a field is not filled again (this looped forever).
+        let v = [("video_key", "{video_key:3}".into())];
+        assert_eq!(fill("v/{video_key:3}/x", &v), "v/{video_key:3}/x");
+        // Unknown fields and a lone brace stay as written.
+        let v = [("episode_index", "7".into())];
+        assert_eq!(fill("{other}/{episode_index:03d}/{", &v), "{other}/007/{");
+    }
+
+    #[test]
+    fn refuses_absurd_widths() {
+        // Found while writing the `lerobot_info` fuzz target: a 12-digit width made `fill`
+        // build a 100 GB path.
+        let json = br#"{"codebase_version": "v2.1", "features": {},
+            "data_path": "data/episode_{episode_index:999999999999d}.parquet"}"#;
+        let err = Info::parse(json, "info.json").unwrap_err().to_string();
+        assert!(
+            err.contains("`data_path` pads `{episode_index:999999999999d}`"),
+            "{err}"
+        );
+        let json = br#"{"codebase_version": "v2.1", "features": {},
+            "data_path": "data/episode_{episode_index:020d}.parquet"}"#;
+        assert!(Info::parse(json, "info.json").is_ok());
     }
 
     #[test]
