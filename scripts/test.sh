@@ -4,8 +4,10 @@
 #   scripts/test.sh
 #
 # Runs every check even when an earlier one fails, prints a summary, and exits non-zero if any
-# check failed: cargo fmt --check, cargo clippy (-D warnings), cargo test --release, and the Python
-# suite in tests/python against target/release/chunkc.
+# check failed: cargo fmt --check, cargo clippy (-D warnings), cargo test --release, the Python
+# suite in tests/python against target/release/chunkc, and a 10 s run of each fuzz target when
+# cargo-fuzz is installed (CHUNKC_FUZZ=1: install it if needed; CHUNKC_FUZZ=0: skip;
+# CHUNKC_FUZZ_SECONDS: another length).
 #
 # CHUNKC_FULL_PUSHT=/path/to/pusht_cchi_v7_replay.zarr also runs the tests that build the full
 # Push-T dataset (slow; off by default). A relative path is taken from where you run this.
@@ -70,6 +72,31 @@ if [ -n "${CHUNKC_FULL_PUSHT:-}" ]; then
     echo "test: CHUNKC_FULL_PUSHT=$CHUNKC_FULL_PUSHT (full Push-T tests enabled)"
 fi
 check pytest pytest_run
+
+# A short bounded fuzz run (book/src/fuzzing.md). CHUNKC_FUZZ=1 runs it, installing cargo-fuzz
+# if needed; CHUNKC_FUZZ=0 skips it; unset, it runs only where `cargo fuzz` is already installed.
+# Not being able to install cargo-fuzz skips it; a crash fails it. The corpus itself is replayed
+# by `cargo test` (tests/fuzz_corpus.rs) in any case.
+fuzz_run() {
+    local rc=0
+    echo "scripts/fuzz.sh ${CHUNKC_FUZZ_SECONDS:-10}"
+    scripts/fuzz.sh "${CHUNKC_FUZZ_SECONDS:-10}" || rc=$?
+    if [ "$rc" -eq 3 ]; then
+        echo "fuzz: skipped (cargo-fuzz could not be installed)"
+        rc=0
+    fi
+    return "$rc"
+}
+fuzz=${CHUNKC_FUZZ:-auto}
+if [ "$fuzz" = auto ]; then
+    cargo fuzz --version >/dev/null 2>&1 && fuzz=1 || fuzz=0
+fi
+if [ "$fuzz" = 1 ]; then
+    check fuzz fuzz_run
+else
+    echo
+    echo "test: fuzz run skipped (cargo-fuzz not installed; CHUNKC_FUZZ=1 installs it and runs it)"
+fi
 
 elapsed=$((SECONDS - start))
 echo

@@ -34,13 +34,15 @@
 //! Supporting pieces: [`chunk`] decides which rows every window reads (the invariants "never
 //! across an episode" and "the observation belongs to the chunk's first step" live there);
 //! [`error`] holds the error type and exit codes; [`synth`] writes synthetic sources in every
-//! input layout (`chunkc synth`, for the benchmarks and tests).
+//! input layout (`chunkc synth`, for the benchmarks and tests); [`fuzzing`] has the fuzz targets'
+//! bodies (one per input parser; see `fuzz/`).
 
 pub mod analyze;
 pub mod audit;
 pub mod chunk;
 pub mod error;
 pub mod exec;
+pub mod fuzzing;
 pub mod lock;
 pub mod plan;
 pub mod render;

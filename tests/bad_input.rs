@@ -138,6 +138,28 @@ fn robosuite_with_time(dir: &Path, edit: impl Fn(&mut [f64], usize)) {
     ds.write_raw(&all).unwrap();
 }
 
+/// `[output] follow_symlinks = true` is the way to write through a symlink: the same setup as
+/// `output_through_an_unasked_symlink` builds, into the link's target.
+#[test]
+fn follow_symlinks_opts_in() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let spec =
+        zarr(dir, Zarr::good()).replace("dir = \"out\"", "dir = \"out\"\nfollow_symlinks = true");
+    assert!(spec.contains("follow_symlinks"));
+    fs::write(dir.join("spec.toml"), spec).unwrap();
+    fs::create_dir(dir.join("elsewhere")).unwrap();
+    std::os::unix::fs::symlink(dir.join("elsewhere"), dir.join("out")).unwrap();
+    let output = build(dir);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(dir.join("elsewhere/dp").is_dir());
+    assert!(fs::symlink_metadata(dir.join("out")).unwrap().is_symlink());
+}
+
 const ROBOSUITE_SPEC: &str = r#"version = 1
 
 [source]
@@ -370,6 +392,27 @@ fn cases() -> Vec<Case> {
             damage: None,
         },
         Case {
+            name: "output_through_an_unasked_symlink",
+            setup: |d| {
+                let spec = zarr(d, Zarr::good());
+                fs::create_dir(d.join("elsewhere")).unwrap();
+                std::os::unix::fs::symlink(d.join("elsewhere"), d.join("out")).unwrap();
+                spec
+            },
+            damage: None,
+        },
+        Case {
+            name: "output_profile_dir_is_a_symlink",
+            setup: |d| {
+                let spec = zarr(d, Zarr::good());
+                fs::create_dir_all(d.join("out")).unwrap();
+                fs::create_dir(d.join("elsewhere")).unwrap();
+                std::os::unix::fs::symlink(d.join("elsewhere"), d.join("out/dp")).unwrap();
+                spec
+            },
+            damage: None,
+        },
+        Case {
             name: "val_fraction_leaves_no_training_episode",
             setup: |d| {
                 zarr(d, Zarr::good())
@@ -447,6 +490,12 @@ fn bad_input_fails_cleanly() {
             fs::read(dir.join("chunkc.lock")).ok(),
             lock_before,
             "{}: chunkc.lock changed",
+            case.name
+        );
+        assert_eq!(
+            snapshot_of(&dir.join("elsewhere")).filter(|files| !files.is_empty()),
+            None,
+            "{}: wrote through a symlink",
             case.name
         );
         assert!(

@@ -6,10 +6,13 @@
 //! error naming the episode.
 //!
 //! - `finish`: a profile's last writes once the statistics are known.
+//! - `location`: where the output may go (never into the source; through a symlink only when
+//!   the spec allows it).
 //! - `staging`: the staging directory and the final renames.
 //! - `progress`: progress bars (hidden when stderr is not a terminal).
 
 mod finish;
+mod location;
 mod progress;
 mod staging;
 
@@ -86,7 +89,7 @@ pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
         );
     }
     let out_dir = spec.resolve(&spec.spec.output.dir);
-    check_output_location(spec, &out_dir)?;
+    location::check(spec, &out_dir)?;
     let lock = Lock::read(&lock::path_for(&spec.file))?;
     let entry = lock
         .as_ref()
@@ -96,64 +99,16 @@ pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
     Ok((source, plan))
 }
 
+/// Where the output may go (never into the source; through a symlink only when the spec allows
+/// it); `analyze` and `audit` write under the output directory too.
 pub(crate) fn check_output_location(spec: &LoadedSpec, out_dir: &Path) -> Result<()> {
-    let source_dir = spec.resolve(&spec.spec.source.path);
-    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    let (out_real, source_real) = (real_path(out_dir), real_path(&source_dir));
-    let (message, help) = if abs(out_dir).starts_with(abs(&source_dir)) {
-        let how = if abs(out_dir) == abs(&source_dir) {
-            "is the source"
-        } else {
-            "is inside the source"
-        };
-        (
-            format!(
-                "the output directory {} {how} {}; chunkc never writes into a source",
-                out_dir.display(),
-                source_dir.display()
-            ),
-            None,
-        )
-    } else if out_real.starts_with(&source_real) {
-        // Only symlinks can make this happen: the written path looks harmless.
-        (
-            format!(
-                "the output directory {} resolves through a symlink to {}, inside the source {}; chunkc never writes into a source",
-                out_dir.display(),
-                out_real.display(),
-                source_real.display()
-            ),
-            Some("point `output.dir` at a directory outside the source, or remove the symlink".into()),
-        )
-    } else {
-        return Ok(());
-    };
-    Err(spec.error_at(&["output", "dir"], message, help))
-}
-
-/// `path` with every symlink resolved, for the part of it that exists.
-fn real_path(path: &Path) -> PathBuf {
-    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
-    let mut rest = Vec::new();
-    let mut existing = abs.as_path();
-    loop {
-        if let Ok(real) = existing.canonicalize() {
-            return rest.iter().rev().fold(real, |p, part| p.join(part));
-        }
-        match (existing.parent(), existing.file_name()) {
-            (Some(parent), Some(name)) => {
-                rest.push(name.to_os_string());
-                existing = parent;
-            }
-            _ => return abs,
-        }
-    }
+    location::check(spec, out_dir)
 }
 
 pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let out_dir = spec.resolve(&spec.spec.output.dir);
     // Never create anything (not even the lock) inside a source.
-    check_output_location(spec, &out_dir)?;
+    location::check(spec, &out_dir)?;
     let mut build_lock = staging::BuildLock::acquire(&out_dir)?;
     // Repair what an interrupted build left, before the plan compares outputs with the lock.
     staging::Staging::recover(&out_dir)?;

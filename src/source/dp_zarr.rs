@@ -101,6 +101,27 @@ impl DpZarrSource {
 
         let ends_array = open_array(&store, root, "meta/episode_ends")?;
         let n = ends_array.shape().first().copied().unwrap_or(0);
+        // Every episode has a step, so there are no more ends than steps in the longest array;
+        // checked on the metadata, before a corrupt shape makes the read allocate for it.
+        let longest = data_keys(root)
+            .iter()
+            .filter_map(|key| open_array(&store, root, &format!("data/{key}")).ok())
+            .map(|array| (array.shape().first().copied().unwrap_or(0), array))
+            .max_by_key(|(steps, _)| *steps);
+        let longest_steps = longest.as_ref().map_or(0, |(steps, _)| *steps);
+        let longest = match &longest {
+            Some((steps, array)) => format!(
+                "the longest array, {}, has {steps} steps",
+                array.path().as_str().trim_start_matches('/')
+            ),
+            None => "there are no arrays under data/".into(),
+        };
+        if n > longest_steps {
+            return Err(Error::source(format!(
+                "{}: meta/episode_ends has {n} entries, but {longest}; every episode has at least one step",
+                root.display(),
+            )));
+        }
         let ends = read_f32_exact_i64(&ends_array, n)
             .map_err(|e| Error::source(format!("{}: meta/episode_ends: {e}", root.display())))?;
         let mut bounds = vec![0u64];

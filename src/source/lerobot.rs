@@ -55,34 +55,50 @@ struct EpisodeRow {
     videos: BTreeMap<String, PathBuf>,
 }
 
-/// Python-style `{name}` / `{name:03d}` formatting of info.json's path templates.
-fn fill(template: &str, values: &[(&str, String)]) -> String {
-    let mut out = template.to_string();
-    for (name, value) in values {
-        let plain = format!("{{{name}}}");
-        out = out.replace(&plain, value);
-        while let Some(start) = out.find(&format!("{{{name}:")) {
-            let Some(end) = out[start..].find('}') else {
-                break;
-            };
-            let spec = &out[start + name.len() + 2..start + end];
-            let width: usize = spec
-                .trim_start_matches('0')
-                .trim_end_matches('d')
-                .parse()
-                .unwrap_or(0);
-            let formatted = format!("{value:0>width$}");
-            out.replace_range(start..start + end + 1, &formatted);
-        }
+/// The widest zero-padded field a path template may ask for: a `u64` has 20 digits.
+const MAX_WIDTH: usize = 20;
+
+/// The `{name}` / `{name:spec}` fields of a path template: each one's byte range, name and spec.
+fn fields(template: &str) -> Vec<(Range<usize>, &str, &str)> {
+    let mut out = Vec::new();
+    let mut from = 0;
+    while let Some(open) = template[from..].find('{').map(|i| from + i) {
+        let Some(close) = template[open..].find('}').map(|i| open + i) else {
+            break;
+        };
+        let inner = &template[open + 1..close];
+        let (name, spec) = inner.split_once(':').unwrap_or((inner, ""));
+        out.push((open..close + 1, name, spec));
+        from = close + 1;
     }
     out
 }
 
-fn read_json(path: &Path) -> Result<Value> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::source(format!("{}: cannot read: {e}", path.display())))?;
-    serde_json::from_str(&text)
-        .map_err(|e| Error::source(format!("{}: invalid JSON: {e}", path.display())))
+/// The zero-padded width a field's spec asks for (`03d` → 3; `` → 0).
+fn width(spec: &str) -> usize {
+    spec.trim_start_matches('0')
+        .trim_end_matches('d')
+        .parse()
+        .unwrap_or(0)
+}
+
+/// Python-style `{name}` / `{name:03d}` formatting of info.json's path templates, in one pass
+/// (a value is never searched for fields again). A field whose name is not among `values` stays
+/// as written. Widths are at most [`MAX_WIDTH`] ([`Info::parse`] refuses wider ones).
+fn fill(template: &str, values: &[(&str, String)]) -> String {
+    let mut out = String::with_capacity(template.len());
+    let mut from = 0;
+    for (range, name, spec) in fields(template) {
+        let Some((_, value)) = values.iter().find(|(n, _)| *n == name) else {
+            continue;
+        };
+        out.push_str(&template[from..range.start]);
+        let width = width(spec).min(MAX_WIDTH);
+        out.push_str(&format!("{value:0>width$}"));
+        from = range.end;
+    }
+    out.push_str(&template[from..]);
+    out
 }
 
 /// One feature's per-step shape from info.json (`[]` and `[1]` both mean one value).
@@ -109,6 +125,84 @@ fn split_range(text: &str) -> Option<Range<u64>> {
     Some(a.trim().parse().ok()?..b.trim().parse().ok()?)
 }
 
+/// What chunkc reads from `meta/info.json`, before any other file is looked at.
+#[derive(Debug, Clone)]
+pub struct Info {
+    version: Version,
+    /// `fps`, when the file stores it.
+    pub fps: Option<f64>,
+    /// Every feature, in the file's order, with its per-step shape and dtype.
+    pub features: Vec<KeyInfo>,
+    /// How many episodes share a `chunk-XXX` directory (v2 paths); at least 1.
+    pub chunks_size: u64,
+    /// The data file template (`data_path`, or the version's default).
+    pub data_path: String,
+    /// The video file template, when there is one.
+    pub video_path: Option<String>,
+    /// `splits` as (name, episode range) pairs; `None` when the file has no `splits` table.
+    /// Values that are not `"a:b"` are left out.
+    pub splits: Option<Vec<(String, Range<u64>)>>,
+}
+
+impl Info {
+    /// Parses the bytes of an `info.json`; `shown` names the file in errors. Only the metadata is
+    /// checked here: whether the files the templates name exist is the adapter's business.
+    pub fn parse(bytes: &[u8], shown: &str) -> Result<Info> {
+        let info: Value = serde_json::from_slice(bytes)
+            .map_err(|e| Error::source(format!("{shown}: invalid JSON: {e}")))?;
+        let at_info = |what: &str| Error::source(format!("{shown}: {what}"));
+        let version = match info["codebase_version"].as_str() {
+            Some("v2.0" | "v2.1") => Version::V2,
+            Some("v3.0") => Version::V3,
+            Some(other) => {
+                return Err(at_info(&format!(
+                    "codebase_version `{other}` is not one chunkc reads (v2.0, v2.1, v3.0)"
+                )))
+            }
+            None => return Err(at_info("no `codebase_version`")),
+        };
+        let features = info["features"]
+            .as_object()
+            .ok_or_else(|| at_info("no `features` table"))?
+            .iter()
+            .map(|(key, f)| KeyInfo {
+                key: key.clone(),
+                shape: feature_shape(f),
+                dtype: f["dtype"].as_str().unwrap_or("unknown").to_string(),
+            })
+            .collect();
+        let data_path = info["data_path"].as_str().unwrap_or(match version {
+            Version::V2 => "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet",
+            Version::V3 => "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
+        });
+        let video_path = info["video_path"].as_str();
+        for (key, template) in [("data_path", Some(data_path)), ("video_path", video_path)] {
+            let fields = template.map(fields).unwrap_or_default();
+            if let Some((_, name, spec)) = fields.iter().find(|(_, _, s)| width(s) > MAX_WIDTH) {
+                return Err(at_info(&format!(
+                    "`{key}` pads `{{{name}:{spec}}}` to {} digits; at most {MAX_WIDTH} make sense",
+                    width(spec)
+                )));
+            }
+        }
+        let splits = info["splits"].as_object().map(|splits| {
+            splits
+                .iter()
+                .filter_map(|(k, v)| Some((k.clone(), split_range(v.as_str()?)?)))
+                .collect()
+        });
+        Ok(Info {
+            version,
+            fps: info["fps"].as_f64(),
+            features,
+            chunks_size: info["chunks_size"].as_u64().unwrap_or(1000).max(1),
+            data_path: data_path.to_string(),
+            video_path: video_path.map(str::to_string),
+            splits,
+        })
+    }
+}
+
 impl LerobotSource {
     pub fn open(spec: &LoadedSpec, root: &Path) -> Result<Self> {
         let shown = root.display().to_string();
@@ -118,19 +212,11 @@ impl LerobotSource {
                 "{shown}: no meta/info.json; a LeRobot dataset has one"
             )));
         }
-        let info = read_json(&info_path)?;
-        let at_info = |what: &str| format!("{}: {what}", info_path.display());
-        let version = match info["codebase_version"].as_str() {
-            Some("v2.0" | "v2.1") => Version::V2,
-            Some("v3.0") => Version::V3,
-            Some(other) => {
-                return Err(Error::source(at_info(&format!(
-                    "codebase_version `{other}` is not one chunkc reads (v2.0, v2.1, v3.0)"
-                ))))
-            }
-            None => return Err(Error::source(at_info("no `codebase_version`"))),
-        };
-        let fps = match (info["fps"].as_f64(), spec.spec.source.fps) {
+        let bytes = std::fs::read(&info_path)
+            .map_err(|e| Error::source(format!("{}: cannot read: {e}", info_path.display())))?;
+        let info = Info::parse(&bytes, &info_path.display().to_string())?;
+        let version = info.version;
+        let fps = match (info.fps, spec.spec.source.fps) {
             (Some(stored), Some(given)) if (stored - given).abs() > 1e-9 => {
                 return Err(spec.error_at(
                     &["source", "fps"],
@@ -143,20 +229,12 @@ impl LerobotSource {
             }
             (Some(stored), _) => stored,
             (None, Some(given)) => given,
-            (None, None) => return Err(Error::source(at_info("no `fps`"))),
+            (None, None) => {
+                return Err(Error::source(format!("{}: no `fps`", info_path.display())))
+            }
         };
-        let features = info["features"]
-            .as_object()
-            .ok_or_else(|| Error::source(at_info("no `features` table")))?;
-        let keys: Vec<KeyInfo> = features
-            .iter()
-            .map(|(key, f)| KeyInfo {
-                key: key.clone(),
-                shape: feature_shape(f),
-                dtype: f["dtype"].as_str().unwrap_or("unknown").to_string(),
-            })
-            .collect();
-        let mapped = mapping::resolve(spec, &info_path.display().to_string(), &keys)?;
+        let keys = &info.features;
+        let mapped = mapping::resolve(spec, &info_path.display().to_string(), keys)?;
         let media: Vec<&KeyInfo> = mapped
             .keys()
             .iter()
@@ -165,11 +243,7 @@ impl LerobotSource {
             .collect();
 
         let mut read_files = vec![PathBuf::from("meta/info.json")];
-        let chunks_size = info["chunks_size"].as_u64().unwrap_or(1000).max(1);
-        let data_path = info["data_path"].as_str().unwrap_or(match version {
-            Version::V2 => "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet",
-            Version::V3 => "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
-        });
+        let (chunks_size, data_path) = (info.chunks_size, info.data_path.as_str());
         let mut episodes = Vec::new();
         let mut locations = Vec::new();
         // Per episode, the values a video path template needs.
@@ -222,7 +296,7 @@ impl LerobotSource {
                         )));
                     }
                     let mut videos = BTreeMap::new();
-                    if let Some(template) = info["video_path"].as_str() {
+                    if let Some(template) = &info.video_path {
                         for m in &media {
                             let mut v = values.to_vec();
                             v.push(("video_key", m.key.clone()));
@@ -286,7 +360,7 @@ impl LerobotSource {
                         .collect::<Result<_>>()?;
                     for r in 0..ids.len() {
                         let mut videos = BTreeMap::new();
-                        if let Some(template) = info["video_path"].as_str() {
+                        if let Some(template) = &info.video_path {
                             for (j, (key, _, _)) in video_cols.iter().enumerate() {
                                 let v = [
                                     ("video_key", key.clone()),
@@ -400,11 +474,7 @@ impl LerobotSource {
             )));
         }
 
-        let source_split = info["splits"].as_object().map(|splits| {
-            let ranges: Vec<(&String, Range<u64>)> = splits
-                .iter()
-                .filter_map(|(k, v)| Some((k, split_range(v.as_str()?)?)))
-                .collect();
+        let source_split = info.splits.as_ref().map(|ranges| {
             let in_split = |name: &str, id: u64| {
                 ranges
                     .iter()
@@ -427,7 +497,7 @@ impl LerobotSource {
         read_files.sort();
         read_files.dedup();
         let fingerprint = fingerprint::of_files(root, &read_files)?;
-        let has_timestamp = features.contains_key("timestamp");
+        let has_timestamp = keys.iter().any(|k| k.key == "timestamp");
         Ok(LerobotSource {
             root: root.to_path_buf(),
             manifest: Manifest {
@@ -568,6 +638,32 @@ mod tests {
             fill(t, &v),
             "videos/observation.images.top/chunk-001/file-012.mp4"
         );
+    }
+
+    #[test]
+    fn fills_in_one_pass() {
+        // A value that looks like a field is not filled again (this looped forever).
+        let v = [("video_key", "{video_key:3}".into())];
+        assert_eq!(fill("v/{video_key:3}/x", &v), "v/{video_key:3}/x");
+        // Unknown fields and a lone brace stay as written.
+        let v = [("episode_index", "7".into())];
+        assert_eq!(fill("{other}/{episode_index:03d}/{", &v), "{other}/007/{");
+    }
+
+    #[test]
+    fn refuses_absurd_widths() {
+        // Found while writing the `lerobot_info` fuzz target: a 12-digit width made `fill`
+        // build a 100 GB path.
+        let json = br#"{"codebase_version": "v2.1", "features": {},
+            "data_path": "data/episode_{episode_index:999999999999d}.parquet"}"#;
+        let err = Info::parse(json, "info.json").unwrap_err().to_string();
+        assert!(
+            err.contains("`data_path` pads `{episode_index:999999999999d}`"),
+            "{err}"
+        );
+        let json = br#"{"codebase_version": "v2.1", "features": {},
+            "data_path": "data/episode_{episode_index:020d}.parquet"}"#;
+        assert!(Info::parse(json, "info.json").is_ok());
     }
 
     #[test]

@@ -32,6 +32,7 @@ mod parquet_read;
 mod robomimic;
 mod subset;
 
+pub use lerobot::Info as LerobotInfo;
 pub use subset::Subset;
 
 use serde::Serialize;

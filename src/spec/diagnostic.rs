@@ -63,7 +63,10 @@ impl Diagnostic {
         let pad = " ".repeat(width);
         // A span that runs over several lines is underlined to the end of its first line; an
         // empty one (e.g. "expected `]`" at the end of a line) still gets one caret.
-        let end = span.end.clamp(at.offset, at.line_end);
+        let mut end = span.end.clamp(at.offset, at.line_end);
+        while !text.is_char_boundary(end) {
+            end -= 1;
+        }
         let lead = display_width(&text[at.line_start..at.offset]);
         let carets = display_width(&text[at.offset..end]).max(1);
         let _ = writeln!(out, "{pad}--> {file}:{}:{}", at.line, at.column);
@@ -119,6 +122,9 @@ impl Position {
         } else {
             line_end
         };
+        // An offset on the `\r` of a `\r\n` (or past a final lone `\r`) is shown at the end of
+        // the line's text.
+        let offset = offset.min(line_end);
         Position {
             line: text[..line_start].matches('\n').count() + 1,
             column: text[line_start..offset].chars().count() + 1,
@@ -171,6 +177,18 @@ pub(crate) fn backticked(names: &[&str]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn offsets_past_a_carriage_return() {
+        // Found by the `spec` fuzz target: a file that is a single `\r` (the error is at
+        // offset 1, after the `\r`) made the caret range run backwards.
+        let p = Position::of("\r", 1);
+        assert_eq!((p.line, p.column, p.offset, p.line_end), (1, 1, 0, 0));
+        let p = Position::of("a = 1\r\nb", 6);
+        assert_eq!((p.line, p.column, p.offset), (1, 6, 5));
+        let out = Diagnostic::new("m").at(1..1, "here").render("f.toml", "\r");
+        assert!(out.ends_with("1 | \n  | ^ here"), "{out:?}");
+    }
 
     #[test]
     fn positions_are_one_based() {

@@ -419,6 +419,16 @@ chunk = 20
     }
 
     #[test]
+    fn broken_toml_is_an_error_not_a_panic() {
+        // Found by the `spec` fuzz target: toml_edit 0.23 panicked ("all items have spans") on
+        // this; 0.25 reports it.
+        for text in ["={[]\n.", "\r"] {
+            let err = LoadedSpec::parse("f.toml", text, Path::new(".")).unwrap_err();
+            assert!(err.to_string().contains("invalid TOML"), "{err}");
+        }
+    }
+
+    #[test]
     fn loads_and_expands_in_name_order() {
         let loaded = parse(SPEC).unwrap();
         let names: Vec<_> = loaded.profiles.iter().map(|p| p.name.as_str()).collect();

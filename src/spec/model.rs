@@ -371,6 +371,12 @@ pub struct OutputSpec {
     /// built-in template of that generated file (`loader.py.j2`, `README.md.j2`, ...).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub templates: Option<String>,
+    /// Allow `dir` (the part written in the spec) and the entries chunkc writes directly under it
+    /// to be symlinks. Off by default: a build refuses an output path that a symlink sends
+    /// somewhere else, since a stray link would make it write (and replace) files elsewhere.
+    /// Writing into the source is refused either way.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub follow_symlinks: bool,
 }
 
 /// `[profiles.<name>]`: one training-ready dataset. Every value left out comes from the profile it
