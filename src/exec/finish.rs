@@ -50,12 +50,13 @@ pub(super) fn profile(
         let watched = match &p.sampling {
             Sampling::Segment { channel, .. } => {
                 let width = manifest.channels[*channel].width();
-                let values = &rate.lowdim[*channel][start * width..(start + ep.len) * width];
-                Some((values, width))
+                Some((rate.lowdim[*channel].rows(start, start + ep.len)?, width))
             }
             _ => None,
         };
-        let samples = p.sampling.samples(ep.len, watched);
+        let samples = p
+            .sampling
+            .samples(ep.len, watched.as_ref().map(|(v, w)| (v.as_ref(), *w)));
         if matches!(p.sampling, Sampling::Segment { .. }) {
             segments.push(
                 samples
@@ -108,19 +109,21 @@ pub(super) fn profile(
     let mut stats_files = Vec::new();
     if !p.values.stats_formats.is_empty() {
         // ACT's `example_qpos`: the state of the first training episode, in raw units.
-        let example_state = render::codebase::state_channel(p).and_then(|state| {
-            let c = p.channels.iter().position(|ch| ch.name == state.name)?;
-            let e = p.episodes.iter().position(|ep| ep.split == "train")?;
-            let width = manifest.channels[c].width();
-            let start = if e == 0 { 0 } else { rate.ends[e - 1] as usize };
-            let end = rate.ends[e] as usize;
-            Some((&rate.lowdim[c][start * width..end * width], width))
-        });
+        let example_state = render::codebase::state_channel(p)
+            .and_then(|state| {
+                let c = p.channels.iter().position(|ch| ch.name == state.name)?;
+                let e = p.episodes.iter().position(|ep| ep.split == "train")?;
+                let width = manifest.channels[c].width();
+                let start = if e == 0 { 0 } else { rate.ends[e - 1] as usize };
+                let end = rate.ends[e] as usize;
+                Some(rate.lowdim[c].rows(start, end).map(|v| (v, width)))
+            })
+            .transpose()?;
         let inputs = render::codebase::Inputs {
             profile: p,
             stats,
             normalizers: &normalizers,
-            example_state,
+            example_state: example_state.as_ref().map(|(v, w)| (v.as_ref(), *w)),
             renderer,
         };
         for f in render::codebase::files(&p.values.stats_formats, &inputs)? {

@@ -11,6 +11,8 @@
 //! Attributes on `/` name the window parameters. Object time tracking is off everywhere, and
 //! data is written in a fixed order, so the file's bytes depend only on its contents.
 
+use std::sync::Arc;
+
 use hdf5::types::VarLenUnicode;
 use hdf5::{Dataset, File, Group};
 use ndarray::{ArrayViewD, IxDyn};
@@ -19,6 +21,7 @@ use super::hdf5_chunks::{self, Stored, Windows};
 use super::{FrameEncoding, Sink, SinkContext};
 use crate::chunk::Window;
 use crate::error::{Error, Result};
+use crate::exec::LowdimStore;
 use crate::plan::DATA_FILE;
 use crate::source::ChannelKind;
 use crate::spec::{Compression, Layout, Padding};
@@ -253,7 +256,12 @@ impl Sink for Hdf5Writer {
     }
 
     /// chunkc's own layout stores normalized values; the loader inverts them.
-    fn write_lowdim(&mut self, channel: usize, raw: &[f32], normalizer: &Normalizer) -> Result<()> {
+    fn write_lowdim(
+        &mut self,
+        channel: usize,
+        raw: &Arc<LowdimStore>,
+        normalizer: &Normalizer,
+    ) -> Result<()> {
         let wanted = match self.layout {
             Layout::Index => false,
             Layout::Materialized => true,
@@ -269,19 +277,17 @@ impl Sink for Hdf5Writer {
                 .unwrap_or(1)
                 .max(1);
             let block_rows = chunk_rows * (NORMALIZE_BLOCK_BYTES / (4 * width * chunk_rows)).max(1);
-            let mut block = Vec::with_capacity(block_rows * width);
-            for (b, part) in raw.chunks(block_rows * width).enumerate() {
-                block.clear();
-                block.extend_from_slice(part);
+            for lo in (0..raw.len()).step_by(block_rows) {
+                let rows = block_rows.min(raw.len() - lo);
+                let mut block = raw.rows(lo, lo + rows)?.into_owned();
                 normalizer.apply(&mut block);
-                let rows = part.len() / width;
                 let view = self.view(channel, rows, &block)?;
-                self.data[channel]
-                    .write_slice(view, self.selection(channel, b * block_rows, rows))?;
+                self.data[channel].write_slice(view, self.selection(channel, lo, rows))?;
             }
             return Ok(());
         }
-        let mut values = raw.to_vec();
+        // The windows of these layouts are materialized from the whole channel in memory.
+        let mut values = raw.rows(0, raw.len())?.into_owned();
         normalizer.apply(&mut values);
         self.write_f32(channel, &values)?;
         // Kept for `/chunks` (materialized or virtual layouts).

@@ -25,8 +25,10 @@ pub mod windows;
 pub mod zarr;
 
 use std::path::Path;
+use std::sync::Arc;
 
 use crate::error::Result;
+use crate::exec::LowdimStore;
 use crate::plan::ProfilePlan;
 use crate::spec::OutputFormat;
 use crate::stats::normalize::Normalizer;
@@ -79,8 +81,14 @@ pub trait Sink {
     /// Encoded frames of image channel `channel` for one episode, from stored row `row`.
     fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()>;
     /// A whole low-dimensional channel in raw units, and the profile's normalizer for it: the
-    /// sink decides whether it stores normalized or raw values.
-    fn write_lowdim(&mut self, channel: usize, raw: &[f32], normalizer: &Normalizer) -> Result<()>;
+    /// sink decides whether it stores normalized or raw values. The store may be on disk: read it
+    /// a block of rows at a time, and keep the `Arc` (not a copy) to read it again in `finish`.
+    fn write_lowdim(
+        &mut self,
+        channel: usize,
+        raw: &Arc<LowdimStore>,
+        normalizer: &Normalizer,
+    ) -> Result<()>;
     /// The window index of both splits: rows of (episode position, t, limit, sub).
     fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()>;
     /// Completes the container.
