@@ -246,7 +246,7 @@ fn writers(c: &mut Criterion) {
                         }
                     }
                 }
-                s.write_index(&train, &[]).expect("index");
+                s.write_index(&(train.as_slice(), &[][..])).expect("index");
                 s.finish().expect("finish");
             })
         });

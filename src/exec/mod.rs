@@ -34,7 +34,7 @@ use crate::spec::{LoadedSpec, SplitFrom};
 use crate::stats::{self, ChannelStats, ImagePartial};
 
 pub use staging::{BUILD_LOCK_FILE, STAGING_DIR};
-pub use store::LowdimStore;
+pub use store::{budget_from_env as spill_budget, LowdimStore};
 
 #[derive(Debug, Clone, Default)]
 pub struct BuildOptions {

@@ -19,7 +19,7 @@ use std::sync::Arc;
 
 use hdf5::{File, Group};
 
-use super::{FrameEncoding, Sink, SinkContext};
+use super::{FrameEncoding, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
 use crate::exec::LowdimStore;
 use crate::render::codebase::state_channel;
@@ -153,7 +153,7 @@ impl Sink for ActEpisodesWriter {
         Ok(())
     }
 
-    fn write_index(&mut self, _: &[[i64; 4]], _: &[[i64; 4]]) -> Result<()> {
+    fn write_index(&mut self, _: &dyn WindowIndex) -> Result<()> {
         Ok(())
     }
 

@@ -30,7 +30,7 @@ use parquet::basic::{Compression as PqCompression, ZstdLevel};
 use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use serde_json::{json, Value};
 
-use super::{FrameEncoding, Sink, SinkContext};
+use super::{FrameEncoding, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
 use crate::exec::LowdimStore;
 use crate::source::ChannelKind;
@@ -438,9 +438,9 @@ impl Sink for LerobotWriter {
         Ok(())
     }
 
-    fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()> {
-        self.train = train.to_vec();
-        self.val = val.to_vec();
+    fn write_index(&mut self, index: &dyn WindowIndex) -> Result<()> {
+        self.train = index.all(Split::Train)?;
+        self.val = index.all(Split::Val)?;
         Ok(())
     }
 

@@ -89,10 +89,47 @@ pub trait Sink {
         raw: &Arc<LowdimStore>,
         normalizer: &Normalizer,
     ) -> Result<()>;
-    /// The window index of both splits: rows of (episode position, t, limit, sub).
-    fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()>;
+    /// The window index of both splits: rows of (episode position, t, limit, sub), read a block
+    /// at a time (or whole, by sinks that need it whole).
+    fn write_index(&mut self, index: &dyn WindowIndex) -> Result<()>;
     /// Completes the container.
     fn finish(self: Box<Self>) -> Result<()>;
+}
+
+/// Which split of the window index.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Split {
+    Train,
+    Val,
+}
+
+/// The window index of a profile, produced on demand so that it need not be in memory whole.
+pub trait WindowIndex {
+    /// Number of rows of `split`.
+    fn count(&self, split: Split) -> usize;
+    /// Rows `lo..hi` of `split`: (episode position, t, limit, sub).
+    fn rows(&self, split: Split, lo: usize, hi: usize) -> Result<Vec<[i64; 4]>>;
+    /// Every row of `split`.
+    fn all(&self, split: Split) -> Result<Vec<[i64; 4]>> {
+        self.rows(split, 0, self.count(split))
+    }
+}
+
+/// A window index already in memory: (train rows, val rows).
+impl WindowIndex for (&[[i64; 4]], &[[i64; 4]]) {
+    fn count(&self, split: Split) -> usize {
+        match split {
+            Split::Train => self.0.len(),
+            Split::Val => self.1.len(),
+        }
+    }
+    fn rows(&self, split: Split, lo: usize, hi: usize) -> Result<Vec<[i64; 4]>> {
+        let rows = match split {
+            Split::Train => self.0,
+            Split::Val => self.1,
+        };
+        Ok(rows[lo..hi].to_vec())
+    }
 }
 
 /// The sink for a profile's output format.

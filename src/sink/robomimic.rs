@@ -21,7 +21,7 @@ use std::sync::Arc;
 use hdf5::types::{FixedAscii, VarLenUnicode};
 use hdf5::{File, Group};
 
-use super::{FrameEncoding, Sink, SinkContext};
+use super::{FrameEncoding, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
 use crate::exec::LowdimStore;
 use crate::source::ChannelKind;
@@ -182,7 +182,7 @@ impl Sink for RobomimicWriter {
         Ok(())
     }
 
-    fn write_index(&mut self, _: &[[i64; 4]], _: &[[i64; 4]]) -> Result<()> {
+    fn write_index(&mut self, _: &dyn WindowIndex) -> Result<()> {
         Ok(())
     }
 

@@ -24,7 +24,7 @@ use zarrs::array::{Array, ArrayMetadataOptions};
 use zarrs::filesystem::FilesystemStore;
 use zarrs::metadata::ArrayMetadata;
 
-use super::{FrameEncoding, Sink, SinkContext};
+use super::{FrameEncoding, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
 use crate::exec::LowdimStore;
 use crate::source::ChannelKind;
@@ -264,8 +264,9 @@ impl Sink for ZarrWriter {
         Ok(())
     }
 
-    fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()> {
-        for (name, rows) in [("index/train", train), ("index/val", val)] {
+    fn write_index(&mut self, index: &dyn WindowIndex) -> Result<()> {
+        for (name, split) in [("index/train", Split::Train), ("index/val", Split::Val)] {
+            let rows = index.all(split)?;
             let flat: Vec<i64> = rows.iter().flatten().copied().collect();
             self.whole_i64(name, &flat, &[rows.len(), 4])?;
         }
