@@ -173,6 +173,22 @@ fn writers(c: &mut Criterion) {
                 .then(|| stats::lowdim(std::iter::once(v.as_slice()), ch.width()))
         })
         .collect();
+    // In memory (an unlimited budget), as a small build keeps them.
+    let stores: Vec<std::sync::Arc<chunkc::exec::LowdimStore>> = manifest
+        .channels
+        .iter()
+        .zip(&lowdim)
+        .map(|(ch, v)| {
+            let width = if ch.kind == ChannelKind::Lowdim {
+                ch.width()
+            } else {
+                0
+            };
+            let mut store = chunkc::exec::LowdimStore::new(width, usize::MAX, Default::default());
+            store.push(v).expect("in memory");
+            std::sync::Arc::new(store)
+        })
+        .collect();
     let mut g = c.benchmark_group("writer");
     g.throughput(Throughput::Elements(total));
     for p in &plan.profiles {
@@ -219,7 +235,7 @@ fn writers(c: &mut Criterion) {
                     match ch.kind {
                         ChannelKind::Lowdim => {
                             let st = stats[c].as_ref().expect("low-dim stats");
-                            s.write_lowdim(c, &lowdim[c], &Normalizer::fit(ch.normalize, st))
+                            s.write_lowdim(c, &stores[c], &Normalizer::fit(ch.normalize, st))
                                 .expect("lowdim");
                         }
                         ChannelKind::Image => {
@@ -230,7 +246,7 @@ fn writers(c: &mut Criterion) {
                         }
                     }
                 }
-                s.write_index(&train, &[]).expect("index");
+                s.write_index(&(train.as_slice(), &[][..])).expect("index");
                 s.finish().expect("finish");
             })
         });

@@ -23,8 +23,9 @@
 //!    resampling), window count, files, fingerprint and whether it must run. Shared work (the
 //!    source read, statistics per rate and channel) appears once.
 //! 5. **Execute** ([`exec`]): the only module with threads. Reads the source once, converts per
-//!    rate, computes [`stats`], normalizes, and writes through [`sink`] into a staging directory
-//!    renamed into place on success; then writes `chunkc.lock`.
+//!    rate, keeps low-dim values in an [`exec::LowdimStore`] (spilled to the staging directory
+//!    beyond a memory budget), computes [`stats`], normalizes, and writes through [`sink`] into a
+//!    staging directory renamed into place on success; then writes `chunkc.lock`.
 //! 6. **Render** ([`render`]): minijinja templates (embedded) for the generated Python loader;
 //!    [`report`]: the self-contained HTML reports (inline SVG charts) of `audit` and `analyze`.
 //!

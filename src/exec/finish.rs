@@ -42,20 +42,17 @@ pub(super) fn profile(
         }
         normalizers.insert(ch.name.clone(), n);
     }
-    let mut train = Vec::new();
-    let mut val = Vec::new();
+    // The index is counted here and generated again a block at a time as the sink writes it.
+    let mut index = Index {
+        p,
+        rate,
+        manifest,
+        splits: [Vec::new(), Vec::new()],
+    };
     let mut segments = Vec::new();
+    let mut counts = [0usize; 2];
     for (e, ep) in p.episodes.iter().enumerate() {
-        let start = if e == 0 { 0 } else { rate.ends[e - 1] as usize };
-        let watched = match &p.sampling {
-            Sampling::Segment { channel, .. } => {
-                let width = manifest.channels[*channel].width();
-                let values = &rate.lowdim[*channel][start * width..(start + ep.len) * width];
-                Some((values, width))
-            }
-            _ => None,
-        };
-        let samples = p.sampling.samples(ep.len, watched);
+        let samples = index.samples(e)?;
         if matches!(p.sampling, Sampling::Segment { .. }) {
             segments.push(
                 samples
@@ -64,18 +61,14 @@ pub(super) fn profile(
                     .collect::<Vec<_>>(),
             );
         }
-        let rows = if ep.split == "train" {
-            &mut train
-        } else {
-            &mut val
-        };
-        rows.extend(
-            samples
-                .into_iter()
-                .map(|s| [e as i64, s.t as i64, s.limit as i64, s.sub as i64]),
-        );
+        let split = usize::from(ep.split != "train");
+        index.splits[split].push((counts[split], e));
+        counts[split] += samples.len();
     }
-    sink.write_index(&train, &val)?;
+    for (episodes, &count) in index.splits.iter_mut().zip(&counts) {
+        episodes.push((count, usize::MAX));
+    }
+    sink.write_index(&index)?;
     let data_file = sink.data_file().to_string();
     let normalized = sink.stores_normalized();
     sink.finish()?;
@@ -92,7 +85,7 @@ pub(super) fn profile(
             &documents::Built {
                 episode_ends: &rate.ends,
                 normalizers: &normalizers,
-                num_samples: [train.len(), val.len()],
+                num_samples: counts,
                 segments: &segments,
             },
             &data_file,
@@ -108,19 +101,21 @@ pub(super) fn profile(
     let mut stats_files = Vec::new();
     if !p.values.stats_formats.is_empty() {
         // ACT's `example_qpos`: the state of the first training episode, in raw units.
-        let example_state = render::codebase::state_channel(p).and_then(|state| {
-            let c = p.channels.iter().position(|ch| ch.name == state.name)?;
-            let e = p.episodes.iter().position(|ep| ep.split == "train")?;
-            let width = manifest.channels[c].width();
-            let start = if e == 0 { 0 } else { rate.ends[e - 1] as usize };
-            let end = rate.ends[e] as usize;
-            Some((&rate.lowdim[c][start * width..end * width], width))
-        });
+        let example_state = render::codebase::state_channel(p)
+            .and_then(|state| {
+                let c = p.channels.iter().position(|ch| ch.name == state.name)?;
+                let e = p.episodes.iter().position(|ep| ep.split == "train")?;
+                let width = manifest.channels[c].width();
+                let start = if e == 0 { 0 } else { rate.ends[e - 1] as usize };
+                let end = rate.ends[e] as usize;
+                Some(rate.lowdim[c].rows(start, end).map(|v| (v, width)))
+            })
+            .transpose()?;
         let inputs = render::codebase::Inputs {
             profile: p,
             stats,
             normalizers: &normalizers,
-            example_state,
+            example_state: example_state.as_ref().map(|(v, w)| (v.as_ref(), *w)),
             renderer,
         };
         for f in render::codebase::files(&p.values.stats_formats, &inputs)? {
@@ -138,7 +133,7 @@ pub(super) fn profile(
             spec_file: &spec.file.file_name().unwrap_or_default().to_string_lossy(),
             output_hint: &hint.to_string_lossy(),
             data_file: &data_file,
-            num_samples: [train.len(), val.len()],
+            num_samples: counts,
             stats_files: &stats_files,
         },
     )?;
@@ -152,4 +147,71 @@ pub(super) fn profile(
         files.insert(name, lock::hash_file(&dir.join(&rel))?);
     }
     Ok(files)
+}
+
+/// A profile's window index, generated on demand from the sampling (see [`sink::WindowIndex`]).
+struct Index<'a> {
+    p: &'a ProfilePlan,
+    rate: &'a RateState,
+    manifest: &'a Manifest,
+    /// Per split (train, val): (first row, episode position) of each of its episodes, in order,
+    /// then (rows, `usize::MAX`).
+    splits: [Vec<(usize, usize)>; 2],
+}
+
+impl Index<'_> {
+    /// The samples of episode `e`.
+    fn samples(&self, e: usize) -> Result<Vec<crate::chunk::Sample>> {
+        let ep = &self.p.episodes[e];
+        let start = if e == 0 {
+            0
+        } else {
+            self.rate.ends[e - 1] as usize
+        };
+        Ok(match &self.p.sampling {
+            Sampling::Segment { channel, .. } => {
+                let width = self.manifest.channels[*channel].width();
+                let values = self.rate.lowdim[*channel].rows(start, start + ep.len)?;
+                self.p.sampling.samples(ep.len, Some((&values, width)))
+            }
+            _ => self.p.sampling.samples(ep.len, None),
+        })
+    }
+
+    fn split(split: sink::Split) -> usize {
+        match split {
+            sink::Split::Train => 0,
+            sink::Split::Val => 1,
+        }
+    }
+}
+
+impl sink::WindowIndex for Index<'_> {
+    fn count(&self, split: sink::Split) -> usize {
+        self.splits[Self::split(split)]
+            .last()
+            .map_or(0, |&(n, _)| n)
+    }
+
+    fn rows(&self, split: sink::Split, lo: usize, hi: usize) -> Result<Vec<[i64; 4]>> {
+        let episodes = &self.splits[Self::split(split)];
+        let mut out = Vec::with_capacity(hi.saturating_sub(lo));
+        // The last episode starting at or before `lo`.
+        let mut i = episodes
+            .partition_point(|&(first, _)| first <= lo)
+            .saturating_sub(1);
+        while out.len() < hi - lo && i + 1 < episodes.len() {
+            let (first, e) = episodes[i];
+            let samples = self.samples(e)?;
+            let from = lo.max(first) - first;
+            let to = (hi - first).min(samples.len());
+            out.extend(
+                samples[from.min(to)..to]
+                    .iter()
+                    .map(|s| [e as i64, s.t as i64, s.limit as i64, s.sub as i64]),
+            );
+            i += 1;
+        }
+        Ok(out)
+    }
 }

@@ -10,16 +10,19 @@
 //!   the spec allows it).
 //! - `staging`: the staging directory and the final renames.
 //! - `progress`: progress bars (hidden when stderr is not a terminal).
+//! - `store`: the low-dim values of one channel at one rate, spilled to disk beyond a budget.
 
 mod finish;
 mod location;
 mod progress;
 mod staging;
+mod store;
 
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
 
 use rayon::prelude::*;
 
@@ -34,6 +37,7 @@ use crate::spec::{LoadedSpec, SplitFrom};
 use crate::stats::{self, ChannelStats, ImagePartial};
 
 pub use staging::{BUILD_LOCK_FILE, STAGING_DIR};
+pub use store::{budget_from_env as spill_budget, LowdimStore};
 
 #[derive(Debug, Clone, Default)]
 pub struct BuildOptions {
@@ -277,8 +281,9 @@ struct RateState {
     conversion: Conversion,
     /// Exclusive ends of each episode in the decimated per-step arrays.
     ends: Vec<u64>,
-    /// Per channel (manifest order): concatenated low-dim values; empty for images.
-    lowdim: Vec<Vec<f32>>,
+    /// Per channel (manifest order): concatenated low-dim values; empty for images. Shared with
+    /// the sinks that export episode by episode once reading is over.
+    lowdim: Vec<Arc<LowdimStore>>,
     /// Per channel: merged image partials over training episodes; `None` for low-dim.
     images: Vec<Option<ImagePartial>>,
 }
@@ -402,9 +407,11 @@ fn run(
         .filter(|c| stale.iter().any(|p| p.conversion == *c))
         .collect();
 
+    let budget = store::budget_from_env();
     let mut rates: Vec<RateState> = conversions
         .iter()
-        .map(|&conversion| {
+        .enumerate()
+        .map(|(r, &conversion)| {
             let mut ends = Vec::with_capacity(manifest.episodes.len());
             let mut total = 0u64;
             for e in &manifest.episodes {
@@ -417,9 +424,14 @@ fn run(
                 lowdim: manifest
                     .channels
                     .iter()
-                    .map(|c| match c.kind {
-                        ChannelKind::Lowdim => Vec::with_capacity(total as usize * c.width()),
-                        ChannelKind::Image => Vec::new(),
+                    .enumerate()
+                    .map(|(c, ch)| {
+                        let width = match ch.kind {
+                            ChannelKind::Lowdim => ch.width(),
+                            ChannelKind::Image => 0,
+                        };
+                        let dir = staging.scratch_dir().join(format!("rate{r}-channel{c}"));
+                        Arc::new(LowdimStore::new(width, budget, dir))
                     })
                     .collect(),
                 images: manifest
@@ -537,7 +549,9 @@ fn run(
                 let row = if i == 0 { 0 } else { rate.ends[i - 1] as usize };
                 for (c, (values, partial)) in data.into_iter().zip(partials).enumerate() {
                     match values {
-                        Prepared::Lowdim(v) => rate.lowdim[c].extend_from_slice(&v),
+                        Prepared::Lowdim(v) => Arc::get_mut(&mut rate.lowdim[c])
+                            .expect("no reader while the source is read")
+                            .push(&v)?,
                         Prepared::Frames(encoded) => {
                             for (_, sink) in sinks.iter_mut().filter(|(sr, _)| *sr == r) {
                                 let enc = sink.frame_encoding();
@@ -573,11 +587,19 @@ fn run(
                     let width = ch.width();
                     let values = &rate.lowdim[c];
                     let ends = &rate.ends;
-                    let blocks = (0..ends.len()).filter(|&e| train_mask[e]).map(|e| {
-                        let start = if e == 0 { 0 } else { ends[e - 1] as usize };
-                        &values[start * width..ends[e] as usize * width]
-                    });
-                    stats::lowdim(blocks, width)
+                    let train: Vec<(usize, usize)> = (0..ends.len())
+                        .filter(|&e| train_mask[e])
+                        .map(|e| {
+                            let start = if e == 0 { 0 } else { ends[e - 1] as usize };
+                            (start, ends[e] as usize)
+                        })
+                        .collect();
+                    // Merged episode by episode, in order, as `stats::lowdim` does.
+                    let mut m = stats::Moments::new(width);
+                    for &(lo, hi) in &train {
+                        m.merge(&stats::Moments::of_rows(&values.rows(lo, hi)?, width));
+                    }
+                    stats::lowdim_from(m, width, |d| values.column(d, &train))?
                 }
                 ChannelKind::Image => rate.images[c].take().expect("image partial").finish(),
             };

@@ -157,6 +157,13 @@ impl Staging {
         Ok(dir)
     }
 
+    /// Scratch space for this build (not created here): low-dim values spilled to disk. It goes
+    /// with the staging directory, whether the build succeeds or fails; the leading dot keeps it
+    /// apart from every profile name.
+    pub fn scratch_dir(&self) -> PathBuf {
+        self.dir.join(".spill")
+    }
+
     /// Moves every staged profile into place, replacing the previous output of that profile.
     pub fn commit(mut self, profiles: &[String]) -> Result<()> {
         // Everything staged reaches the disk before any of it becomes visible.

@@ -15,11 +15,13 @@
 //! `act` statistics format is always on for this format).
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use hdf5::{File, Group};
 
-use super::{FrameEncoding, Sink, SinkContext};
+use super::{FrameEncoding, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
+use crate::exec::LowdimStore;
 use crate::render::codebase::state_channel;
 use crate::source::ChannelKind;
 use crate::stats::normalize::Normalizer;
@@ -30,7 +32,7 @@ pub struct ActEpisodesWriter {
     /// Per channel: the name, its shape, its kind.
     channels: Vec<(String, Vec<usize>, ChannelKind)>,
     state: Option<String>,
-    raw: Vec<Option<Vec<f32>>>,
+    raw: Vec<Option<Arc<LowdimStore>>>,
 }
 
 fn episode_file(dir: &std::path::Path, e: usize) -> PathBuf {
@@ -141,12 +143,17 @@ impl Sink for ActEpisodesWriter {
     }
 
     /// Raw values: ACT normalizes with `dataset_stats.pkl`.
-    fn write_lowdim(&mut self, channel: usize, raw: &[f32], _: &Normalizer) -> Result<()> {
-        self.raw[channel] = Some(raw.to_vec());
+    fn write_lowdim(
+        &mut self,
+        channel: usize,
+        raw: &Arc<LowdimStore>,
+        _: &Normalizer,
+    ) -> Result<()> {
+        self.raw[channel] = Some(Arc::clone(raw));
         Ok(())
     }
 
-    fn write_index(&mut self, _: &[[i64; 4]], _: &[[i64; 4]]) -> Result<()> {
+    fn write_index(&mut self, _: &dyn WindowIndex) -> Result<()> {
         Ok(())
     }
 
@@ -160,8 +167,7 @@ impl Sink for ActEpisodesWriter {
                 let (ChannelKind::Lowdim, Some(raw)) = (kind, raw) else {
                     continue;
                 };
-                let width = shape.iter().product::<usize>().max(1);
-                let values = &raw[lo * width..hi * width];
+                let values = raw.rows(lo, hi)?;
                 let mut dims = vec![hi - lo];
                 dims.extend(shape);
                 let path = if name == "action" {
@@ -179,7 +185,7 @@ impl Sink for ActEpisodesWriter {
                         .write_raw(values)?;
                     Ok(())
                 };
-                write(&path, values)?;
+                write(&path, &values)?;
                 if path == "observations/qpos" {
                     write("observations/qvel", &vec![0.0; values.len()])?;
                 }

@@ -11,14 +11,17 @@
 //! Attributes on `/` name the window parameters. Object time tracking is off everywhere, and
 //! data is written in a fixed order, so the file's bytes depend only on its contents.
 
+use std::sync::Arc;
+
 use hdf5::types::VarLenUnicode;
 use hdf5::{Dataset, File, Group};
 use ndarray::{ArrayViewD, IxDyn};
 
 use super::hdf5_chunks::{self, Stored, Windows};
-use super::{FrameEncoding, Sink, SinkContext};
+use super::{FrameEncoding, Sink, SinkContext, Split, WindowIndex};
 use crate::chunk::Window;
 use crate::error::{Error, Result};
+use crate::exec::LowdimStore;
 use crate::plan::DATA_FILE;
 use crate::source::ChannelKind;
 use crate::spec::{Compression, Layout, Padding};
@@ -31,6 +34,8 @@ const IMAGE_DEFLATE_LEVEL: u8 = 1;
 
 /// Low-dim channels are normalized and written about this many bytes at a time.
 const NORMALIZE_BLOCK_BYTES: usize = 4 << 20;
+/// Window index rows generated and written at once.
+const INDEX_BLOCK_BYTES: usize = 4 << 20;
 
 /// gzip's level when the spec gives none.
 const DEFAULT_GZIP_LEVEL: u32 = 4;
@@ -223,17 +228,25 @@ impl Hdf5Writer {
 
     /// Writes one split's window index: rows of (episode position, current step, limit, sub);
     /// see `chunk::Sample`.
-    fn write_index_of(&self, split: &str, rows: &[[i64; 4]]) -> Result<()> {
-        let flat: &[i64] = rows.as_flattened();
+    /// Written a block of rows at a time: the index need not be in memory whole.
+    fn write_index_of(&self, name: &str, index: &dyn WindowIndex, split: Split) -> Result<()> {
+        let n = index.count(split);
         let ds = self
             .file
             .group("index")?
             .new_dataset::<i64>()
-            .shape([rows.len(), 4])
+            .shape([n, 4])
             .obj_track_times(false)
-            .create(split)?;
-        if !rows.is_empty() {
-            ds.write_raw(flat)?;
+            .create(name)?;
+        // Within the low-dim memory budget too: a tiny `CHUNKC_SPILL_BYTES` (the tests) makes
+        // blocks of a few rows, which start and end inside episodes.
+        let block = (INDEX_BLOCK_BYTES.min(crate::exec::spill_budget()) / 32).max(1);
+        for lo in (0..n).step_by(block) {
+            let hi = (lo + block).min(n);
+            let rows = index.rows(split, lo, hi)?;
+            let view = ArrayViewD::from_shape(IxDyn(&[hi - lo, 4]), rows.as_flattened())
+                .map_err(|err| Error::Internal(format!("index/{name}: {err}")))?;
+            ds.write_slice(view, (lo..hi, 0..4))?;
         }
         Ok(())
     }
@@ -253,7 +266,12 @@ impl Sink for Hdf5Writer {
     }
 
     /// chunkc's own layout stores normalized values; the loader inverts them.
-    fn write_lowdim(&mut self, channel: usize, raw: &[f32], normalizer: &Normalizer) -> Result<()> {
+    fn write_lowdim(
+        &mut self,
+        channel: usize,
+        raw: &Arc<LowdimStore>,
+        normalizer: &Normalizer,
+    ) -> Result<()> {
         let wanted = match self.layout {
             Layout::Index => false,
             Layout::Materialized => true,
@@ -269,19 +287,17 @@ impl Sink for Hdf5Writer {
                 .unwrap_or(1)
                 .max(1);
             let block_rows = chunk_rows * (NORMALIZE_BLOCK_BYTES / (4 * width * chunk_rows)).max(1);
-            let mut block = Vec::with_capacity(block_rows * width);
-            for (b, part) in raw.chunks(block_rows * width).enumerate() {
-                block.clear();
-                block.extend_from_slice(part);
+            for lo in (0..raw.len()).step_by(block_rows) {
+                let rows = block_rows.min(raw.len() - lo);
+                let mut block = raw.rows(lo, lo + rows)?.into_owned();
                 normalizer.apply(&mut block);
-                let rows = part.len() / width;
                 let view = self.view(channel, rows, &block)?;
-                self.data[channel]
-                    .write_slice(view, self.selection(channel, b * block_rows, rows))?;
+                self.data[channel].write_slice(view, self.selection(channel, lo, rows))?;
             }
             return Ok(());
         }
-        let mut values = raw.to_vec();
+        // The windows of these layouts are materialized from the whole channel in memory.
+        let mut values = raw.rows(0, raw.len())?.into_owned();
         normalizer.apply(&mut values);
         self.write_f32(channel, &values)?;
         // Kept for `/chunks` (materialized or virtual layouts).
@@ -289,17 +305,19 @@ impl Sink for Hdf5Writer {
         Ok(())
     }
 
-    fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()> {
-        self.write_index_of("train", train)?;
-        self.write_index_of("val", val)?;
+    fn write_index(&mut self, index: &dyn WindowIndex) -> Result<()> {
+        self.write_index_of("train", index, Split::Train)?;
+        self.write_index_of("val", index, Split::Val)?;
         if self.layout == Layout::Index {
             return Ok(());
         }
+        // The materialized and virtual layouts walk every window.
+        let (train, val) = (index.all(Split::Train)?, index.all(Split::Val)?);
         let windows = Windows {
             window: &self.window,
             padding: self.padding,
             episode_ends: &self.episode_ends,
-            rows: train.iter().chain(val).copied().collect(),
+            rows: train.iter().chain(&val).copied().collect(),
             num_train: train.len(),
         };
         let stored: Vec<Stored> = self

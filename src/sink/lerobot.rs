@@ -30,8 +30,9 @@ use parquet::basic::{Compression as PqCompression, ZstdLevel};
 use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use serde_json::{json, Value};
 
-use super::{FrameEncoding, Sink, SinkContext};
+use super::{FrameEncoding, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
+use crate::exec::LowdimStore;
 use crate::source::ChannelKind;
 use crate::spec::Compression;
 use crate::stats::normalize::Normalizer;
@@ -51,7 +52,7 @@ pub struct LerobotWriter {
     ids: Vec<u64>,
     /// Per channel: the name, its shape, its kind.
     channels: Vec<(String, Vec<usize>, ChannelKind)>,
-    raw: Vec<Option<Vec<f32>>>,
+    raw: Vec<Option<Arc<LowdimStore>>>,
     /// Per channel: PNG frames by stored row (images only).
     frames: Vec<Vec<Vec<u8>>>,
     train: Vec<[i64; 4]>,
@@ -227,7 +228,7 @@ impl LerobotWriter {
                         let raw = raw
                             .as_ref()
                             .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
-                        let values = Float32Array::from(raw[lo * width..hi * width].to_vec());
+                        let values = Float32Array::from(raw.rows(lo, hi)?.into_owned());
                         let list = FixedSizeListArray::try_new(
                             item(),
                             width as i32,
@@ -427,14 +428,19 @@ impl Sink for LerobotWriter {
     }
 
     /// Raw values: LeRobot normalizes with `meta/stats.json`.
-    fn write_lowdim(&mut self, channel: usize, raw: &[f32], _: &Normalizer) -> Result<()> {
-        self.raw[channel] = Some(raw.to_vec());
+    fn write_lowdim(
+        &mut self,
+        channel: usize,
+        raw: &Arc<LowdimStore>,
+        _: &Normalizer,
+    ) -> Result<()> {
+        self.raw[channel] = Some(Arc::clone(raw));
         Ok(())
     }
 
-    fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()> {
-        self.train = train.to_vec();
-        self.val = val.to_vec();
+    fn write_index(&mut self, index: &dyn WindowIndex) -> Result<()> {
+        self.train = index.all(Split::Train)?;
+        self.val = index.all(Split::Val)?;
         Ok(())
     }
 

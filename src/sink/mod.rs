@@ -25,8 +25,10 @@ pub mod windows;
 pub mod zarr;
 
 use std::path::Path;
+use std::sync::Arc;
 
 use crate::error::Result;
+use crate::exec::LowdimStore;
 use crate::plan::ProfilePlan;
 use crate::spec::OutputFormat;
 use crate::stats::normalize::Normalizer;
@@ -79,12 +81,55 @@ pub trait Sink {
     /// Encoded frames of image channel `channel` for one episode, from stored row `row`.
     fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()>;
     /// A whole low-dimensional channel in raw units, and the profile's normalizer for it: the
-    /// sink decides whether it stores normalized or raw values.
-    fn write_lowdim(&mut self, channel: usize, raw: &[f32], normalizer: &Normalizer) -> Result<()>;
-    /// The window index of both splits: rows of (episode position, t, limit, sub).
-    fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()>;
+    /// sink decides whether it stores normalized or raw values. The store may be on disk: read it
+    /// a block of rows at a time, and keep the `Arc` (not a copy) to read it again in `finish`.
+    fn write_lowdim(
+        &mut self,
+        channel: usize,
+        raw: &Arc<LowdimStore>,
+        normalizer: &Normalizer,
+    ) -> Result<()>;
+    /// The window index of both splits: rows of (episode position, t, limit, sub), read a block
+    /// at a time (or whole, by sinks that need it whole).
+    fn write_index(&mut self, index: &dyn WindowIndex) -> Result<()>;
     /// Completes the container.
     fn finish(self: Box<Self>) -> Result<()>;
+}
+
+/// Which split of the window index.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Split {
+    Train,
+    Val,
+}
+
+/// The window index of a profile, produced on demand so that it need not be in memory whole.
+pub trait WindowIndex {
+    /// Number of rows of `split`.
+    fn count(&self, split: Split) -> usize;
+    /// Rows `lo..hi` of `split`: (episode position, t, limit, sub).
+    fn rows(&self, split: Split, lo: usize, hi: usize) -> Result<Vec<[i64; 4]>>;
+    /// Every row of `split`.
+    fn all(&self, split: Split) -> Result<Vec<[i64; 4]>> {
+        self.rows(split, 0, self.count(split))
+    }
+}
+
+/// A window index already in memory: (train rows, val rows).
+impl WindowIndex for (&[[i64; 4]], &[[i64; 4]]) {
+    fn count(&self, split: Split) -> usize {
+        match split {
+            Split::Train => self.0.len(),
+            Split::Val => self.1.len(),
+        }
+    }
+    fn rows(&self, split: Split, lo: usize, hi: usize) -> Result<Vec<[i64; 4]>> {
+        let rows = match split {
+            Split::Train => self.0,
+            Split::Val => self.1,
+        };
+        Ok(rows[lo..hi].to_vec())
+    }
 }
 
 /// The sink for a profile's output format.

@@ -16,12 +16,14 @@
 //! format (there is no window index in it).
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use hdf5::types::{FixedAscii, VarLenUnicode};
 use hdf5::{File, Group};
 
-use super::{FrameEncoding, Sink, SinkContext};
+use super::{FrameEncoding, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
+use crate::exec::LowdimStore;
 use crate::source::ChannelKind;
 use crate::stats::normalize::Normalizer;
 
@@ -33,7 +35,7 @@ pub struct RobomimicWriter {
     ends: Vec<u64>,
     /// Per channel: the name, its shape, its kind.
     channels: Vec<(String, Vec<usize>, ChannelKind)>,
-    raw: Vec<Option<Vec<f32>>>,
+    raw: Vec<Option<Arc<LowdimStore>>>,
 }
 
 fn group(parent: &Group, name: &str) -> Result<Group> {
@@ -170,12 +172,17 @@ impl Sink for RobomimicWriter {
     }
 
     /// Raw values: robomimic normalizes in its own code.
-    fn write_lowdim(&mut self, channel: usize, raw: &[f32], _: &Normalizer) -> Result<()> {
-        self.raw[channel] = Some(raw.to_vec());
+    fn write_lowdim(
+        &mut self,
+        channel: usize,
+        raw: &Arc<LowdimStore>,
+        _: &Normalizer,
+    ) -> Result<()> {
+        self.raw[channel] = Some(Arc::clone(raw));
         Ok(())
     }
 
-    fn write_index(&mut self, _: &[[i64; 4]], _: &[[i64; 4]]) -> Result<()> {
+    fn write_index(&mut self, _: &dyn WindowIndex) -> Result<()> {
         Ok(())
     }
 
@@ -190,11 +197,7 @@ impl Sink for RobomimicWriter {
                 let (ChannelKind::Lowdim, Some(raw)) = (kind, raw) else {
                     continue;
                 };
-                let width = shape.iter().product::<usize>().max(1);
-                let values: Vec<f64> = raw[lo * width..hi * width]
-                    .iter()
-                    .map(|&v| f64::from(v))
-                    .collect();
+                let values: Vec<f64> = raw.rows(lo, hi)?.iter().map(|&v| f64::from(v)).collect();
                 let mut dims = vec![hi - lo];
                 dims.extend(shape);
                 let path = if name == "action" {

@@ -24,8 +24,9 @@ use zarrs::array::{Array, ArrayMetadataOptions};
 use zarrs::filesystem::FilesystemStore;
 use zarrs::metadata::ArrayMetadata;
 
-use super::{FrameEncoding, Sink, SinkContext};
+use super::{FrameEncoding, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
+use crate::exec::LowdimStore;
 use crate::source::ChannelKind;
 use crate::spec::Compression;
 use crate::stats::normalize::Normalizer;
@@ -34,6 +35,8 @@ pub const ZARR_DIR: &str = "data.zarr";
 /// Low-dim chunks hold about this many bytes.
 const LOWDIM_CHUNK_BYTES: usize = 256 * 1024;
 const DEFAULT_BLOSC_LEVEL: u32 = 5;
+/// Low-dim values read from the store and written at once (whole chunks).
+const LOWDIM_BLOCK_BYTES: usize = 4 << 20;
 
 pub struct ZarrWriter {
     root: PathBuf,
@@ -183,6 +186,7 @@ impl ZarrWriter {
         values: &[T],
         width: usize,
         chunk_rows: usize,
+        first_chunk: usize,
     ) -> Result<()> {
         let rank = array.dimensionality();
         let per_chunk = chunk_rows * width;
@@ -190,7 +194,7 @@ impl ZarrWriter {
             let mut chunk = part.to_vec();
             chunk.resize(per_chunk, T::default());
             let mut idx = vec![0u64; rank];
-            idx[0] = c as u64;
+            idx[0] = (first_chunk + c) as u64;
             array.store_chunk(&idx, chunk).map_err(err)?;
         }
         Ok(())
@@ -203,7 +207,7 @@ impl ZarrWriter {
         let array = self.array(path, "int64", shape, &chunks)?;
         if !values.is_empty() {
             let width = shape[1..].iter().product::<usize>().max(1);
-            Self::rows(&array, values, width, rows)?;
+            Self::rows(&array, values, width, rows, 0)?;
         }
         Ok(())
     }
@@ -236,17 +240,33 @@ impl Sink for ZarrWriter {
     }
 
     /// Raw values: Diffusion Policy fits its own normalizer on the replay buffer.
-    fn write_lowdim(&mut self, channel: usize, raw: &[f32], _: &Normalizer) -> Result<()> {
-        Self::rows(
-            &self.data[channel],
-            raw,
-            self.widths[channel],
-            self.chunk_rows[channel],
-        )
+    fn write_lowdim(
+        &mut self,
+        channel: usize,
+        raw: &Arc<LowdimStore>,
+        _: &Normalizer,
+    ) -> Result<()> {
+        // A block of whole chunks at a time: the store may be on disk.
+        let (width, chunk_rows) = (self.widths[channel], self.chunk_rows[channel].max(1));
+        let chunks_per_block = (LOWDIM_BLOCK_BYTES / (4 * width.max(1) * chunk_rows)).max(1);
+        let block_rows = chunks_per_block * chunk_rows;
+        for (b, lo) in (0..raw.len()).step_by(block_rows).enumerate() {
+            let hi = (lo + block_rows).min(raw.len());
+            let values = raw.rows(lo, hi)?;
+            Self::rows(
+                &self.data[channel],
+                &values,
+                width,
+                chunk_rows,
+                b * chunks_per_block,
+            )?;
+        }
+        Ok(())
     }
 
-    fn write_index(&mut self, train: &[[i64; 4]], val: &[[i64; 4]]) -> Result<()> {
-        for (name, rows) in [("index/train", train), ("index/val", val)] {
+    fn write_index(&mut self, index: &dyn WindowIndex) -> Result<()> {
+        for (name, split) in [("index/train", Split::Train), ("index/val", Split::Val)] {
+            let rows = index.all(split)?;
             let flat: Vec<i64> = rows.iter().flatten().copied().collect();
             self.whole_i64(name, &flat, &[rows.len(), 4])?;
         }

@@ -54,26 +54,43 @@ pub fn lowdim<'a>(
     for block in blocks.clone() {
         m.merge(&Moments::of_rows(block, dims));
     }
-    let rows = m.count as usize;
+    let column = |d: usize| -> Result<Vec<f32>, std::convert::Infallible> {
+        let mut column = Vec::new();
+        for block in blocks.clone() {
+            column.extend(block.iter().skip(d).step_by(dims));
+        }
+        Ok(column)
+    };
+    match lowdim_from(m, dims, column) {
+        Ok(s) => s,
+        Err(never) => match never {},
+    }
+}
+
+/// [`lowdim`] from the moments already merged (in episode order) and a reader of one column of
+/// the same rows at a time, so the values need not all be in memory at once.
+pub fn lowdim_from<E: Send>(
+    m: Moments,
+    dims: usize,
+    column: impl Fn(usize) -> Result<Vec<f32>, E> + Sync,
+) -> Result<ChannelStats, E> {
+    let rows = m.count;
     // Columns are independent: one per task, results in column order (deterministic).
     let columns: Vec<Vec<f64>> = (0..dims)
         .into_par_iter()
         .map(|d| {
-            let mut column = Vec::with_capacity(rows);
-            for block in blocks.clone() {
-                column.extend(block.iter().skip(d).step_by(dims));
-            }
-            if column.is_empty() {
+            let mut column = column(d)?;
+            Ok(if column.is_empty() {
                 vec![f64::NAN; PERCENTILES.len()]
             } else {
                 percentiles(&mut column, &PERCENTILES)
-            }
+            })
         })
-        .collect();
+        .collect::<Result<_, E>>()?;
     let pct: Vec<Vec<f64>> = (0..PERCENTILES.len())
         .map(|k| columns.iter().map(|c| c[k]).collect())
         .collect();
-    finish(m, pct, rows as u64)
+    Ok(finish(m, pct, rows))
 }
 
 /// Per-episode partial statistics of an image channel (per colour channel).

@@ -1,0 +1,271 @@
+//! The low-dimensional values of one channel at one rate, for the whole build, in bounded memory.
+//!
+//! Exact percentiles need every value of a column, and normalized values can only be written once
+//! the statistics are known, so exec keeps every low-dim value until the end of the build. A
+//! [`LowdimStore`] keeps them in memory (row-major, as read) up to a byte budget; beyond it, it
+//! spills to one file per column in the build's staging directory, appending each flushed block's
+//! columns, and from then on keeps at most a budget's worth of rows in memory. Reading is then
+//! (a) one column at a time, for percentiles ([`LowdimStore::column`]), and (b) a block of rows at
+//! a time, for moments, the writers and per-episode exports ([`LowdimStore::rows`]), read back
+//! from the column files and interleaved. Small builds never touch the disk.
+//!
+//! The files live under the staging directory, which is removed whether the build succeeds or
+//! fails. `CHUNKC_SPILL_BYTES` overrides the budget (the tests force spilling with it).
+
+use std::borrow::Cow;
+use std::fs::File;
+use std::io::Write;
+use std::os::unix::fs::FileExt;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, IoContext, Result};
+
+/// Bytes of values one store keeps in memory before it spills.
+pub const DEFAULT_BUDGET: usize = 32 << 20;
+
+/// The budget: `CHUNKC_SPILL_BYTES` if set, else [`DEFAULT_BUDGET`].
+pub fn budget_from_env() -> usize {
+    std::env::var("CHUNKC_SPILL_BYTES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(DEFAULT_BUDGET)
+}
+
+/// Row-major `f32` rows of `width` values, appended in order; see the module docs.
+#[derive(Debug)]
+pub struct LowdimStore {
+    width: usize,
+    budget: usize,
+    /// Where the column files go, created when the store first spills.
+    dir: PathBuf,
+    /// Rows not on disk (all of them until the store spills), row-major.
+    mem: Vec<f32>,
+    /// One file per column once spilled, and how many rows they hold.
+    spilled: Option<(Vec<File>, usize)>,
+}
+
+impl LowdimStore {
+    pub fn new(width: usize, budget: usize, dir: PathBuf) -> Self {
+        LowdimStore {
+            width,
+            budget,
+            dir,
+            mem: Vec::new(),
+            spilled: None,
+        }
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Number of rows stored.
+    pub fn len(&self) -> usize {
+        self.disk_rows() + self.mem.len() / self.width.max(1)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Whether any rows went to disk.
+    pub fn is_spilled(&self) -> bool {
+        self.spilled.is_some()
+    }
+
+    fn disk_rows(&self) -> usize {
+        self.spilled.as_ref().map_or(0, |(_, rows)| *rows)
+    }
+
+    /// Appends whole rows.
+    pub fn push(&mut self, values: &[f32]) -> Result<()> {
+        if self.width == 0 {
+            return Ok(());
+        }
+        debug_assert_eq!(values.len() % self.width, 0);
+        self.mem.extend_from_slice(values);
+        if self.mem.len() * 4 > self.budget {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Appends the rows held in memory to the column files (created on first use).
+    fn flush(&mut self) -> Result<()> {
+        let width = self.width;
+        if self.spilled.is_none() {
+            std::fs::create_dir_all(&self.dir).at("create", &self.dir)?;
+            let files = (0..width)
+                .map(|d| {
+                    let path = self.column_path(d);
+                    File::options()
+                        .create_new(true)
+                        .read(true)
+                        .write(true)
+                        .open(&path)
+                        .at("create", &path)
+                })
+                .collect::<Result<Vec<_>>>()?;
+            self.spilled = Some((files, 0));
+        }
+        let rows = self.mem.len() / width;
+        let (files, on_disk) = self.spilled.as_mut().expect("created above");
+        let mut column = Vec::with_capacity(rows * 4);
+        for (d, file) in files.iter_mut().enumerate() {
+            column.clear();
+            for v in self.mem.iter().skip(d).step_by(width) {
+                column.extend_from_slice(&v.to_le_bytes());
+            }
+            let path = self.dir.join(format!("{d}.f32"));
+            file.write_all(&column).at("write", &path)?;
+        }
+        *on_disk += rows;
+        self.mem.clear();
+        self.mem.shrink_to(self.budget / 4 + width);
+        Ok(())
+    }
+
+    fn column_path(&self, d: usize) -> PathBuf {
+        self.dir.join(format!("{d}.f32"))
+    }
+
+    /// Rows `lo..hi`, row-major: borrowed when they are in memory, read back otherwise.
+    pub fn rows(&self, lo: usize, hi: usize) -> Result<Cow<'_, [f32]>> {
+        let width = self.width;
+        if hi > self.len() || lo > hi {
+            return Err(Error::Internal(format!(
+                "rows {lo}..{hi} of a store of {} rows",
+                self.len()
+            )));
+        }
+        let disk = self.disk_rows();
+        if lo >= disk {
+            return Ok(Cow::Borrowed(
+                &self.mem[(lo - disk) * width..(hi - disk) * width],
+            ));
+        }
+        let mut out = vec![0f32; (hi - lo) * width];
+        let disk_hi = hi.min(disk);
+        let mut column = Vec::new();
+        for d in 0..width {
+            self.read_column(d, lo, disk_hi, &mut column)?;
+            for (row, &v) in out.chunks_exact_mut(width).zip(&column) {
+                row[d] = v;
+            }
+        }
+        if hi > disk {
+            out[(disk_hi - lo) * width..].copy_from_slice(&self.mem[..(hi - disk) * width]);
+        }
+        Ok(Cow::Owned(out))
+    }
+
+    /// Column `d` of the rows in `ranges` (each `lo..hi`, in order), concatenated.
+    pub fn column(&self, d: usize, ranges: &[(usize, usize)]) -> Result<Vec<f32>> {
+        let width = self.width;
+        let disk = self.disk_rows();
+        let mut out = Vec::with_capacity(ranges.iter().map(|(lo, hi)| hi - lo).sum());
+        let mut part = Vec::new();
+        // Adjacent ranges are read at once.
+        let mut merged: Vec<(usize, usize)> = Vec::with_capacity(ranges.len());
+        for &(lo, hi) in ranges {
+            match merged.last_mut() {
+                Some(last) if last.1 == lo => last.1 = hi,
+                _ => merged.push((lo, hi)),
+            }
+        }
+        for (lo, hi) in merged {
+            if lo < disk {
+                self.read_column(d, lo, hi.min(disk), &mut part)?;
+                out.extend_from_slice(&part);
+            }
+            if hi > disk {
+                let from = lo.max(disk) - disk;
+                let mem = &self.mem[from * width..(hi - disk) * width];
+                out.extend(mem.iter().skip(d).step_by(width));
+            }
+        }
+        Ok(out)
+    }
+
+    /// Rows `lo..hi` (all on disk) of column `d` into `out`.
+    fn read_column(&self, d: usize, lo: usize, hi: usize, out: &mut Vec<f32>) -> Result<()> {
+        let (files, _) = self.spilled.as_ref().expect("rows on disk");
+        let mut bytes = vec![0u8; (hi - lo) * 4];
+        files[d]
+            .read_exact_at(&mut bytes, lo as u64 * 4)
+            .at("read", self.column_path(d))?;
+        out.clear();
+        out.extend(
+            bytes
+                .chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        );
+        Ok(())
+    }
+
+    /// The directory of the column files, for messages.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn filled(budget: usize, dir: &Path, width: usize, batches: &[usize]) -> LowdimStore {
+        let mut store = LowdimStore::new(width, budget, dir.to_path_buf());
+        let mut next = 0f32;
+        for &rows in batches {
+            let values: Vec<f32> = (0..rows * width)
+                .map(|_| {
+                    next += 1.0;
+                    next * 0.37 - 5.0
+                })
+                .collect();
+            store.push(&values).unwrap();
+        }
+        store
+    }
+
+    #[test]
+    fn spilled_and_in_memory_stores_read_the_same_rows_and_columns() {
+        let tmp = tempfile::tempdir().unwrap();
+        let batches = [3, 17, 1, 40, 9, 0, 25];
+        let width = 3;
+        let memory = filled(usize::MAX, &tmp.path().join("m"), width, &batches);
+        // 64 bytes: a few rows, so most pushes flush and some rows stay in memory at the end.
+        let spilled = filled(64, &tmp.path().join("s"), width, &batches);
+        assert!(!memory.is_spilled());
+        assert!(
+            !tmp.path().join("m").exists(),
+            "no file for an in-memory store"
+        );
+        assert!(spilled.is_spilled());
+        let n: usize = batches.iter().sum();
+        assert_eq!(memory.len(), n);
+        assert_eq!(spilled.len(), n);
+        let all = memory.rows(0, n).unwrap().into_owned();
+        // Row-major as pushed: row r, column d holds the (r * width + d + 1)-th value.
+        for (i, &v) in all.iter().enumerate() {
+            assert_eq!(v, (i + 1) as f32 * 0.37 - 5.0);
+        }
+        for (lo, hi) in [(0, n), (0, 1), (5, 30), (n - 2, n), (40, 40), (13, 71)] {
+            assert_eq!(
+                spilled.rows(lo, hi).unwrap().as_ref(),
+                &all[lo * width..hi * width]
+            );
+        }
+        let ranges = [(0, 2), (2, 10), (30, 31), (50, n)];
+        for d in 0..width {
+            let expected: Vec<f32> = ranges
+                .iter()
+                .flat_map(|&(lo, hi)| (lo..hi).map(move |r| r * width + d))
+                .map(|i| all[i])
+                .collect();
+            assert_eq!(memory.column(d, &ranges).unwrap(), expected);
+            assert_eq!(spilled.column(d, &ranges).unwrap(), expected);
+        }
+        assert!(spilled.rows(0, n + 1).is_err());
+    }
+}
