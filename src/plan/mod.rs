@@ -472,10 +472,9 @@ fn resolve_profile(
         Conversion::Decimate { factor: 1 } => {
             format!("{fps} Hz (the source rate, no conversion)")
         }
-        Conversion::Decimate { factor } => format!(
-            "{} Hz -> {fps} Hz: keep every {factor}th step",
-            manifest.fps
-        ),
+        Conversion::Decimate { factor } => {
+            format!("{} Hz -> {fps} Hz: keep 1 step in {factor}", manifest.fps)
+        }
         Conversion::Resample { method, .. } => format!(
             "{} Hz -> {fps} Hz: resample each episode ({}), n -> round(n × {fps} / {})",
             manifest.fps,

@@ -391,7 +391,8 @@ pub struct ProfileSpec {
     /// overrides it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub extends: Option<String>,
-    /// Control rate in Hz. Must divide the source rate by an integer (every n-th step is kept).
+    /// Control rate in Hz, at most the source rate. An integer divisor of the source rate keeps
+    /// every n-th step; any other rate resamples each episode (`[audit] resample`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fps: Option<f64>,
     /// Action chunk length K, in steps at the profile's rate.
