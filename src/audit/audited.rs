@@ -6,13 +6,14 @@ use super::repair;
 use super::timing::Repair;
 use super::AuditReport;
 use crate::error::{Error, Result};
-use crate::source::{ChannelData, Episode, Manifest, Source};
+use crate::source::{ChannelData, Episode, Manifest, Source, Subset};
 
 pub struct Audited {
-    inner: Box<dyn Source>,
+    /// The source without the excluded episodes.
+    inner: Subset,
     manifest: Manifest,
-    /// Positions in the inner source's episode list, and the repair of each.
-    positions: Vec<(usize, Repair)>,
+    /// The repair of each episode of `inner`.
+    repairs: Vec<Repair>,
     expected: f64,
 }
 
@@ -25,33 +26,34 @@ impl Audited {
         repairs: Vec<Repair>,
         apply: bool,
     ) -> Self {
+        let repairs = if apply {
+            repairs
+        } else {
+            vec![Repair::None; repairs.len()]
+        };
+        let excluded: Vec<u64> = inner
+            .manifest()
+            .episodes
+            .iter()
+            .zip(&repairs)
+            .filter(|(_, repair)| **repair == Repair::Exclude)
+            .map(|(info, _)| info.id)
+            .collect();
+        let repairs: Vec<Repair> = repairs
+            .into_iter()
+            .filter(|repair| *repair != Repair::Exclude)
+            .collect();
+        let inner = Subset::without(inner, &excluded);
         let mut manifest = inner.manifest().clone();
-        let mut positions = Vec::new();
-        let mut episodes = Vec::new();
-        let mut excluded = Vec::new();
-        for (i, (info, repair)) in manifest.episodes.iter().zip(repairs).enumerate() {
-            let repair = if apply { repair } else { Repair::None };
-            if repair == Repair::Exclude {
-                excluded.push(info.id);
-                continue;
+        for (info, repair) in manifest.episodes.iter_mut().zip(&repairs) {
+            if let Repair::Regrid { steps } | Repair::Resample { steps, .. } = repair {
+                info.len = *steps;
             }
-            let mut info = info.clone();
-            info.len = match &repair {
-                Repair::Regrid { steps } | Repair::Resample { steps, .. } => *steps,
-                _ => info.len,
-            };
-            episodes.push(info);
-            positions.push((i, repair));
-        }
-        manifest.episodes = episodes;
-        if let Some(split) = manifest.source_split.as_mut() {
-            split.train.retain(|id| !excluded.contains(id));
-            split.val.retain(|id| !excluded.contains(id));
         }
         Audited {
             inner,
             manifest,
-            positions,
+            repairs,
             expected: report.expected_interval,
         }
     }
@@ -63,8 +65,8 @@ impl Source for Audited {
     }
 
     fn read_episode(&self, index: usize) -> Result<Episode> {
-        let (position, repair) = &self.positions[index];
-        let episode = self.inner.read_episode(*position)?;
+        let repair = &self.repairs[index];
+        let episode = self.inner.read_episode(index)?;
         if *repair == Repair::None {
             return Ok(episode);
         }
