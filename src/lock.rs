@@ -91,11 +91,28 @@ impl Lock {
     }
 }
 
-/// BLAKE3 of a file's contents, hex. Streams the file (no mmap), so hashing large outputs does
-/// not show up as resident memory.
+/// BLAKE3 of a file's contents, hex. Streams the file (no mmap) a block at a time, so hashing
+/// large outputs does not show up as resident memory; each block is hashed on every thread.
 pub fn hash_file(path: &Path) -> Result<String> {
+    use std::io::Read;
+    const BLOCK: usize = 8 << 20;
     let mut h = blake3::Hasher::new();
-    let file = std::fs::File::open(path).at("open", path)?;
-    h.update_reader(file).at("hash", path)?;
+    let mut file = std::fs::File::open(path).at("open", path)?;
+    let mut block = vec![0u8; BLOCK];
+    loop {
+        // Fill the whole block (short reads happen): the hash does not depend on block
+        // boundaries, but full blocks keep every thread busy.
+        let mut filled = 0;
+        while filled < BLOCK {
+            match file.read(&mut block[filled..]).at("hash", path)? {
+                0 => break,
+                n => filled += n,
+            }
+        }
+        h.update_rayon(&block[..filled]);
+        if filled < BLOCK {
+            break;
+        }
+    }
     Ok(h.finalize().to_hex().to_string())
 }

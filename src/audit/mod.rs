@@ -37,7 +37,7 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
     let shown = &spec.spec.source.path;
     let mut episodes = Vec::with_capacity(manifest.episodes.len());
     let mut repairs = Vec::with_capacity(manifest.episodes.len());
-    let mut intervals = Vec::new();
+    let mut intervals = timing::Intervals::default();
     for (i, info) in manifest.episodes.iter().enumerate() {
         let stamps = if manifest.timestamps {
             source.read_timestamps(i)?
@@ -65,7 +65,7 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
             // The declared rate: a regular grid.
             None => (0..info.len).map(|k| k as f64 * expected).collect(),
         };
-        intervals.extend(t.windows(2).map(|w| w[1] - w[0]));
+        intervals.add_steps(&t);
         let (audit, repair) = timing::judge(info.id, &t, fps, cfg)
             .map_err(|msg| Error::source(format!("{place}: {msg}")))?;
         episodes.push(audit);
@@ -77,7 +77,8 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
     let repaired_fraction = repaired as f64 / total;
     let excluded_fraction = count(Verdict::Exclude) as f64 / total;
     let mut warnings = Vec::new();
-    let modes = timing::modes(&intervals, expected, cfg.jitter_threshold);
+    let intervals = intervals.runs();
+    let modes = timing::modes_of(&intervals, expected, cfg.jitter_threshold);
     if modes.len() >= 2 {
         let shown: Vec<String> = modes
             .iter()
@@ -112,7 +113,7 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
         episodes,
         repaired_fraction,
         excluded_fraction,
-        histogram: timing::histogram(&intervals, expected),
+        histogram: timing::histogram_of(&intervals, expected),
         warnings,
         examples: Vec::new(),
     };

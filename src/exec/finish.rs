@@ -34,6 +34,7 @@ pub(super) fn profile(
 ) -> Result<BTreeMap<String, String>> {
     let (manifest, plan, spec, renderer) =
         (shared.manifest, shared.plan, shared.spec, shared.renderer);
+    let lowdim = super::timings::phase("write low-dim");
     let mut normalizers = BTreeMap::new();
     for (c, ch) in p.channels.iter().enumerate() {
         let n = Normalizer::fit(ch.normalize, &stats[&ch.name]);
@@ -42,6 +43,8 @@ pub(super) fn profile(
         }
         normalizers.insert(ch.name.clone(), n);
     }
+    drop(lowdim);
+    let windows = super::timings::phase("write index");
     // The index is counted here and generated again a block at a time as the sink writes it.
     let mut index = Index {
         p,
@@ -72,6 +75,8 @@ pub(super) fn profile(
     let data_file = sink.data_file().to_string();
     let normalized = sink.stores_normalized();
     sink.finish()?;
+    drop(windows);
+    let documents = super::timings::phase("documents");
 
     let write = |name: &str, text: String| -> Result<()> {
         let path = dir.join(name);
@@ -141,6 +146,8 @@ pub(super) fn profile(
         write(name, text)?;
     }
 
+    drop(documents);
+    let _hashing = super::timings::phase("hash outputs");
     let mut files = BTreeMap::new();
     for rel in source::fingerprint::list_files(dir)? {
         let name = rel.to_string_lossy().replace('\\', "/");

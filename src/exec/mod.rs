@@ -11,12 +11,14 @@
 //! - `staging`: the staging directory and the final renames.
 //! - `progress`: progress bars (hidden when stderr is not a terminal).
 //! - `store`: the low-dim values of one channel at one rate, spilled to disk beyond a budget.
+//! - `timings`: wall time per phase, printed when `CHUNKC_TIMINGS` is set.
 
 mod finish;
 mod location;
 mod progress;
 mod staging;
 mod store;
+pub mod timings;
 
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -60,7 +62,10 @@ pub struct BuildReport {
 /// Opens the source and audits it: the source as read, the audit, and each episode's repair.
 pub fn audit(spec: &LoadedSpec) -> Result<(Box<dyn Source>, AuditReport, Vec<audit::Repair>)> {
     check_output_location(spec, &spec.resolve(&spec.spec.output.dir))?;
+    let opened = timings::phase("open source");
     let source = source::open(spec)?;
+    drop(opened);
+    let _audit = timings::phase("audit");
     let (report, repairs) = audit::run(spec, source.as_ref())?;
     Ok((source, report, repairs))
 }
@@ -240,6 +245,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         },
     );
     all.write(&lock_path)?;
+    timings::report();
     Ok(BuildReport {
         out_dir,
         built,
@@ -284,8 +290,26 @@ struct RateState {
     /// Per channel (manifest order): concatenated low-dim values; empty for images. Shared with
     /// the sinks that export episode by episode once reading is over.
     lowdim: Vec<Arc<LowdimStore>>,
-    /// Per channel: merged image partials over training episodes; `None` for low-dim.
-    images: Vec<Option<ImagePartial>>,
+    /// Per channel: the statistics partials of the training episodes, merged in episode order.
+    partials: Vec<Partial>,
+}
+
+/// The part of a channel's statistics reduced while the source is read: moments of low-dim
+/// channels (their percentiles need every value, and are taken from the store at the end), and
+/// moments + histograms of images.
+enum Partial {
+    Lowdim(stats::Moments),
+    Image(ImagePartial),
+}
+
+impl Partial {
+    fn merge(&mut self, other: &Partial) {
+        match (self, other) {
+            (Partial::Lowdim(a), Partial::Lowdim(b)) => a.merge(b),
+            (Partial::Image(a), Partial::Image(b)) => a.merge(b),
+            _ => unreachable!("partials of one channel have one kind"),
+        }
+    }
 }
 
 /// One episode's channel after the parallel part of the work.
@@ -296,12 +320,12 @@ enum Prepared {
 }
 
 /// One episode after the parallel part of the work: decimated per rate, images compressed,
-/// image partials computed.
+/// statistics partials computed.
 struct Processed {
     /// Per rate (in `RateState` order), per channel.
     data: Vec<Vec<Prepared>>,
-    /// Per rate, per channel: image partial if this is a training episode.
-    partials: Vec<Vec<Option<ImagePartial>>>,
+    /// Per rate, per channel: the statistics partial, if this is a training episode.
+    partials: Vec<Vec<Option<Partial>>>,
 }
 
 fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
@@ -316,7 +340,7 @@ fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
         .collect()
 }
 
-/// Decimates an episode to every rate, encodes its frames for every sink, and computes the image
+/// Decimates an episode to every rate, encodes its frames for every sink, and computes the
 /// statistics partials of a training episode. Runs in parallel over episodes.
 fn process(
     episode: Episode,
@@ -343,13 +367,16 @@ fn process(
             };
             match converted {
                 ChannelData::Lowdim(v) => {
+                    per_partial
+                        .push(train.then(|| Partial::Lowdim(stats::Moments::of_rows(&v, width))));
                     per_channel.push(Prepared::Lowdim(v));
-                    per_partial.push(None);
                 }
                 ChannelData::Image(d) => {
                     let frames = d.len() / width.max(1);
                     let colors = *ch.shape.last().unwrap_or(&1);
-                    per_partial.push(train.then(|| ImagePartial::of_frames(&d, frames, colors)));
+                    per_partial.push(
+                        train.then(|| Partial::Image(ImagePartial::of_frames(&d, frames, colors))),
+                    );
                     let encoded = encodings
                         .iter()
                         .map(|&enc| {
@@ -370,9 +397,35 @@ fn process(
     Processed { data, partials }
 }
 
-/// Episodes decoded at once: enough to keep every thread busy, few enough to bound memory.
-fn batch_size() -> usize {
-    2 * rayon::current_num_threads()
+/// Bytes of decoded values a batch of episodes may hold, beyond its minimum size.
+const BATCH_BYTES: usize = 8 << 20;
+
+/// Episodes decoded at once, in order: at least two per thread (to keep every thread busy), and
+/// more while their decoded values stay under [`BATCH_BYTES`] (short low-dim episodes: fewer
+/// pauses between batches). Memory stays bounded by the batch.
+fn batches(manifest: &source::Manifest) -> Vec<std::ops::Range<usize>> {
+    let min = 2 * rayon::current_num_threads();
+    let step_bytes: usize = manifest
+        .channels
+        .iter()
+        .map(|c| match c.kind {
+            ChannelKind::Lowdim => 4 * c.width(),
+            ChannelKind::Image => c.width(),
+        })
+        .sum();
+    let mut out = Vec::new();
+    let (mut start, mut bytes) = (0, 0);
+    for (i, e) in manifest.episodes.iter().enumerate() {
+        bytes += e.len * step_bytes;
+        if i + 1 - start >= min && bytes >= BATCH_BYTES {
+            out.push(start..i + 1);
+            (start, bytes) = (i + 1, 0);
+        }
+    }
+    if start < manifest.episodes.len() {
+        out.push(start..manifest.episodes.len());
+    }
+    out
 }
 
 fn run(
@@ -434,12 +487,14 @@ fn run(
                         Arc::new(LowdimStore::new(width, budget, dir))
                     })
                     .collect(),
-                images: manifest
+                partials: manifest
                     .channels
                     .iter()
-                    .map(|c| {
-                        (c.kind == ChannelKind::Image)
-                            .then(|| ImagePartial::new(*c.shape.last().unwrap_or(&1)))
+                    .map(|c| match c.kind {
+                        ChannelKind::Lowdim => Partial::Lowdim(stats::Moments::new(c.width())),
+                        ChannelKind::Image => {
+                            Partial::Image(ImagePartial::new(*c.shape.last().unwrap_or(&1)))
+                        }
                     })
                     .collect(),
             }
@@ -485,8 +540,10 @@ fn run(
         manifest.episodes.len() as u64,
         "reading episodes",
     );
+    let reading = timings::phase("read episodes");
     let positions: Vec<usize> = (0..manifest.episodes.len()).collect();
-    for batch in positions.chunks(batch_size()) {
+    for range in batches(manifest) {
+        let batch = &positions[range];
         // Once an episode is excluded this attempt is thrown away: only check the rest.
         let checking_only = !excluded.is_empty();
         let processed: Vec<Option<Processed>> = batch
@@ -548,6 +605,9 @@ fn run(
             {
                 let row = if i == 0 { 0 } else { rate.ends[i - 1] as usize };
                 for (c, (values, partial)) in data.into_iter().zip(partials).enumerate() {
+                    if let Some(p) = partial {
+                        rate.partials[c].merge(&p);
+                    }
                     match values {
                         Prepared::Lowdim(v) => Arc::get_mut(&mut rate.lowdim[c])
                             .expect("no reader while the source is read")
@@ -561,9 +621,6 @@ fn run(
                                     .expect("frames encoded for every sink");
                                 sink.write_frames(c, row, frames)?;
                             }
-                            if let (Some(acc), Some(p)) = (rate.images[c].as_mut(), partial) {
-                                acc.merge(&p);
-                            }
                         }
                     }
                 }
@@ -572,9 +629,11 @@ fn run(
         }
     }
     bar.finish_and_clear();
+    drop(reading);
     if !excluded.is_empty() {
         return Ok(Err(excluded));
     }
+    let statistics = timings::phase("statistics");
 
     // Statistics once per (rate, channel), shared by every profile at that rate.
     let train_mask: Vec<bool> = ids.iter().map(|&id| plan.split.is_train(id)).collect();
@@ -594,20 +653,22 @@ fn run(
                             (start, ends[e] as usize)
                         })
                         .collect();
-                    // Merged episode by episode, in order, as `stats::lowdim` does.
-                    let mut m = stats::Moments::new(width);
-                    for &(lo, hi) in &train {
-                        m.merge(&stats::Moments::of_rows(&values.rows(lo, hi)?, width));
-                    }
-                    stats::lowdim_from(m, width, |d| values.column(d, &train))?
+                    let Partial::Lowdim(m) = &rate.partials[c] else {
+                        unreachable!("low-dim partial")
+                    };
+                    stats::lowdim_from(m.clone(), width, |d, f| values.for_column(d, &train, f))?
                 }
-                ChannelKind::Image => rate.images[c].take().expect("image partial").finish(),
+                ChannelKind::Image => match &rate.partials[c] {
+                    Partial::Image(p) => p.clone().finish(),
+                    Partial::Lowdim(_) => unreachable!("image partial"),
+                },
             };
             by_channel.insert(ch.name.clone(), s);
         }
         stats_by_rate.push(by_channel);
     }
 
+    drop(statistics);
     let mut hashes = BTreeMap::new();
     for ((p, (r, sink)), dir) in stale.iter().zip(sinks).zip(&dirs) {
         let shared = finish::Shared {

@@ -5,7 +5,7 @@
 //! [`LowdimStore`] keeps them in memory (row-major, as read) up to a byte budget; beyond it, it
 //! spills to one file per column in the build's staging directory, appending each flushed block's
 //! columns, and from then on keeps at most a budget's worth of rows in memory. Reading is then
-//! (a) one column at a time, for percentiles ([`LowdimStore::column`]), and (b) a block of rows at
+//! (a) one column at a time, for statistics ([`LowdimStore::for_column`]), and (b) a block of rows at
 //! a time, for moments, the writers and per-episode exports ([`LowdimStore::rows`]), read back
 //! from the column files and interleaved. Small builds never touch the disk.
 //!
@@ -22,6 +22,9 @@ use crate::error::{Error, IoContext, Result};
 
 /// Bytes of values one store keeps in memory before it spills.
 pub const DEFAULT_BUDGET: usize = 32 << 20;
+
+/// Rows transposed and appended to the column files at once when the store flushes.
+const SLAB_ROWS: usize = 1 << 16;
 
 /// The budget: `CHUNKC_SPILL_BYTES` if set, else [`DEFAULT_BUDGET`].
 pub fn budget_from_env() -> usize {
@@ -110,14 +113,12 @@ impl LowdimStore {
         }
         let rows = self.mem.len() / width;
         let (files, on_disk) = self.spilled.as_mut().expect("created above");
-        let mut column = Vec::with_capacity(rows * 4);
-        for (d, file) in files.iter_mut().enumerate() {
-            column.clear();
-            for v in self.mem.iter().skip(d).step_by(width) {
-                column.extend_from_slice(&v.to_le_bytes());
+        // A slab of rows at a time: the transposed copy stays small.
+        for slab in self.mem.chunks(SLAB_ROWS * width) {
+            for (d, (file, column)) in files.iter_mut().zip(transpose(slab, width)).enumerate() {
+                let path = self.dir.join(format!("{d}.f32"));
+                file.write_all(&column).at("write", &path)?;
             }
-            let path = self.dir.join(format!("{d}.f32"));
-            file.write_all(&column).at("write", &path)?;
         }
         *on_disk += rows;
         self.mem.clear();
@@ -159,32 +160,40 @@ impl LowdimStore {
         Ok(Cow::Owned(out))
     }
 
-    /// Column `d` of the rows in `ranges` (each `lo..hi`, in order), concatenated.
-    pub fn column(&self, d: usize, ranges: &[(usize, usize)]) -> Result<Vec<f32>> {
+    /// Calls `f` with column `d` of each range of rows in `ranges` (each `lo..hi`, in order), one
+    /// call per range. Rows on disk are read a large block at a time, whatever the ranges'
+    /// lengths, so memory stays at one block.
+    pub fn for_column(
+        &self,
+        d: usize,
+        ranges: &[(usize, usize)],
+        f: &mut dyn FnMut(&[f32]),
+    ) -> Result<()> {
+        const BLOCK_ROWS: usize = 1 << 18;
         let width = self.width;
         let disk = self.disk_rows();
-        let mut out = Vec::with_capacity(ranges.iter().map(|(lo, hi)| hi - lo).sum());
+        let (mut buf, mut buf_lo) = (Vec::new(), 0usize);
         let mut part = Vec::new();
-        // Adjacent ranges are read at once.
-        let mut merged: Vec<(usize, usize)> = Vec::with_capacity(ranges.len());
         for &(lo, hi) in ranges {
-            match merged.last_mut() {
-                Some(last) if last.1 == lo => last.1 = hi,
-                _ => merged.push((lo, hi)),
+            if hi <= disk {
+                if lo < buf_lo || hi > buf_lo + buf.len() {
+                    let end = disk.min(lo + BLOCK_ROWS).max(hi);
+                    self.read_column(d, lo, end, &mut buf)?;
+                    buf_lo = lo;
+                }
+                f(&buf[lo - buf_lo..hi - buf_lo]);
+                continue;
             }
-        }
-        for (lo, hi) in merged {
+            part.clear();
             if lo < disk {
-                self.read_column(d, lo, hi.min(disk), &mut part)?;
-                out.extend_from_slice(&part);
+                self.read_column(d, lo, disk, &mut part)?;
             }
-            if hi > disk {
-                let from = lo.max(disk) - disk;
-                let mem = &self.mem[from * width..(hi - disk) * width];
-                out.extend(mem.iter().skip(d).step_by(width));
-            }
+            let from = lo.max(disk) - disk;
+            let mem = &self.mem[from * width..(hi - disk) * width];
+            part.extend(mem.iter().skip(d).step_by(width));
+            f(&part);
         }
-        Ok(out)
+        Ok(())
     }
 
     /// Rows `lo..hi` (all on disk) of column `d` into `out`.
@@ -207,6 +216,37 @@ impl LowdimStore {
     pub fn dir(&self) -> &Path {
         &self.dir
     }
+}
+
+/// Row-major `f32` rows of `width` values → one little-endian byte column per dimension.
+/// Blocks of rows are transposed in parallel (each block fits in cache); the bytes do not
+/// depend on the thread count.
+fn transpose(values: &[f32], width: usize) -> Vec<Vec<u8>> {
+    use rayon::prelude::*;
+    const BLOCK_ROWS: usize = 4096;
+    let rows = values.len() / width;
+    let mut columns: Vec<Vec<u8>> = vec![vec![0u8; rows * 4]; width];
+    let mut blocks: Vec<Vec<&mut [u8]>> = (0..rows.div_ceil(BLOCK_ROWS))
+        .map(|_| Vec::with_capacity(width))
+        .collect();
+    for column in &mut columns {
+        for (b, part) in column.chunks_mut(BLOCK_ROWS * 4).enumerate() {
+            blocks[b].push(part);
+        }
+    }
+    blocks
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(b, mut parts)| {
+            let block = &values[b * BLOCK_ROWS * width..];
+            let n = parts[0].len() / 4;
+            for (r, row) in block.chunks_exact(width).take(n).enumerate() {
+                for (part, v) in parts.iter_mut().zip(row) {
+                    part[4 * r..4 * r + 4].copy_from_slice(&v.to_le_bytes());
+                }
+            }
+        });
+    columns
 }
 
 #[cfg(test)]
@@ -263,8 +303,18 @@ mod tests {
                 .flat_map(|&(lo, hi)| (lo..hi).map(move |r| r * width + d))
                 .map(|i| all[i])
                 .collect();
-            assert_eq!(memory.column(d, &ranges).unwrap(), expected);
-            assert_eq!(spilled.column(d, &ranges).unwrap(), expected);
+            for store in [&memory, &spilled] {
+                let (mut got, mut calls) = (Vec::new(), Vec::new());
+                store
+                    .for_column(d, &ranges, &mut |part| {
+                        calls.push(part.len());
+                        got.extend_from_slice(part);
+                    })
+                    .unwrap();
+                assert_eq!(got, expected);
+                let lengths: Vec<usize> = ranges.iter().map(|(lo, hi)| hi - lo).collect();
+                assert_eq!(calls, lengths, "one call per range");
+            }
         }
         assert!(spilled.rows(0, n + 1).is_err());
     }

@@ -287,12 +287,29 @@ impl Sink for Hdf5Writer {
                 .unwrap_or(1)
                 .max(1);
             let block_rows = chunk_rows * (NORMALIZE_BLOCK_BYTES / (4 * width * chunk_rows)).max(1);
-            for lo in (0..raw.len()).step_by(block_rows) {
-                let rows = block_rows.min(raw.len() - lo);
-                let mut block = raw.rows(lo, lo + rows)?.into_owned();
+            let starts: Vec<usize> = (0..raw.len()).step_by(block_rows).collect();
+            let prepare = |lo: usize| -> Result<Vec<f32>> {
+                let mut block = raw.rows(lo, (lo + block_rows).min(raw.len()))?.into_owned();
                 normalizer.apply(&mut block);
-                let view = self.view(channel, rows, &block)?;
-                self.data[channel].write_slice(view, self.selection(channel, lo, rows))?;
+                Ok(block)
+            };
+            // The next block is read back and normalized on another thread while HDF5 (one
+            // thread at a time) writes this one.
+            let mut next = starts.first().map(|&lo| prepare(lo));
+            for (i, &lo) in starts.iter().enumerate() {
+                let block = next.take().expect("prepared")?;
+                let rows = block.len() / width;
+                let this = &*self;
+                let (written, following) = rayon::join(
+                    || -> Result<()> {
+                        let view = this.view(channel, rows, &block)?;
+                        this.data[channel].write_slice(view, this.selection(channel, lo, rows))?;
+                        Ok(())
+                    },
+                    || starts.get(i + 1).map(|&lo| prepare(lo)),
+                );
+                written?;
+                next = following;
             }
             return Ok(());
         }

@@ -27,7 +27,7 @@ pub struct AlohaSource {
     jpeg: Vec<(String, (usize, usize))>,
     /// Per episode: where each mapped key's values lie in the file, when every one of them is
     /// stored contiguously (see [`h5::direct`]); such an episode is read without HDF5.
-    direct: Vec<Option<Vec<(String, h5::Direct)>>>,
+    direct: Vec<Located>,
 }
 
 /// `episode_12.hdf5` → 12.
@@ -52,6 +52,9 @@ fn jpeg_size(ds: &Dataset, t: usize, what: &str) -> Result<(usize, usize)> {
     jpeg::dimensions(row.as_slice().unwrap_or(&row.to_vec()))
         .map_err(|e| Error::source(format!("{what} step {t}: {e}")))
 }
+
+/// Where each mapped key's values lie in an episode file, when every one can be read directly.
+type Located = Option<Vec<(String, h5::Direct)>>;
 
 impl AlohaSource {
     pub fn open(spec: &LoadedSpec, dir: &Path) -> Result<Self> {
@@ -135,59 +138,71 @@ impl AlohaSource {
         let wanted = mapped.keys();
         jpeg_keys.retain(|(k, _)| wanted.contains(k));
 
-        let mut episodes = Vec::with_capacity(files.len());
-        let mut direct = Vec::with_capacity(files.len());
-        for ((id, _), path) in found.iter().zip(&files) {
-            let file = h5::open(path)?;
-            let here = path.display().to_string();
-            let mut len: Option<(usize, &str)> = None;
-            let mut located = Some(Vec::with_capacity(wanted.len()));
-            for key in &wanted {
-                let ds = h5::dataset(&file, key, path)?;
-                let is_jpeg = jpeg_keys.iter().any(|(k, _)| k == key);
-                located = match (located, h5::direct(&ds)) {
-                    (Some(mut v), Some(d)) if !is_jpeg => {
-                        v.push((key.clone(), d));
-                        Some(v)
-                    }
-                    _ => None,
-                };
-                let reference = keys.iter().find(|k| &k.key == key).expect("resolved");
-                let jpeg = jpeg_keys.iter().find(|(k, _)| k == key);
-                let shape_ok = match jpeg {
-                    Some(_) => is_jpeg_rows(key, &ds),
-                    None => h5::step_shape(&ds) == reference.shape,
-                };
-                if !shape_ok {
-                    return Err(Error::source(format!(
-                        "{here}: `{key}` has shape {:?}, unlike {} ({:?} per step, {})",
-                        ds.shape(),
-                        files[0].display(),
-                        reference.shape,
-                        reference.dtype
-                    )));
-                }
-                let steps = h5::steps(&ds);
-                match len {
-                    None => len = Some((steps, key)),
-                    Some((n, first_key)) if n != steps => {
-                        return Err(Error::source(format!(
-                            "{here}: `{first_key}` has {n} steps but `{key}` has {steps}"
-                        )))
-                    }
-                    Some(_) => {}
-                }
-            }
-            let len = len.map(|(n, _)| n).unwrap_or(0);
-            if len == 0 {
-                return Err(Error::source(format!("{here}: the episode is empty")));
-            }
-            episodes.push(EpisodeInfo { id: *id, len });
-            direct.push(located);
-        }
-
+        // Each file's header is read through HDF5, one file at a time (its lock); the content
+        // hashes of the fingerprint run on the other threads meanwhile.
         let names: Vec<PathBuf> = found.iter().map(|(_, n)| PathBuf::from(n)).collect();
-        let fingerprint = fingerprint::of_files(dir, &names)?;
+        let (headers, fingerprint) = rayon::join(
+            || -> Result<(Vec<EpisodeInfo>, Vec<Located>)> {
+                let _headers = crate::exec::timings::phase("episode headers");
+                let mut episodes = Vec::with_capacity(files.len());
+                let mut direct = Vec::with_capacity(files.len());
+                for ((id, _), path) in found.iter().zip(&files) {
+                    let file = h5::open(path)?;
+                    let here = path.display().to_string();
+                    let mut len: Option<(usize, &str)> = None;
+                    let mut located = Some(Vec::with_capacity(wanted.len()));
+                    for key in &wanted {
+                        let ds = h5::dataset(&file, key, path)?;
+                        let is_jpeg = jpeg_keys.iter().any(|(k, _)| k == key);
+                        located = match (located, h5::direct(&ds)) {
+                            (Some(mut v), Some(d)) if !is_jpeg => {
+                                v.push((key.clone(), d));
+                                Some(v)
+                            }
+                            _ => None,
+                        };
+                        let reference = keys.iter().find(|k| &k.key == key).expect("resolved");
+                        let jpeg = jpeg_keys.iter().find(|(k, _)| k == key);
+                        let shape_ok = match jpeg {
+                            Some(_) => is_jpeg_rows(key, &ds),
+                            None => h5::step_shape(&ds) == reference.shape,
+                        };
+                        if !shape_ok {
+                            return Err(Error::source(format!(
+                                "{here}: `{key}` has shape {:?}, unlike {} ({:?} per step, {})",
+                                ds.shape(),
+                                files[0].display(),
+                                reference.shape,
+                                reference.dtype
+                            )));
+                        }
+                        let steps = h5::steps(&ds);
+                        match len {
+                            None => len = Some((steps, key)),
+                            Some((n, first_key)) if n != steps => {
+                                return Err(Error::source(format!(
+                                    "{here}: `{first_key}` has {n} steps but `{key}` has {steps}"
+                                )))
+                            }
+                            Some(_) => {}
+                        }
+                    }
+                    let len = len.map(|(n, _)| n).unwrap_or(0);
+                    if len == 0 {
+                        return Err(Error::source(format!("{here}: the episode is empty")));
+                    }
+                    episodes.push(EpisodeInfo { id: *id, len });
+                    direct.push(located);
+                }
+                Ok((episodes, direct))
+            },
+            || {
+                let _fingerprint = crate::exec::timings::phase("fingerprint source");
+                fingerprint::of_files(dir, &names)
+            },
+        );
+        let (episodes, direct) = headers?;
+        let fingerprint = fingerprint?;
         Ok(AlohaSource {
             files,
             manifest: Manifest {

@@ -13,7 +13,7 @@ pub mod normalize;
 mod percentile;
 
 pub use moments::Moments;
-pub use percentile::{percentile, percentile_of_histogram, percentiles};
+pub use percentile::{percentile, percentile_of_histogram, percentiles, percentiles_streamed};
 
 use rayon::prelude::*;
 
@@ -54,41 +54,43 @@ pub fn lowdim<'a>(
     for block in blocks.clone() {
         m.merge(&Moments::of_rows(block, dims));
     }
-    let column = |d: usize| -> Result<Vec<f32>, std::convert::Infallible> {
+    let each = |d: usize, f: &mut dyn FnMut(&[f32])| -> Result<(), std::convert::Infallible> {
         let mut column = Vec::new();
         for block in blocks.clone() {
             column.extend(block.iter().skip(d).step_by(dims));
         }
-        Ok(column)
+        f(&column);
+        Ok(())
     };
-    match lowdim_from(m, dims, column) {
+    match lowdim_from(m, dims, each) {
         Ok(s) => s,
         Err(never) => match never {},
     }
 }
 
-/// [`lowdim`] from the moments already merged (in episode order) and a reader of one column of
-/// the same rows at a time, so the values need not all be in memory at once.
+/// [`lowdim`] from the moments already merged (in episode order) and a reader of one column at
+/// a time: `each(d, f)` calls `f` with blocks that together hold dimension `d` of every value the
+/// moments cover. Exact percentiles come from two reads of each column
+/// ([`percentiles_streamed`]), one column per task: the values are never all in memory, which is
+/// what keeps a build's memory flat in the number of episodes.
 pub fn lowdim_from<E: Send>(
     m: Moments,
     dims: usize,
-    column: impl Fn(usize) -> Result<Vec<f32>, E> + Sync,
+    each: impl Fn(usize, &mut dyn FnMut(&[f32])) -> Result<(), E> + Sync,
 ) -> Result<ChannelStats, E> {
     let rows = m.count;
-    // Columns are independent: one per task, results in column order (deterministic).
-    let columns: Vec<Vec<f64>> = (0..dims)
+    let pct: Vec<Vec<f64>> = (0..dims)
         .into_par_iter()
         .map(|d| {
-            let mut column = column(d)?;
-            Ok(if column.is_empty() {
-                vec![f64::NAN; PERCENTILES.len()]
+            if rows == 0 {
+                Ok(vec![f64::NAN; PERCENTILES.len()])
             } else {
-                percentiles(&mut column, &PERCENTILES)
-            })
+                percentiles_streamed(rows, &PERCENTILES, |f| each(d, f))
+            }
         })
         .collect::<Result<_, E>>()?;
     let pct: Vec<Vec<f64>> = (0..PERCENTILES.len())
-        .map(|k| columns.iter().map(|c| c[k]).collect())
+        .map(|k| pct.iter().map(|p| p[k]).collect())
         .collect();
     Ok(finish(m, pct, rows))
 }

@@ -49,6 +49,108 @@ pub fn percentiles(values: &mut [f32], qs: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+/// `numpy.percentile` of a column too large to hold, read twice: `pass` must call its argument
+/// with every value of the column, in blocks, each time it is called (the order does not
+/// matter). The first pass counts the values by the high 16 bits of an order-preserving key
+/// (the bits of [`f32::total_cmp`]'s order), which tells each needed rank's bucket; the second
+/// counts, within those buckets only, the low 16 bits, which gives each rank's exact value.
+/// Memory is a few 65,536-entry tables whatever the column's length; the result is the same as
+/// [`percentiles`]'s.
+pub fn percentiles_streamed<E>(
+    n: u64,
+    qs: &[f64],
+    mut pass: impl FnMut(&mut dyn FnMut(&[f32])) -> Result<(), E>,
+) -> Result<Vec<f64>, E> {
+    assert!(n > 0, "percentile of no values");
+    let mut high = vec![0u64; 1 << 16];
+    pass(&mut |block| {
+        for &v in block {
+            high[(key(v) >> 16) as usize] += 1;
+        }
+    })?;
+    debug_assert_eq!(high.iter().sum::<u64>(), n);
+    // Each rank's bucket and its rank among the bucket's values.
+    let mut ranks: Vec<u64> = Vec::with_capacity(2 * qs.len());
+    for &q in qs {
+        let (lo, frac) = position(n, q);
+        ranks.push(lo);
+        if frac != 0.0 && lo + 1 < n {
+            ranks.push(lo + 1);
+        }
+    }
+    ranks.sort_unstable();
+    ranks.dedup();
+    let mut located: Vec<(u64, usize, u64)> = Vec::with_capacity(ranks.len());
+    let (mut bucket, mut below) = (0usize, 0u64);
+    for &r in &ranks {
+        while below + high[bucket] <= r {
+            below += high[bucket];
+            bucket += 1;
+        }
+        located.push((r, bucket, r - below));
+    }
+    // One low-bits table per distinct bucket.
+    let mut buckets: Vec<usize> = located.iter().map(|&(_, b, _)| b).collect();
+    buckets.dedup();
+    let mut slot = vec![u8::MAX; 1 << 16];
+    for (i, &b) in buckets.iter().enumerate() {
+        slot[b] = i as u8;
+    }
+    let mut low = vec![vec![0u64; 1 << 16]; buckets.len()];
+    pass(&mut |block| {
+        for &v in block {
+            let k = key(v);
+            let s = slot[(k >> 16) as usize];
+            if s != u8::MAX {
+                low[s as usize][(k & 0xFFFF) as usize] += 1;
+            }
+        }
+    })?;
+    let value_at = |rank: u64| -> f64 {
+        let &(_, b, mut within) = located
+            .iter()
+            .find(|&&(r, _, _)| r == rank)
+            .expect("located");
+        let table = &low[buckets.iter().position(|&x| x == b).expect("bucket")];
+        let mut l = 0;
+        while table[l] <= within {
+            within -= table[l];
+            l += 1;
+        }
+        f64::from(from_key(((b as u32) << 16) | l as u32))
+    };
+    Ok(qs
+        .iter()
+        .map(|&q| {
+            let (lo, frac) = position(n, q);
+            let a = value_at(lo);
+            if frac == 0.0 || lo + 1 >= n {
+                a
+            } else {
+                lerp(a, value_at(lo + 1), frac)
+            }
+        })
+        .collect())
+}
+
+/// An unsigned key whose order is [`f32::total_cmp`]'s.
+fn key(v: f32) -> u32 {
+    let b = v.to_bits();
+    if b & 0x8000_0000 != 0 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
+}
+
+fn from_key(k: u32) -> f32 {
+    f32::from_bits(if k & 0x8000_0000 != 0 {
+        k & 0x7FFF_FFFF
+    } else {
+        !k
+    })
+}
+
 /// Puts the value of every rank in `ranks` (sorted, relative to the whole slice; `offset` is
 /// where `values` starts in it) at its sorted position.
 fn select_ranks(values: &mut [f32], offset: usize, ranks: &[usize]) {
@@ -128,6 +230,54 @@ mod tests {
                 let mut b = values.clone();
                 assert_eq!(got, percentile(&mut b, *q), "n={n} q={q}");
             }
+        }
+    }
+
+    #[test]
+    fn streamed_equals_selection() {
+        let qs = [0.1, 99.9, 1.0, 99.0, 10.0, 50.0, 90.0, 0.0, 100.0, 37.5];
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for n in [1usize, 2, 3, 10, 1000, 65_537, 200_000] {
+            // Wide-ranging values, repeats, both zeros and infinities: every bucket shape.
+            let values: Vec<f32> = (0..n)
+                .map(|i| match next() % 10 {
+                    0 => 0.0,
+                    1 => -0.0,
+                    2 => {
+                        f32::from_bits(next() as u32 & 0x7F7F_FFFF)
+                            * if i % 2 == 0 { 1.0 } else { -1.0 }
+                    }
+                    3 if i % 97 == 0 => f32::INFINITY,
+                    4 if i % 89 == 0 => f32::NEG_INFINITY,
+                    5 => 1.5,
+                    _ => (next() % 20_000) as f32 * 0.001 - 10.0,
+                })
+                .collect();
+            let mut a = values.clone();
+            let want = percentiles(&mut a, &qs);
+            for block in [1usize, 7, 4096] {
+                let got = percentiles_streamed::<()>(n as u64, &qs, |f| {
+                    values.chunks(block).for_each(&mut *f);
+                    Ok(())
+                })
+                .unwrap();
+                for ((q, w), g) in qs.iter().zip(&want).zip(&got) {
+                    assert_eq!(
+                        w.to_bits(),
+                        g.to_bits(),
+                        "n={n} block={block} q={q}: {w} vs {g}"
+                    );
+                }
+            }
+        }
+        for v in [0.0f32, -0.0, 1.0, -1.0, f32::MIN, f32::MAX, f32::INFINITY] {
+            assert_eq!(from_key(key(v)).to_bits(), v.to_bits());
         }
     }
 
