@@ -98,6 +98,14 @@ fn statistics(c: &mut Criterion) {
     g.bench_function("percentiles_all_at_once/1000000", |b| {
         b.iter(|| stats::percentiles(&mut column.clone(), &qs))
     });
+    g.bench_function("percentiles_streamed/1000000", |b| {
+        b.iter(|| {
+            stats::percentiles_streamed::<()>(column.len() as u64, &qs, |f| {
+                column.chunks(400).for_each(&mut *f);
+                Ok(())
+            })
+        })
+    });
     g.bench_function("percentile_one_by_one/1000000", |b| {
         b.iter(|| {
             let mut v = column.clone();

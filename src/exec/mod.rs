@@ -669,16 +669,25 @@ fn run(
     }
 
     drop(statistics);
+    // Profiles finish side by side: their files are independent (HDF5 still writes one thread at
+    // a time), and the results are gathered in profile order.
+    let shared = finish::Shared {
+        spec,
+        plan,
+        manifest,
+        renderer,
+    };
+    let finished: Vec<Result<BTreeMap<String, String>>> = stale
+        .par_iter()
+        .zip(sinks)
+        .zip(&dirs)
+        .map(|((p, (r, sink)), dir)| {
+            finish::profile(&shared, p, &rates[r], &stats_by_rate[r], sink, dir)
+        })
+        .collect();
     let mut hashes = BTreeMap::new();
-    for ((p, (r, sink)), dir) in stale.iter().zip(sinks).zip(&dirs) {
-        let shared = finish::Shared {
-            spec,
-            plan,
-            manifest,
-            renderer,
-        };
-        let files = finish::profile(&shared, p, &rates[r], &stats_by_rate[r], sink, dir)?;
-        hashes.insert(p.name.clone(), files);
+    for (p, files) in stale.iter().zip(finished) {
+        hashes.insert(p.name.clone(), files?);
     }
     Ok(Ok(hashes))
 }

@@ -70,7 +70,7 @@ pub struct SinkContext<'a> {
 }
 
 /// One output container being written.
-pub trait Sink {
+pub trait Sink: Send {
     /// The file `meta.json` names as the data (relative to the profile directory).
     fn data_file(&self) -> &str;
     fn frame_encoding(&self) -> FrameEncoding;
