@@ -38,12 +38,27 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
     let mut episodes = Vec::with_capacity(manifest.episodes.len());
     let mut repairs = Vec::with_capacity(manifest.episodes.len());
     let mut intervals = timing::Intervals::default();
+    // Without timestamps every episode of a length is judged alike: judged once per length.
+    let mut by_length: std::collections::HashMap<usize, (EpisodeAudit, Repair)> =
+        Default::default();
+    let mut lengths: std::collections::BTreeMap<usize, u64> = Default::default();
     for (i, info) in manifest.episodes.iter().enumerate() {
         let stamps = if manifest.timestamps {
             source.read_timestamps(i)?
         } else {
             None
         };
+        if stamps.is_none() {
+            if let Some((audit, repair)) = by_length.get(&info.len) {
+                episodes.push(EpisodeAudit {
+                    id: info.id,
+                    ..audit.clone()
+                });
+                repairs.push(repair.clone());
+                *lengths.entry(info.len).or_insert(0) += 1;
+                continue;
+            }
+        }
         let place = format!("{shown}: episode {}", info.id);
         let t = match stamps {
             Some(t) => {
@@ -65,11 +80,20 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
             // The declared rate: a regular grid.
             None => (0..info.len).map(|k| k as f64 * expected).collect(),
         };
-        intervals.add_steps(&t);
         let (audit, repair) = timing::judge(info.id, &t, fps, cfg)
             .map_err(|msg| Error::source(format!("{place}: {msg}")))?;
+        if manifest.timestamps {
+            intervals.add_steps(&t, 1);
+        } else {
+            *lengths.entry(info.len).or_insert(0) += 1;
+            by_length.insert(info.len, (audit.clone(), repair.clone()));
+        }
         episodes.push(audit);
         repairs.push(repair);
+    }
+    for (&len, &count) in &lengths {
+        let grid: Vec<f64> = (0..len).map(|k| k as f64 * expected).collect();
+        intervals.add_steps(&grid, count);
     }
     let total = episodes.len().max(1) as f64;
     let count = |v: Verdict| episodes.iter().filter(|e| e.verdict == v).count();

@@ -348,18 +348,22 @@ pub struct Intervals {
 impl Intervals {
     pub const MAX_DISTINCT: usize = 1 << 16;
 
-    /// Adds the intervals between consecutive timestamps.
-    pub fn add_steps(&mut self, t: &[f64]) {
-        self.extend(t.windows(2).map(|w| w[1] - w[0]));
+    /// Adds the intervals between consecutive timestamps, `times` times over.
+    pub fn add_steps(&mut self, t: &[f64], times: u64) {
+        self.add(t.windows(2).map(|w| w[1] - w[0]), times);
     }
 
     pub fn extend(&mut self, intervals: impl Iterator<Item = f64>) {
+        self.add(intervals, 1);
+    }
+
+    fn add(&mut self, intervals: impl Iterator<Item = f64>, times: u64) {
         for v in intervals {
             if let Some(all) = &mut self.all {
-                all.push(v);
+                all.extend(std::iter::repeat_n(v, times as usize));
                 continue;
             }
-            *self.counted.entry(v.to_bits()).or_insert(0) += 1;
+            *self.counted.entry(v.to_bits()).or_insert(0) += times;
             if self.counted.len() > Self::MAX_DISTINCT {
                 let mut all = Vec::new();
                 for (&bits, &n) in &self.counted {
