@@ -139,6 +139,25 @@ def test_getitems_equals_getitem(built, profile, mode):
         ds[-len(ds) - 1]
 
 
+def test_lowdim_channels_are_held_in_memory_up_to_the_threshold(built, monkeypatch):
+    loader = import_loader(built / "dp")
+    ds = loader.ChunkedDataset(str(built / "dp"), "train")
+    with h5py.File(built / "dp" / "data.h5", "r") as f:
+        lowdim = {n for n, d in f["data"].items() if d.ndim == 2}
+        assert set(ds._cache) == lowdim
+        for name in lowdim:
+            np.testing.assert_array_equal(ds._cache[name], f["data"][name][...])
+        nbytes = sum(f["data"][n].size * f["data"][n].dtype.itemsize for n in lowdim)
+    monkeypatch.setattr(loader, "LOWDIM_CACHE_BYTES", nbytes)
+    assert set(loader.ChunkedDataset(str(built / "dp"), "train")._cache) == lowdim
+    monkeypatch.setattr(loader, "LOWDIM_CACHE_BYTES", nbytes - 1)
+    small = loader.ChunkedDataset(str(built / "dp"), "train")
+    assert small._cache == {}
+    assert set(loader.ChunkedDataset(str(built / "dp"), "train", cache_lowdim=True)._cache) == lowdim
+    for i in (0, len(ds) // 2, len(ds) - 1):
+        assert_same_sample(small[i], ds[i])
+
+
 def test_samples_do_not_share_memory_with_the_dataset(built):
     loader = import_loader(built / "act")
     for options in ({}, {"in_memory": True}):

@@ -98,9 +98,10 @@ class ChunkedDataset(_DatasetBase):
 
     `ds[i]` builds one sample; `ds.__getitems__(indices)`, which torch's DataLoader calls with a
     whole batch of indices, builds the same samples with whole-batch numpy. Low-dim channels are
-    held in memory (see LOWDIM_CACHE_BYTES); images are read per frame (HDF5 frames stored one per
-    chunk straight from their chunk, inflated with zlib when deflated) unless `in_memory=True`.
-    Returned arrays never share memory with the dataset's own arrays."""
+    held in memory (see LOWDIM_CACHE_BYTES); images are read per frame unless `in_memory=True`
+    (HDF5 frames stored contiguously or one per chunk with one pread each, at byte offsets looked
+    up when the dataset is created; other storage through h5py or zarr). Returned arrays never
+    share memory with the dataset's own arrays."""
 
     def __init__(self, root=None, split="train", in_memory=False, image_dtype="uint8",
                  cache_lowdim=None):
@@ -154,7 +155,9 @@ class ChunkedDataset(_DatasetBase):
             lowdim = [n for n in CHANNELS if n in self._lowdim]
             nbytes = sum(int(np.prod(f["data/" + n].shape)) * np.dtype(f["data/" + n].dtype).itemsize
                          for n in lowdim)
-            keep = lowdim if (nbytes <= LOWDIM_CACHE_BYTES if cache_lowdim is None else cache_lowdim) else []
+            if cache_lowdim is None:
+                cache_lowdim = nbytes <= LOWDIM_CACHE_BYTES
+            keep = lowdim if cache_lowdim else []
         for name in keep:
             rows = np.asarray(f["data/" + name][...])
             self._cache[name] = self._normalized(name, rows)
@@ -236,7 +239,7 @@ class ChunkedDataset(_DatasetBase):
         return read
 
     def _make_reader(self, d):
-        def distinct(rows):
+        def read(rows):
             # zarr: one orthogonal selection; h5py: one call per run of consecutive rows.
             distinct, inverse = np.unique(rows, return_inverse=True)
             if self.data_format == "zarr":
@@ -247,7 +250,7 @@ class ChunkedDataset(_DatasetBase):
                 out = parts[0] if len(parts) == 1 else np.concatenate(parts)
             return out if len(distinct) == len(rows) and np.array_equal(distinct, rows) else out[inverse]
 
-        return distinct
+        return read
 
     def _read(self, name, rows):
         """Stored rows `rows` (any order, repeats allowed) of a channel, in normalized units: a
