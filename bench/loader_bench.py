@@ -4,9 +4,14 @@
 - `chunkc`: the loader chunkc generated for the profile (lazy HDF5 reads);
 - `chunkc_mem`: the same with `in_memory=True`;
 - `act`: a Dataset that opens the episode's HDF5 file on every item, as ACT's `EpisodicDataset`
-  does (reads qpos[t], each camera's frame t and action[t:t+K], pads to K, normalizes);
+  does (reads qpos[t], each camera's frame t and action[t:t+K], pads to K with zeros as ACT does,
+  normalizes);
 - `numpy_mem`: plain indexing of materialized in-memory numpy chunks (actions (S, K, A), pad
   masks, per-sample state and frames), the fastest a Python Dataset can be.
+
+`act` and `numpy_mem` return the generated loader's keys, dtypes and shapes (with the
+observations' `_is_pad` masks, `episode_index` and `frame_index`), so every mode pays the same
+collate cost; that is checked before timing, and for `numpy_mem` the values too.
 
     python bench/loader_bench.py MODE PROFILE_DIR SOURCE_DIR --workers 2 --samples 4000
 
