@@ -39,6 +39,8 @@ def test_loader_works_without_torch(built):
         "assert s['action'].shape == (16, 2) and s['action_is_pad'].dtype == np.bool_\n"
         "assert s['observation.image'].shape == (2, 96, 96, 3) and s['observation.image'].dtype == np.uint8\n"
         "assert s['action_is_pad'][-1]\n"
+        "b = ds.__getitems__([len(ds) - 1, 0])\n"
+        "assert all(np.array_equal(b[0][k], s[k]) for k in s)\n"
         "print(len(ds))\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

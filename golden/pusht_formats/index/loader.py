@@ -13,6 +13,12 @@ num_workers: the data file is opened lazily in each worker process). Formats tha
 values (`meta.json` "stored_values": "raw") are normalized here on read, exactly as the build
 normalizes chunkc's HDF5 layouts.
 
+Reading: low-dim channels are read into memory once, when the dataset is created (up to
+LOWDIM_CACHE_BYTES in all); image frames are read per sample (HDF5 frames with one pread each at
+byte offsets looked up once, inflated with zlib when deflated), or all at once with
+`in_memory=True`. `ds.__getitems__(indices)`, which torch's DataLoader calls with each batch,
+returns the same samples as `[ds[i] for i in indices]`, built with whole-batch numpy.
+
 Samples: the sample at current step t of an episode has observations t-n_obs+1 .. t (the first
 frame repeated before the episode start, marked in `<name>_is_pad`) and actions starting at
 t - action_lead (0 for alignment `current`; n_obs-1 for `diffusion_policy`, whose actions start
@@ -81,12 +87,29 @@ def _png(data, shape):
     return out.reshape(shape)
 
 
-class ChunkedDataset(_DatasetBase):
-    """Action-chunked samples of one split, read lazily from the profile's HDF5 file."""
+# Low-dim channels are read into memory when the dataset is created (normalized, one array per
+# channel) if their stored arrays total at most this many bytes; larger ones are read from the file
+# per sample. `ChunkedDataset(cache_lowdim=True/False)` overrides the threshold.
+LOWDIM_CACHE_BYTES = 256 * 2**20
 
-    def __init__(self, root=None, split="train", in_memory=False, image_dtype="uint8"):
+
+class ChunkedDataset(_DatasetBase):
+    """Action-chunked samples of one split of the profile's data file.
+
+    `ds[i]` builds one sample; `ds.__getitems__(indices)`, which torch's DataLoader calls with a
+    whole batch of indices, builds the same samples with whole-batch numpy. Low-dim channels are
+    held in memory (see LOWDIM_CACHE_BYTES); images are read per frame unless `in_memory=True`
+    (HDF5 frames stored contiguously or one per chunk with one pread each, at byte offsets looked
+    up when the dataset is created; other storage through h5py or zarr). Returned arrays never
+    share memory with the dataset's own arrays."""
+
+    def __init__(self, root=None, split="train", in_memory=False, image_dtype="uint8",
+                 cache_lowdim=None):
         """`in_memory=True` reads every stored array once (for datasets that fit in RAM);
-        `image_dtype="float32"` returns images scaled to [0, 1] instead of uint8."""
+        `image_dtype="float32"` returns images scaled to [0, 1] instead of uint8;
+        `cache_lowdim` (None: up to LOWDIM_CACHE_BYTES) holds the low-dim channels in memory.
+        Arrays read here are shared with DataLoader workers started by fork (Linux's default);
+        with spawn each worker holds its own copy."""
         root = os.path.dirname(os.path.abspath(__file__)) if root is None else root
         if image_dtype not in ("uint8", "float32"):
             raise ValueError(f"image_dtype must be 'uint8' or 'float32', not {image_dtype!r}")
@@ -104,16 +127,12 @@ class ChunkedDataset(_DatasetBase):
         self.episode_ends = np.asarray(self.meta["episode_ends"], dtype=np.int64)
         self.episode_starts = np.concatenate([[0], self.episode_ends[:-1]]).astype(np.int64)
         self.episode_ids = np.asarray(self.meta["episodes"], dtype=np.int64)
-        self._bounds = list(zip(self.episode_starts.tolist(), self.episode_ends.tolist()))
         self.action_lead = int(self.meta["action_lead"])
         self.sampling = self.meta["sampling"]["mode"]
         self.data_format = self.meta.get("data_format", "hdf5")
         self.raw_values = self.meta.get("stored_values", "normalized") == "raw"
         self._lowdim = {n for n, c in self.meta["channels"].items() if c["kind"] == "lowdim"}
-        f = self._open()
-        self.index = np.asarray(f["index"][split][...], dtype=np.int64).reshape(-1, 4)
-        if self.data_format == "hdf5":
-            f.close()
+        self._images = {n for n, c in self.meta["channels"].items() if c["kind"] == "image"}
         self._norm = {
             name: (
                 np.asarray(p["center"], dtype=np.float64),
@@ -123,15 +142,34 @@ class ChunkedDataset(_DatasetBase):
             for name, p in self.meta["normalization"].items()
         }
         self._file = None
-        self._arrays = None
+        self._raw = None
+        self._readers = None
         self._pid = None
-        self._memory = None
-        self._images = {n for n, c in self.meta["channels"].items() if c["kind"] == "image"}
-        if in_memory:
-            f = self._open()
-            self._memory = {"data/" + n: f["data/" + n][...] for n in CHANNELS}
-            if self.data_format == "hdf5":
-                f.close()
+        # Channel -> every stored row, in normalized units (parquet is read whole anyway).
+        self._cache = {}
+        f = self._open()
+        self.index = np.asarray(f["index"][split][...], dtype=np.int64).reshape(-1, 4)
+        if in_memory or self.data_format == "parquet":
+            keep = list(CHANNELS)
+        else:
+            lowdim = [n for n in CHANNELS if n in self._lowdim]
+            nbytes = sum(int(np.prod(f["data/" + n].shape)) * np.dtype(f["data/" + n].dtype).itemsize
+                         for n in lowdim)
+            if cache_lowdim is None:
+                cache_lowdim = nbytes <= LOWDIM_CACHE_BYTES
+            keep = lowdim if cache_lowdim else []
+        for name in keep:
+            rows = np.asarray(f["data/" + name][...])
+            self._cache[name] = self._normalized(name, rows)
+        # HDF5 frames read with one pread each, from the byte offsets looked up here.
+        self._frames = {}
+        if self.data_format == "hdf5":
+            for name in CHANNELS:
+                if name not in self._cache:
+                    table = _frame_table(f["data/" + name])
+                    if table is not None:
+                        self._frames[name] = table
+            f.close()
 
     def __len__(self):
         return len(self.index)
@@ -170,31 +208,63 @@ class ChunkedDataset(_DatasetBase):
         out["index"] = {s: rows[split == s].astype(np.int64).reshape(-1, 4) for s in ("train", "val")}
         return out
 
-    def _h5(self):
-        if self._memory is not None:
-            return self._memory
-        # One handle per process: h5py handles must not cross a fork. (No SWMR: the file never
-        # changes after the build, and SWMR handles clash with plain h5py opens in one process.)
-        pid = os.getpid()
-        if self._file is None or self._pid != pid:
-            self._file = self._open()
-            self._pid = pid
-            # Each array looked up once per process: h5py's lookup by path costs more than
-            # reading a few rows.
-            self._arrays = {"data/" + n: self._file["data/" + n] for n in CHANNELS}
-        return self._arrays
-
-    def _rows(self, f, name, lo, hi):
-        """Stored rows [lo, hi) of a channel, in normalized units."""
-        rows = f["data/" + name][lo:hi]
+    def _normalized(self, name, rows):
+        """Stored rows in normalized units (formats storing raw values are normalized here)."""
         if self.raw_values and name in self._lowdim:
-            rows = self.normalize(name, rows).astype(np.float32)
+            return self.normalize(name, rows).astype(np.float32)
         return rows
+
+    def _reader(self, name):
+        """The per-process function reading rows (an int64 array, any order) of an uncached
+        channel as stored."""
+        pid = os.getpid()
+        if self._pid != pid:
+            # Handles are opened once per process: h5py handles must not cross a fork. (No SWMR:
+            # the file never changes after the build, and SWMR handles clash with plain h5py opens
+            # in one process.)
+            self._file = self._raw = None
+            self._pid = pid
+            self._readers = {}
+        read = self._readers.get(name)
+        if read is None:
+            if name in self._frames:
+                if self._raw is None:
+                    self._raw = open(self.path, "rb", buffering=0)
+                read = self._frames[name].reader(self._raw)
+            else:
+                if self._file is None:
+                    self._file = self._open()
+                read = self._make_reader(self._file["data/" + name])
+            self._readers[name] = read
+        return read
+
+    def _make_reader(self, d):
+        def read(rows):
+            # zarr: one orthogonal selection; h5py: one call per run of consecutive rows.
+            distinct, inverse = np.unique(rows, return_inverse=True)
+            if self.data_format == "zarr":
+                out = d.oindex[distinct]
+            else:
+                cuts = np.flatnonzero(np.diff(distinct) != 1) + 1
+                parts = [d[int(run[0]) : int(run[-1]) + 1] for run in np.split(distinct, cuts)]
+                out = parts[0] if len(parts) == 1 else np.concatenate(parts)
+            return out if len(distinct) == len(rows) and np.array_equal(distinct, rows) else out[inverse]
+
+        return read
+
+    def _read(self, name, rows):
+        """Stored rows `rows` (any order, repeats allowed) of a channel, in normalized units: a
+        new array."""
+        cached = self._cache.get(name)
+        if cached is not None:
+            return np.take(cached, rows, axis=0)
+        return self._normalized(name, self._reader(name)(rows))
 
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_file"] = None
-        state["_arrays"] = None
+        state["_raw"] = None
+        state["_readers"] = None
         state["_pid"] = None
         return state
 
@@ -216,14 +286,13 @@ class ChunkedDataset(_DatasetBase):
             return np.zeros_like(last_row)
         return last_row
 
-    def _actions(self, f, start, first, k, stop, length):
+    def _actions(self, start, first, k, stop, length):
         """K action rows from episode step `first` (may be negative), valid below `stop`."""
         lo = min(max(first, 0), length - 1)
         hi = max(min(stop, length), lo + 1)
-        valid = self._rows(f, "action", start + lo, start + hi)
         n_before = lo - first
-        n_valid = min(len(valid), k - n_before)
-        valid = valid[:n_valid]
+        n_valid = min(hi - lo, k - n_before)
+        valid = self._read("action", np.arange(start + lo, start + lo + n_valid))
         n_after = k - n_before - n_valid
         is_pad = np.zeros(k, dtype=bool)
         is_pad[:n_before] = True
@@ -243,62 +312,198 @@ class ChunkedDataset(_DatasetBase):
         if not 0 <= i < len(self):
             raise IndexError(i)
         ep, t, limit, sub = self.index[i].tolist()
-        start, end = self._bounds[ep]
-        length = end - start
+        start = int(self.episode_starts[ep])
+        length = int(self.episode_ends[ep]) - start
         k, h = self.chunk_size, self.obs_history
-        f = self._h5()
 
         sample = {}
         if self.sampling == "hierarchy":
             # `limit` is the coarse chunk; the fine chunk `sub` lies inside it.
             fine_start = t + sub * k
             coarse_stop = min(t + limit, length)
-            sample["action"], sample["action_is_pad"] = self._actions(f, start, fine_start, k, coarse_stop, length)
+            sample["action"], sample["action_is_pad"] = self._actions(start, fine_start, k, coarse_stop, length)
             sample["coarse_action"], sample["coarse_action_is_pad"] = self._actions(
-                f, start, t, limit, coarse_stop, length
+                start, t, limit, coarse_stop, length
             )
             sample["fine_index"] = sub
             sample["coarse_frame_index"] = t
             current = fine_start
         else:
             first = t - self.action_lead
-            sample["action"], sample["action_is_pad"] = self._actions(f, start, first, k, first + limit, length)
+            sample["action"], sample["action_is_pad"] = self._actions(start, first, k, first + limit, length)
             current = t
 
         # Observations current-h+1 .. current, the first frame repeated before the episode start.
-        oldest = current - h + 1
+        steps = np.arange(current - h + 1, current + 1)
         for name in CHANNELS:
             if name == "action":
                 continue
-            obs = self._rows(f, name, start + max(oldest, 0), start + current + 1)
-            missing = h - len(obs)
-            if missing:
-                obs = np.concatenate([np.repeat(obs[:1], missing, axis=0), obs])
+            obs = self._read(name, start + np.maximum(steps, 0))
             if name in self._images and self.image_dtype == "float32":
                 obs = obs.astype(np.float32) / 255.0
             sample[name] = obs
-            sample[name + "_is_pad"] = np.arange(oldest, current + 1) < 0
+            sample[name + "_is_pad"] = steps < 0
 
         sample["episode_index"] = int(self.episode_ids[ep])
         sample["frame_index"] = current
         return sample
+
+    def _action_batch(self, start, first, k, stop, length):
+        """`_actions` for a batch: (B, k) rows from steps `first` (B,), valid below `stop`."""
+        lo = np.clip(first, 0, length - 1)
+        hi = np.maximum(np.minimum(stop, length), lo + 1)
+        valid_end = lo + np.minimum(hi - lo, k - (lo - first))
+        steps = first[:, None] + np.arange(k)
+        is_pad = (steps < lo[:, None]) | (steps >= valid_end[:, None])
+        # Edge padding repeats the nearest valid row; the other modes overwrite the padded rows.
+        rows = start[:, None] + np.clip(steps, lo[:, None], valid_end[:, None] - 1)
+        action = self._read("action", rows.reshape(-1)).reshape(rows.shape + (-1,))
+        if self.padding in ("zero", "mask") and is_pad.any():
+            action[is_pad] = self._pad_value("action", action[0, 0])
+        return action.astype(np.float32, copy=False), is_pad
+
+    def __getitems__(self, indices):
+        """`[self[i] for i in indices]`, built with whole-batch numpy (torch's DataLoader calls
+        this with each batch's indices)."""
+        n = len(self)
+        asked = np.asarray(indices, dtype=np.int64).reshape(-1)
+        idx = np.where(asked < 0, asked + n, asked)
+        bad = (idx < 0) | (idx >= n)
+        if bad.any():
+            raise IndexError(int(asked[bad][0]))
+        if not len(idx):
+            return []
+        ep, t, limit, sub = self.index[idx].T
+        start = self.episode_starts[ep]
+        length = self.episode_ends[ep] - start
+        k, h = self.chunk_size, self.obs_history
+
+        batch = {}
+        if self.sampling == "hierarchy":
+            if (limit != limit[0]).any():  # coarse chunks of different lengths cannot stack
+                return [self[i] for i in idx.tolist()]
+            fine_start = t + sub * k
+            coarse_stop = np.minimum(t + limit, length)
+            batch["action"], batch["action_is_pad"] = self._action_batch(start, fine_start, k, coarse_stop, length)
+            batch["coarse_action"], batch["coarse_action_is_pad"] = self._action_batch(
+                start, t, int(limit[0]), coarse_stop, length
+            )
+            batch["fine_index"] = sub.tolist()
+            batch["coarse_frame_index"] = t.tolist()
+            current = fine_start
+        else:
+            first = t - self.action_lead
+            batch["action"], batch["action_is_pad"] = self._action_batch(start, first, k, first + limit, length)
+            current = t
+
+        steps = current[:, None] + np.arange(1 - h, 1)
+        rows = (start[:, None] + np.maximum(steps, 0)).reshape(-1)
+        is_pad = steps < 0
+        for name in CHANNELS:
+            if name == "action":
+                continue
+            obs = self._read(name, rows)
+            obs = obs.reshape(steps.shape + obs.shape[1:])
+            if name in self._images and self.image_dtype == "float32":
+                obs = obs.astype(np.float32) / 255.0
+            batch[name] = obs
+            batch[name + "_is_pad"] = is_pad.copy()
+
+        batch["episode_index"] = self.episode_ids[ep].tolist()
+        batch["frame_index"] = current.tolist()
+        keys = list(batch)
+        columns = [v if isinstance(v, list) else list(v) for v in batch.values()]
+        return [dict(zip(keys, values)) for values in zip(*columns)]
+
+
+def _frame_table(d):
+    """Where each frame of an HDF5 dataset lies in the file, when every frame can be read with one
+    pread (contiguous storage, or one chunk per frame, deflated or not); None otherwise."""
+    shape, n = tuple(d.shape[1:]), d.shape[0]
+    if n == 0 or not d.dtype.isnative or d.compression not in (None, "gzip") or d.shuffle \
+            or d.fletcher32 or d.scaleoffset is not None:
+        return None
+    frame = int(np.prod(shape)) * d.dtype.itemsize
+    if d.chunks is None:
+        base = d.id.get_offset()
+        return None if base is None else _FrameTable(shape, d.dtype, base + frame * np.arange(n))
+    if d.chunks != (1,) + shape or not hasattr(d.id, "chunk_iter"):  # chunk_iter: h5py >= 3.8
+        return None
+    offsets = np.full(n, -1, dtype=np.int64)
+    sizes = np.zeros(n, dtype=np.int64)
+    deflated = np.zeros(n, dtype=bool)
+    gzip = d.compression == "gzip"
+
+    def visit(info):
+        r = info.chunk_offset[0]
+        offsets[r], sizes[r] = info.byte_offset, info.size
+        # Bit 0 of the filter mask set: HDF5 skipped deflate for this chunk.
+        deflated[r] = gzip and not info.filter_mask & 1
+
+    d.id.chunk_iter(visit)
+    if (offsets < 0).any():  # frames never written (fill value): read through h5py
+        return None
+    return _FrameTable(shape, d.dtype, offsets, sizes if gzip else None, deflated if gzip else None)
+
+
+class _FrameTable:
+    """Byte offsets of the frames of one channel in the HDF5 file (and, for deflated frames, their
+    stored sizes); `reader(file)` reads frames with one pread each, inflating with zlib."""
+
+    def __init__(self, shape, dtype, offsets, sizes=None, deflated=None):
+        self.shape, self.dtype = shape, np.dtype(dtype)
+        self.offsets, self.sizes, self.deflated = offsets, sizes, deflated
+
+    def reader(self, raw):
+        import zlib
+
+        fd = raw.fileno()
+        frame = int(np.prod(self.shape)) * self.dtype.itemsize
+
+        def pread(offset, size):
+            if hasattr(os, "pread"):
+                return os.pread(fd, size, offset)
+            raw.seek(offset)
+            return raw.read(size)
+
+        def read(rows):
+            out = np.empty((len(rows),) + self.shape, dtype=self.dtype)
+            flat = out.reshape(len(rows), -1).view(np.uint8)
+            offsets = self.offsets[rows].tolist()
+            if self.sizes is None:
+                for j, offset in enumerate(offsets):
+                    flat[j] = np.frombuffer(pread(offset, frame), dtype=np.uint8)
+                return out
+            sizes, deflated = self.sizes[rows].tolist(), self.deflated[rows].tolist()
+            for j, (offset, size, inflate) in enumerate(zip(offsets, sizes, deflated)):
+                data = pread(offset, size)
+                flat[j] = np.frombuffer(zlib.decompress(data, bufsize=frame) if inflate else data,
+                                        dtype=np.uint8)
+            return out
+
+        return read
 
 
 def make_dataloader(
     root=None,
     split="train",
     batch_size=64,
-    num_workers=4,
+    num_workers=None,
     pin_memory=True,
     prefetch_factor=2,
     shuffle=None,
     **dataset_kwargs,
 ):
     """A torch DataLoader over ChunkedDataset (requires torch). Workers open the file lazily,
-    one handle each; `prefetch_factor` applies only with workers."""
+    one handle each; `prefetch_factor` applies only with workers. `num_workers=None` is 4, or
+    the number of CPUs this process may use when fewer (torch warns about more workers than
+    CPUs)."""
     import torch
     import torch.utils.data
 
+    if num_workers is None:
+        cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+        num_workers = min(4, cpus or 1)
     ds = ChunkedDataset(root, split, **dataset_kwargs)
     if shuffle is None:
         shuffle = split == "train"
