@@ -10,9 +10,10 @@
 use std::path::{Path, PathBuf};
 
 use hdf5::Dataset;
+use rayon::prelude::*;
 
 use super::mapping::{self, KeyInfo, Mapped, Raw};
-use super::{fingerprint, h5, jpeg, Episode, EpisodeInfo, Manifest, Source};
+use super::{fingerprint, h5, h5meta, jpeg, Episode, EpisodeInfo, Manifest, Source};
 use crate::error::{Error, Result};
 use crate::spec::{LoadedSpec, SourceFormat};
 
@@ -144,11 +145,60 @@ impl AlohaSource {
         let (headers, fingerprint) = rayon::join(
             || -> Result<(Vec<EpisodeInfo>, Vec<Located>)> {
                 let _headers = crate::exec::timings::phase("episode headers");
+                // Files whose datasets are all contiguous are understood without HDF5 (and so
+                // in parallel); the others are read through it below.
+                let fast: Vec<Option<Vec<h5meta::Located>>> = if jpeg_keys.is_empty() {
+                    files
+                        .par_iter()
+                        .map(|p| h5meta::locate(p, &wanted))
+                        .collect()
+                } else {
+                    vec![None; files.len()]
+                };
                 let mut episodes = Vec::with_capacity(files.len());
                 let mut direct = Vec::with_capacity(files.len());
-                for ((id, _), path) in found.iter().zip(&files) {
-                    let file = h5::open(path)?;
+                for (((id, _), path), fast) in found.iter().zip(&files).zip(fast) {
                     let here = path.display().to_string();
+                    if let Some(found) = fast {
+                        let mut located = Vec::with_capacity(wanted.len());
+                        let mut len: Option<(usize, &str)> = None;
+                        for (key, l) in wanted.iter().zip(found) {
+                            let reference = keys.iter().find(|k| &k.key == key).expect("resolved");
+                            let step: Vec<usize> = if l.shape.len() <= 1 {
+                                vec![1]
+                            } else {
+                                l.shape[1..].to_vec()
+                            };
+                            if step != reference.shape {
+                                return Err(Error::source(format!(
+                                    "{here}: `{key}` has shape {:?}, unlike {} ({:?} per step, {})",
+                                    l.shape,
+                                    files[0].display(),
+                                    reference.shape,
+                                    reference.dtype
+                                )));
+                            }
+                            let steps = l.shape.first().copied().unwrap_or(0);
+                            match len {
+                                None => len = Some((steps, key)),
+                                Some((n, first_key)) if n != steps => {
+                                    return Err(Error::source(format!(
+                                        "{here}: `{first_key}` has {n} steps but `{key}` has {steps}"
+                                    )))
+                                }
+                                Some(_) => {}
+                            }
+                            located.push((key.clone(), l.direct));
+                        }
+                        let len = len.map(|(n, _)| n).unwrap_or(0);
+                        if len == 0 {
+                            return Err(Error::source(format!("{here}: the episode is empty")));
+                        }
+                        episodes.push(EpisodeInfo { id: *id, len });
+                        direct.push(Some(located));
+                        continue;
+                    }
+                    let file = h5::open(path)?;
                     let mut len: Option<(usize, &str)> = None;
                     let mut located = Some(Vec::with_capacity(wanted.len()));
                     for key in &wanted {

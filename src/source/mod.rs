@@ -15,6 +15,8 @@
 //! - `mapping`: `[source.channels]` (rename, column slices, concatenation, kind) resolved
 //!   against the keys a source offers, and applied to the arrays read.
 //! - `h5`: HDF5 reading helpers (key listing, typed reads, clear errors).
+//! - `h5meta`: where contiguous datasets lie, read from a file's metadata without the HDF5
+//!   library (so that the headers of many episode files are read in parallel).
 //! - `jpeg`: decoding JPEG frames.
 //! - `parquet_read`: parquet columns (scalars, fixed- and variable-size lists) as rows of numbers.
 //! - `subset`: `[source] episodes = […]`, a view of some episodes of any source.
@@ -25,6 +27,7 @@ pub mod check;
 mod dp_zarr;
 pub mod fingerprint;
 mod h5;
+mod h5meta;
 mod jpeg;
 mod lerobot;
 pub mod mapping;

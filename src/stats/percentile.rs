@@ -89,35 +89,56 @@ pub fn percentiles_streamed<E>(
         }
         located.push((r, bucket, r - below));
     }
-    // One low-bits table per distinct bucket.
+    // The second read keeps, per needed bucket, its values' low 16 bits: as a list when the
+    // bucket is small (the usual case: a few values around each percentile), as a table of
+    // counts when it is large (values concentrated on a few keys).
     let mut buckets: Vec<usize> = located.iter().map(|&(_, b, _)| b).collect();
     buckets.dedup();
     let mut slot = vec![u8::MAX; 1 << 16];
+    let mut low: Vec<Low> = Vec::with_capacity(buckets.len());
     for (i, &b) in buckets.iter().enumerate() {
         slot[b] = i as u8;
+        low.push(if high[b] <= SMALL_BUCKET {
+            Low::Keys(Vec::with_capacity(high[b] as usize))
+        } else {
+            Low::Counts(vec![0u64; 1 << 16])
+        });
     }
-    let mut low = vec![vec![0u64; 1 << 16]; buckets.len()];
+    drop(high);
     pass(&mut |block| {
         for &v in block {
             let k = key(v);
             let s = slot[(k >> 16) as usize];
             if s != u8::MAX {
-                low[s as usize][(k & 0xFFFF) as usize] += 1;
+                match &mut low[s as usize] {
+                    Low::Keys(keys) => keys.push(k as u16),
+                    Low::Counts(counts) => counts[(k & 0xFFFF) as usize] += 1,
+                }
             }
         }
     })?;
+    for l in &mut low {
+        if let Low::Keys(keys) = l {
+            keys.sort_unstable();
+        }
+    }
     let value_at = |rank: u64| -> f64 {
-        let &(_, b, mut within) = located
+        let &(_, b, within) = located
             .iter()
             .find(|&&(r, _, _)| r == rank)
             .expect("located");
-        let table = &low[buckets.iter().position(|&x| x == b).expect("bucket")];
-        let mut l = 0;
-        while table[l] <= within {
-            within -= table[l];
-            l += 1;
-        }
-        f64::from(from_key(((b as u32) << 16) | l as u32))
+        let l = match &low[buckets.iter().position(|&x| x == b).expect("bucket")] {
+            Low::Keys(keys) => keys[within as usize],
+            Low::Counts(counts) => {
+                let (mut l, mut within) = (0usize, within);
+                while counts[l] <= within {
+                    within -= counts[l];
+                    l += 1;
+                }
+                l as u16
+            }
+        };
+        f64::from(from_key(((b as u32) << 16) | u32::from(l)))
     };
     Ok(qs
         .iter()
@@ -131,6 +152,16 @@ pub fn percentiles_streamed<E>(
             }
         })
         .collect())
+}
+
+/// Buckets of at most this many values keep their values' low bits as a list (sorted at the
+/// end); larger ones count them in a table.
+const SMALL_BUCKET: u64 = 1 << 15;
+
+/// The low 16 bits of the keys of one needed bucket.
+enum Low {
+    Keys(Vec<u16>),
+    Counts(Vec<u64>),
 }
 
 /// An unsigned key whose order is [`f32::total_cmp`]'s.
@@ -259,25 +290,37 @@ mod tests {
                     _ => (next() % 20_000) as f32 * 0.001 - 10.0,
                 })
                 .collect();
-            let mut a = values.clone();
-            let want = percentiles(&mut a, &qs);
-            for block in [1usize, 7, 4096] {
-                let got = percentiles_streamed::<()>(n as u64, &qs, |f| {
-                    values.chunks(block).for_each(&mut *f);
-                    Ok(())
-                })
-                .unwrap();
-                for ((q, w), g) in qs.iter().zip(&want).zip(&got) {
-                    assert_eq!(
-                        w.to_bits(),
-                        g.to_bits(),
-                        "n={n} block={block} q={q}: {w} vs {g}"
-                    );
-                }
-            }
+            // And a column mostly of one value (its bucket is counted in a table).
+            let heavy: Vec<f32> = values
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| if i % 5 == 0 { v } else { 2.5 })
+                .collect();
+            check(&values, &qs);
+            check(&heavy, &qs);
         }
         for v in [0.0f32, -0.0, 1.0, -1.0, f32::MIN, f32::MAX, f32::INFINITY] {
             assert_eq!(from_key(key(v)).to_bits(), v.to_bits());
+        }
+    }
+
+    /// `percentiles_streamed` against the selection, bit for bit, whatever the block size.
+    fn check(values: &[f32], qs: &[f64]) {
+        let n = values.len();
+        let want = percentiles(&mut values.to_vec(), qs);
+        for block in [1usize, 7, 4096] {
+            let got = percentiles_streamed::<()>(n as u64, qs, |f| {
+                values.chunks(block).for_each(&mut *f);
+                Ok(())
+            })
+            .unwrap();
+            for ((q, w), g) in qs.iter().zip(&want).zip(&got) {
+                assert_eq!(
+                    w.to_bits(),
+                    g.to_bits(),
+                    "n={n} block={block} q={q}: {w} vs {g}"
+                );
+            }
         }
     }
 
