@@ -179,15 +179,7 @@ impl AlohaSource {
                                 )));
                             }
                             let steps = l.shape.first().copied().unwrap_or(0);
-                            match len {
-                                None => len = Some((steps, key)),
-                                Some((n, first_key)) if n != steps => {
-                                    return Err(Error::source(format!(
-                                        "{here}: `{first_key}` has {n} steps but `{key}` has {steps}"
-                                    )))
-                                }
-                                Some(_) => {}
-                            }
+                            same_length(&mut len, &here, key, steps)?;
                             located.push((key.clone(), l.direct));
                         }
                         let len = len.map(|(n, _)| n).unwrap_or(0);
@@ -226,16 +218,7 @@ impl AlohaSource {
                                 reference.dtype
                             )));
                         }
-                        let steps = h5::steps(&ds);
-                        match len {
-                            None => len = Some((steps, key)),
-                            Some((n, first_key)) if n != steps => {
-                                return Err(Error::source(format!(
-                                    "{here}: `{first_key}` has {n} steps but `{key}` has {steps}"
-                                )))
-                            }
-                            Some(_) => {}
-                        }
+                        same_length(&mut len, &here, key, h5::steps(&ds))?;
                     }
                     let len = len.map(|(n, _)| n).unwrap_or(0);
                     if len == 0 {
@@ -270,6 +253,25 @@ impl AlohaSource {
             direct,
         })
     }
+}
+
+/// Records the first key's number of steps in `len`; an error when a later key has another.
+fn same_length<'a>(
+    len: &mut Option<(usize, &'a str)>,
+    here: &str,
+    key: &'a str,
+    steps: usize,
+) -> Result<()> {
+    match *len {
+        None => *len = Some((steps, key)),
+        Some((n, first_key)) if n != steps => {
+            return Err(Error::source(format!(
+                "{here}: `{first_key}` has {n} steps but `{key}` has {steps}"
+            )))
+        }
+        Some(_) => {}
+    }
+    Ok(())
 }
 
 /// Decodes every row of a (T, max_len) JPEG array into (T, H, W, 3) frames.
