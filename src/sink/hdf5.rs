@@ -17,10 +17,9 @@ use hdf5::dataset::{AllocTime, FillTime};
 use hdf5::types::VarLenUnicode;
 use hdf5::{Dataset, File, Group};
 use ndarray::{ArrayViewD, IxDyn};
-use rayon::prelude::*;
 
 use super::hdf5_chunks::{self, Stored, Windows};
-use super::{FrameEncoding, Sink, SinkContext, Split, WindowIndex};
+use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::chunk::Window;
 use crate::error::{Error, Result};
 use crate::exec::LowdimStore;
@@ -242,7 +241,7 @@ impl Hdf5Writer {
 
     /// Writes frames already compressed as HDF5's deflate filter stores a chunk, directly as
     /// chunks: HDF5 would compress them on one thread under its global lock.
-    fn write_chunks(&self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+    fn write_chunks(&self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
         let ds = &self.data[channel];
         let rank = 1 + self.shapes[channel].len();
         for (i, frame) in frames.iter().enumerate() {
@@ -272,18 +271,19 @@ impl Hdf5Writer {
     }
 
     /// Writes uncompressed frames straight into their chunks, allocated when the dataset was
-    /// created: `pwrite`s in parallel, outside HDF5 and its global lock.
-    fn write_raw_frames(&self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+    /// created: plain `pwrite`s, outside HDF5 and its global lock.
+    fn write_raw_frames(&self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
         use std::os::unix::fs::FileExt;
         let (Some(map), Some(file)) = (&self.chunk_maps[channel], &self.raw) else {
             return Err(Error::Internal(format!(
                 "channel {channel}: no chunk map for uncompressed frames"
             )));
         };
-        if let Some(f) = frames.iter().find(|f| f.len() != map.row_bytes) {
+        if frames.bytes().len() != frames.len() * map.row_bytes {
             return Err(Error::Internal(format!(
-                "channel {channel}: a frame of {} bytes, expected {}",
-                f.len(),
+                "channel {channel}: {} bytes for {} frames of {} bytes",
+                frames.bytes().len(),
+                frames.len(),
                 map.row_bytes
             )));
         }
@@ -295,22 +295,21 @@ impl Hdf5Writer {
                 row + frames.len()
             )));
         }
-        // One `pwrite` per frame (frames are separate buffers), spread over the threads.
-        let places: Vec<(usize, u64)> = extents
-            .iter()
-            .flat_map(|e| {
-                (0..e.rows).map(move |j| (e.row - row + j, e.offset + (j * map.row_bytes) as u64))
-            })
-            .collect();
-        places
-            .par_iter()
-            .try_for_each(|&(i, offset)| file.write_all_at(&frames[i], offset))
-            .map_err(|e| {
+        // One `pwrite` per run of chunks that follow one another in the file (usually the whole
+        // episode). Not spread over threads: the kernel serializes buffered writes to one file
+        // anyway (the inode lock).
+        for e in &extents {
+            let bytes = frames.span(e.row - row, e.row - row + e.rows);
+            file.write_all_at(bytes, e.offset).map_err(|err| {
                 Error::output(format!(
-                    "writing frames {row}.. of {}: {e}",
+                    "writing frames {}..{} of {}: {err}",
+                    e.row,
+                    e.row + e.rows,
                     self.names[channel]
                 ))
-            })
+            })?;
+        }
+        Ok(())
     }
 
     /// Writes the whole of a low-dimensional channel.
@@ -356,7 +355,7 @@ impl Sink for Hdf5Writer {
         self.frames
     }
 
-    fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+    fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
         match self.frames {
             FrameEncoding::Raw => self.write_raw_frames(channel, row, frames),
             FrameEncoding::Zlib(_) => self.write_chunks(channel, row, frames),
