@@ -164,9 +164,7 @@ pub fn locate(ds: &Dataset) -> Option<ChunkMap> {
             found.ok = false;
             return 1; // stop: this dataset goes through HDF5
         }
-        found
-            .chunks
-            .push((first / found.rows_per_chunk, addr as u64));
+        found.chunks.push((first / found.rows_per_chunk, addr));
         0
     }
     let mut found = Found {
