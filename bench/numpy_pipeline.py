@@ -14,8 +14,9 @@ It does the work chunkc's `act` profile (index layout) does on an ALOHA source:
 6. edge-padded windows: per sample (episode, t) the K action rows `t..t+K-1`, clipped to the
    episode's last row; stored as chunkc stores them, an index of (episode, t, limit, 0) rows, not
    K copies (materializing K=100 copies would write 100 times the data);
-7. write `data.h5` (per-step arrays, image frames one deflate-1 chunk per frame as chunkc does,
-   episode ends, index) and `stats.json`, and fsync them (chunkc does too).
+7. write `data.h5` (per-step arrays, image frames one uncompressed chunk per frame as chunkc's
+   default `image_compression = "none"` stores them, one h5py write per episode, episode ends,
+   index) and `stats.json`, and fsync them (chunkc does too).
 
     python bench/numpy_pipeline.py SOURCE_DIR OUT_DIR --chunk 100 --fps 50 [--cameras cam0,cam1]
 """
@@ -116,8 +117,7 @@ def main():
                     frames = f[f"observations/images/{cam}"][:]
                 if ds is None:
                     ds = out.create_dataset(f"data/observation.{cam}", (ends[-1],) + frames.shape[1:],
-                                            np.uint8, chunks=(1,) + frames.shape[1:],
-                                            compression="gzip", compression_opts=1)
+                                            np.uint8, chunks=(1,) + frames.shape[1:])
                 ds[starts[e]:ends[e]] = frames
                 if not val[e]:
                     flat = frames.reshape(-1, 3)

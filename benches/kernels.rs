@@ -211,18 +211,15 @@ fn writers(c: &mut Criterion) {
             sink::create(&ctx).expect("sink").frame_encoding()
         };
         // Frames are encoded in parallel before a sink sees them: not part of the writer's time.
-        let encoded: Vec<Vec<Vec<u8>>> = episodes
+        let encoded: Vec<sink::Frames> = episodes
             .iter()
             .map(|ep| {
                 match ep.channels.iter().find_map(|ch| match ch {
                     ChannelData::Image(v) => Some(v),
                     _ => None,
                 }) {
-                    Some(v) => v
-                        .chunks(96 * 96 * 3)
-                        .map(|fr| sink::encode_frame(enc, fr))
-                        .collect(),
-                    None => Vec::new(),
+                    Some(v) => sink::Frames::encode(enc, v, 96 * 96 * 3),
+                    None => sink::Frames::default(),
                 }
             })
             .collect();

@@ -91,28 +91,52 @@ impl Lock {
     }
 }
 
-/// BLAKE3 of a file's contents, hex. Streams the file (no mmap) a block at a time, so hashing
-/// large outputs does not show up as resident memory; each block is hashed on every thread.
+/// BLAKE3 of a file's contents, hex. Streams the file (no mmap), so hashing large outputs does
+/// not show up as resident memory; blocks of a large file are hashed on every thread (BLAKE3's
+/// tree gives the same hash however it is split).
 pub fn hash_file(path: &Path) -> Result<String> {
     use std::io::Read;
     const BLOCK: usize = 8 << 20;
     let mut h = blake3::Hasher::new();
     let mut file = std::fs::File::open(path).at("open", path)?;
-    let mut block = vec![0u8; BLOCK];
-    loop {
-        // Fill the whole block (short reads happen): the hash does not depend on block
-        // boundaries, but full blocks keep every thread busy.
-        let mut filled = 0;
-        while filled < BLOCK {
-            match file.read(&mut block[filled..]).at("hash", path)? {
-                0 => break,
-                n => filled += n,
+    let size = file.metadata().at("stat", path)?.len();
+    if size < 2 * BLOCK as u64 {
+        h.update_reader(file).at("hash", path)?;
+    } else {
+        let mut block = vec![0u8; BLOCK];
+        loop {
+            let mut filled = 0;
+            while filled < BLOCK {
+                match file.read(&mut block[filled..]) {
+                    Ok(0) => break,
+                    Ok(n) => filled += n,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(e) => return Err(e).at("hash", path),
+                }
             }
-        }
-        h.update_rayon(&block[..filled]);
-        if filled < BLOCK {
-            break;
+            h.update_rayon(&block[..filled]);
+            if filled < BLOCK {
+                break;
+            }
         }
     }
     Ok(h.finalize().to_hex().to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hash_file_equals_hashing_the_bytes_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        // Small (streamed) and large (blocks hashed on every thread, a partial last block).
+        for (name, len) in [("small", 1000usize), ("large", (8 << 20) * 2 + 12345)] {
+            let bytes: Vec<u8> = (0..len).map(|i| (i * 31 + i / 4093) as u8).collect();
+            let path = dir.path().join(name);
+            std::fs::write(&path, &bytes).unwrap();
+            let want = blake3::hash(&bytes).to_hex().to_string();
+            assert_eq!(hash_file(&path).unwrap(), want, "{name}");
+        }
+    }
 }

@@ -265,7 +265,20 @@ fn run(cli: Cli) -> Result<(), Error> {
     Ok(())
 }
 
+/// Episodes' frame buffers (megabytes each) are allocated on worker threads and freed on the
+/// writing thread. glibc's per-thread arenas then keep freed buffers scattered over several
+/// heaps, and peak memory grew with the number of episodes (145 MiB for 200 image episodes
+/// against 117 MiB for 100); with one arena it stays flat (110 / 103 MiB).
+fn one_malloc_arena() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: `mallopt` only sets an allocator parameter; called before any other thread runs.
+    unsafe {
+        libc::mallopt(libc::M_ARENA_MAX, 1);
+    }
+}
+
 fn main() -> ExitCode {
+    one_malloc_arena();
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,

@@ -33,7 +33,7 @@ use crate::error::{Error, Result};
 use crate::lock::{self, Lock, LockedProfile, SpecLock, LOCK_VERSION};
 use crate::plan::{self, Conversion, Plan, ProfilePlan};
 use crate::render;
-use crate::sink::{self, encode_frame, FrameEncoding, Sink, SinkContext};
+use crate::sink::{self, FrameEncoding, Frames, Sink, SinkContext};
 use crate::source::{self, ChannelData, ChannelKind, Episode, Source};
 use crate::spec::{LoadedSpec, SplitFrom};
 use crate::stats::{self, ChannelStats, ImagePartial};
@@ -316,7 +316,7 @@ impl Partial {
 enum Prepared {
     Lowdim(Vec<f32>),
     /// The frames in every encoding a sink at this rate asked for.
-    Frames(Vec<(FrameEncoding, Vec<Vec<u8>>)>),
+    Frames(Vec<(FrameEncoding, Frames)>),
 }
 
 /// One episode after the parallel part of the work: decimated per rate, images compressed,
@@ -343,7 +343,7 @@ fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
 /// Decimates an episode to every rate, encodes its frames for every sink, and computes the
 /// statistics partials of a training episode. Runs in parallel over episodes.
 fn process(
-    episode: Episode,
+    mut episode: Episode,
     source: &dyn Source,
     rates: &[(Conversion, Vec<FrameEncoding>)],
     train: bool,
@@ -351,13 +351,19 @@ fn process(
     let channels = &source.manifest().channels;
     let mut data = Vec::with_capacity(rates.len());
     let mut partials = Vec::with_capacity(rates.len());
-    for (conversion, encodings) in rates {
+    for (r, (conversion, encodings)) in rates.iter().enumerate() {
+        let last = r + 1 == rates.len();
         let mut per_channel = Vec::with_capacity(channels.len());
         let mut per_partial = Vec::with_capacity(channels.len());
-        for (ch, values) in channels.iter().zip(&episode.channels) {
+        for (ch, values) in channels.iter().zip(episode.channels.iter_mut()) {
             let width = ch.width();
             let converted = match *conversion {
-                Conversion::Decimate { factor } => match values {
+                // The last rate at the source's own rate takes the values (no copy).
+                Conversion::Decimate { factor: 1 } if last => match values {
+                    ChannelData::Lowdim(v) => ChannelData::Lowdim(std::mem::take(v)),
+                    ChannelData::Image(v) => ChannelData::Image(std::mem::take(v)),
+                },
+                Conversion::Decimate { factor } => match &*values {
                     ChannelData::Lowdim(v) => ChannelData::Lowdim(decimate(v, width, factor)),
                     ChannelData::Image(v) => ChannelData::Image(decimate(v, width, factor)),
                 },
@@ -377,16 +383,15 @@ fn process(
                     per_partial.push(
                         train.then(|| Partial::Image(ImagePartial::of_frames(&d, frames, colors))),
                     );
-                    let encoded = encodings
+                    // Compressed encodings first, then the pixels themselves become the raw frames.
+                    let mut encoded: Vec<(FrameEncoding, Frames)> = encodings
                         .iter()
-                        .map(|&enc| {
-                            let frames = d
-                                .par_chunks(width.max(1))
-                                .map(|f| encode_frame(enc, f))
-                                .collect();
-                            (enc, frames)
-                        })
+                        .filter(|&&enc| enc != FrameEncoding::Raw)
+                        .map(|&enc| (enc, Frames::encode(enc, &d, width)))
                         .collect();
+                    if encodings.contains(&FrameEncoding::Raw) {
+                        encoded.push((FrameEncoding::Raw, Frames::raw(d, width)));
+                    }
                     per_channel.push(Prepared::Frames(encoded));
                 }
             }

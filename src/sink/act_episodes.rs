@@ -19,7 +19,7 @@ use std::sync::Arc;
 
 use hdf5::{File, Group};
 
-use super::{FrameEncoding, Sink, SinkContext, WindowIndex};
+use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
 use crate::exec::LowdimStore;
 use crate::render::codebase::state_channel;
@@ -121,7 +121,7 @@ impl Sink for ActEpisodesWriter {
         false
     }
 
-    fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+    fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
         if frames.is_empty() {
             return Ok(());
         }
@@ -129,10 +129,9 @@ impl Sink for ActEpisodesWriter {
         let file = open_rw(&episode_file(&self.dir, e))?;
         let (name, shape, _) = &self.channels[channel];
         let ds = file.dataset(&format!("observations/images/{}", camera(name)))?;
-        let flat: Vec<u8> = frames.concat();
         let mut dims = vec![frames.len()];
         dims.extend(shape);
-        let view = ndarray::ArrayViewD::from_shape(ndarray::IxDyn(&dims), &flat)
+        let view = ndarray::ArrayViewD::from_shape(ndarray::IxDyn(&dims), frames.bytes())
             .map_err(|err| Error::Internal(format!("frames of {name}: {err}")))?;
         let mut sel: Vec<hdf5::SliceOrIndex> =
             vec![(row - start..row - start + frames.len()).into()];

@@ -13,24 +13,26 @@
 
 use std::sync::Arc;
 
+use hdf5::dataset::{AllocTime, FillTime};
 use hdf5::types::VarLenUnicode;
 use hdf5::{Dataset, File, Group};
 use ndarray::{ArrayViewD, IxDyn};
 
 use super::hdf5_chunks::{self, Stored, Windows};
-use super::{FrameEncoding, Sink, SinkContext, Split, WindowIndex};
+use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::chunk::Window;
 use crate::error::{Error, Result};
 use crate::exec::LowdimStore;
 use crate::plan::DATA_FILE;
+use crate::source::chunk_map::{self, ChunkMap};
 use crate::source::ChannelKind;
-use crate::spec::{Compression, Layout, Padding};
+use crate::spec::{Compression, ImageCompression, Layout, Padding};
 use crate::stats::normalize::Normalizer;
 
 /// Chunks of low-dimensional data hold about this many bytes (a few windows' worth).
 const LOWDIM_CHUNK_BYTES: usize = 64 * 1024;
-/// Image frames are compressed with deflate at this level (fast, and lossless).
-const IMAGE_DEFLATE_LEVEL: u8 = 1;
+/// `image_compression = "gzip"` compresses frames at this level unless the spec gives one.
+const DEFAULT_IMAGE_GZIP_LEVEL: u32 = 1;
 
 /// Low-dim channels are normalized and written about this many bytes at a time.
 const NORMALIZE_BLOCK_BYTES: usize = 4 << 20;
@@ -42,6 +44,12 @@ const DEFAULT_GZIP_LEVEL: u32 = 4;
 
 pub struct Hdf5Writer {
     file: File,
+    /// How frames are handed over and stored.
+    frames: FrameEncoding,
+    /// The same file opened with std, for frames written with `pwrite` (uncompressed frames).
+    raw: Option<std::fs::File>,
+    /// Per channel: where each frame's chunk lies, for uncompressed image channels.
+    chunk_maps: Vec<Option<ChunkMap>>,
     data: Vec<Dataset>,
     shapes: Vec<Vec<usize>>,
     names: Vec<String>,
@@ -63,6 +71,27 @@ fn group(parent: &Group, name: &str) -> Result<Group> {
 fn text(s: &str) -> Result<VarLenUnicode> {
     s.parse::<VarLenUnicode>()
         .map_err(|e| Error::Internal(format!("attribute text {s:?}: {e}")))
+}
+
+/// Asks the kernel to start writing these bytes to disk now (without waiting): the frames are
+/// most of the output, and the build ends with an fsync of every file, which otherwise waits
+/// for all of them at once. Only a hint: the fsync still makes the data durable.
+fn start_writeback(file: &std::fs::File, offset: u64, len: usize) {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        // SAFETY: the descriptor is open while `file` lives; the call reads no memory of ours.
+        unsafe {
+            libc::sync_file_range(
+                file.as_raw_fd(),
+                offset as libc::off64_t,
+                len as libc::off64_t,
+                libc::SYNC_FILE_RANGE_WRITE,
+            );
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (file, offset, len);
 }
 
 impl Hdf5Writer {
@@ -99,7 +128,16 @@ impl Hdf5Writer {
             .create("layout")?
             .write_scalar(&text(v.layout.name())?)?;
 
+        let frames = match v.image_compression {
+            ImageCompression::None => FrameEncoding::Raw,
+            ImageCompression::Gzip => FrameEncoding::Zlib(
+                v.image_compression_level
+                    .unwrap_or(DEFAULT_IMAGE_GZIP_LEVEL)
+                    .min(9) as u8,
+            ),
+        };
         let data_group = group(root, "data")?;
+        let mut chunk_maps = Vec::new();
         let mut data = Vec::new();
         let mut shapes = Vec::new();
         for ch in &plan.channels {
@@ -126,17 +164,37 @@ impl Hdf5Writer {
                     b.create(ch.name.as_str())?
                 }
                 ChannelKind::Image => {
+                    // One frame per chunk: a sample reads only the frames it needs.
                     let mut chunk = vec![1];
                     chunk.extend(&ch.shape);
-                    data_group
+                    let b = data_group
                         .new_dataset::<u8>()
                         .shape(shape.clone())
                         .chunk(chunk)
-                        .deflate(IMAGE_DEFLATE_LEVEL)
-                        .obj_track_times(false)
-                        .create(ch.name.as_str())?
+                        .obj_track_times(false);
+                    match frames {
+                        FrameEncoding::Zlib(level) => b.deflate(level).create(ch.name.as_str())?,
+                        // Every chunk allocated now, in row order, and never filled: the frames
+                        // are then written straight into their chunks (`write_raw_frames`).
+                        FrameEncoding::Raw => b
+                            .alloc_time(Some(AllocTime::Early))
+                            .fill_time(FillTime::Never)
+                            .create(ch.name.as_str())?,
+                    }
                 }
             };
+            chunk_maps.push(match (ch.kind, frames) {
+                (ChannelKind::Image, FrameEncoding::Raw) => {
+                    Some(chunk_map::locate(&ds).ok_or_else(|| {
+                        Error::Internal(format!(
+                            "{}: the frames' chunks of `{}` cannot be located",
+                            path.display(),
+                            ch.name
+                        ))
+                    })?)
+                }
+                _ => None,
+            });
             data.push(ds);
             shapes.push(ch.shape.clone());
         }
@@ -152,8 +210,23 @@ impl Hdf5Writer {
                 .write_raw(values)?;
         }
         group(root, "index")?;
+        let raw = if chunk_maps.iter().any(Option::is_some) {
+            // Metadata goes through HDF5 (it flushes it on close); frame bytes through this
+            // handle, into chunks HDF5 allocated and never touches again.
+            Some(
+                std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(path)
+                    .map_err(|e| Error::output(format!("cannot open {}: {e}", path.display())))?,
+            )
+        } else {
+            None
+        };
         Ok(Hdf5Writer {
             file,
+            frames,
+            raw,
+            chunk_maps,
             data,
             shapes,
             names: plan.channels.iter().map(|c| c.name.clone()).collect(),
@@ -189,7 +262,7 @@ impl Hdf5Writer {
 
     /// Writes frames already compressed as HDF5's deflate filter stores a chunk, directly as
     /// chunks: HDF5 would compress them on one thread under its global lock.
-    fn write_chunks(&self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+    fn write_chunks(&self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
         let ds = &self.data[channel];
         let rank = 1 + self.shapes[channel].len();
         for (i, frame) in frames.iter().enumerate() {
@@ -214,6 +287,49 @@ impl Hdf5Writer {
                     ds.name()
                 )));
             }
+        }
+        Ok(())
+    }
+
+    /// Writes uncompressed frames straight into their chunks, allocated when the dataset was
+    /// created: plain `pwrite`s, outside HDF5 and its global lock.
+    fn write_raw_frames(&self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
+        use std::os::unix::fs::FileExt;
+        let (Some(map), Some(file)) = (&self.chunk_maps[channel], &self.raw) else {
+            return Err(Error::Internal(format!(
+                "channel {channel}: no chunk map for uncompressed frames"
+            )));
+        };
+        if frames.bytes().len() != frames.len() * map.row_bytes {
+            return Err(Error::Internal(format!(
+                "channel {channel}: {} bytes for {} frames of {} bytes",
+                frames.bytes().len(),
+                frames.len(),
+                map.row_bytes
+            )));
+        }
+        let extents = map.extents(row, row + frames.len());
+        let written: usize = extents.iter().map(|e| e.rows).sum();
+        if written != frames.len() {
+            return Err(Error::Internal(format!(
+                "channel {channel}: rows {row}..{} are outside the dataset",
+                row + frames.len()
+            )));
+        }
+        // One `pwrite` per run of chunks that follow one another in the file (usually the whole
+        // episode). Not spread over threads: the kernel serializes buffered writes to one file
+        // anyway (the inode lock).
+        for e in &extents {
+            let bytes = frames.span(e.row - row, e.row - row + e.rows);
+            file.write_all_at(bytes, e.offset).map_err(|err| {
+                Error::output(format!(
+                    "writing frames {}..{} of {}: {err}",
+                    e.row,
+                    e.row + e.rows,
+                    self.names[channel]
+                ))
+            })?;
+            start_writeback(file, e.offset, bytes.len());
         }
         Ok(())
     }
@@ -258,11 +374,14 @@ impl Sink for Hdf5Writer {
     }
 
     fn frame_encoding(&self) -> FrameEncoding {
-        FrameEncoding::Zlib(IMAGE_DEFLATE_LEVEL)
+        self.frames
     }
 
-    fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
-        self.write_chunks(channel, row, frames)
+    fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
+        match self.frames {
+            FrameEncoding::Raw => self.write_raw_frames(channel, row, frames),
+            FrameEncoding::Zlib(_) => self.write_chunks(channel, row, frames),
+        }
     }
 
     /// chunkc's own layout stores normalized values; the loader inverts them.

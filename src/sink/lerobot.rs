@@ -30,7 +30,7 @@ use parquet::basic::{Compression as PqCompression, ZstdLevel};
 use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use serde_json::{json, Value};
 
-use super::{FrameEncoding, Sink, SinkContext, Split, WindowIndex};
+use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
 use crate::exec::LowdimStore;
 use crate::source::ChannelKind;
@@ -413,7 +413,7 @@ impl Sink for LerobotWriter {
         false
     }
 
-    fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+    fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
         let (_, shape, _) = &self.channels[channel];
         let shape = shape.clone();
         let out = &mut self.frames[channel];

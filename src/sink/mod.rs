@@ -58,6 +58,77 @@ pub fn encode_frame(encoding: FrameEncoding, frame: &[u8]) -> Vec<u8> {
     }
 }
 
+/// One episode's frames of one image channel, encoded and stored back to back (so that
+/// uncompressed frames are the decoded pixels themselves, never copied frame by frame).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Frames {
+    bytes: Vec<u8>,
+    /// Exclusive end of each frame in `bytes`.
+    ends: Vec<usize>,
+}
+
+impl Frames {
+    /// Uncompressed frames of `frame_bytes` bytes each: takes the pixels as they are.
+    pub fn raw(pixels: Vec<u8>, frame_bytes: usize) -> Frames {
+        let n = pixels.len() / frame_bytes.max(1);
+        Frames {
+            ends: (1..=n).map(|i| i * frame_bytes).collect(),
+            bytes: pixels,
+        }
+    }
+
+    /// Frames of `frame_bytes` bytes each, encoded (in parallel when compressed).
+    pub fn encode(encoding: FrameEncoding, pixels: &[u8], frame_bytes: usize) -> Frames {
+        use rayon::prelude::*;
+        if encoding == FrameEncoding::Raw {
+            return Frames::raw(pixels.to_vec(), frame_bytes);
+        }
+        let encoded: Vec<Vec<u8>> = pixels
+            .par_chunks(frame_bytes.max(1))
+            .map(|f| encode_frame(encoding, f))
+            .collect();
+        let mut frames = Frames {
+            bytes: Vec::with_capacity(encoded.iter().map(Vec::len).sum()),
+            ends: Vec::with_capacity(encoded.len()),
+        };
+        for f in encoded {
+            frames.bytes.extend_from_slice(&f);
+            frames.ends.push(frames.bytes.len());
+        }
+        frames
+    }
+
+    pub fn len(&self) -> usize {
+        self.ends.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.ends.is_empty()
+    }
+
+    /// Frame `i`'s bytes.
+    pub fn get(&self, i: usize) -> &[u8] {
+        self.span(i, i + 1)
+    }
+
+    /// Frames `lo..hi`, back to back.
+    pub fn span(&self, lo: usize, hi: usize) -> &[u8] {
+        let start = if lo == 0 { 0 } else { self.ends[lo - 1] };
+        let end = if hi == 0 { 0 } else { self.ends[hi - 1] };
+        &self.bytes[start..end]
+    }
+
+    /// Every frame, in order.
+    pub fn iter(&self) -> impl ExactSizeIterator<Item = &[u8]> + '_ {
+        (0..self.len()).map(|i| self.get(i))
+    }
+
+    /// Every frame back to back.
+    pub fn bytes(&self) -> &[u8] {
+        &self.bytes
+    }
+}
+
 /// What a sink needs to lay out its container.
 pub struct SinkContext<'a> {
     pub profile: &'a ProfilePlan,
@@ -79,7 +150,7 @@ pub trait Sink: Send {
         true
     }
     /// Encoded frames of image channel `channel` for one episode, from stored row `row`.
-    fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()>;
+    fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()>;
     /// A whole low-dimensional channel in raw units, and the profile's normalizer for it: the
     /// sink decides whether it stores normalized or raw values. The store may be on disk: read it
     /// a block of rows at a time, and keep the `Arc` (not a copy) to read it again in `finish`.

@@ -24,7 +24,7 @@ use zarrs::array::{Array, ArrayMetadataOptions};
 use zarrs::filesystem::FilesystemStore;
 use zarrs::metadata::ArrayMetadata;
 
-use super::{FrameEncoding, Sink, SinkContext, Split, WindowIndex};
+use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
 use crate::exec::LowdimStore;
 use crate::source::ChannelKind;
@@ -226,16 +226,16 @@ impl Sink for ZarrWriter {
         false
     }
 
-    fn write_frames(&mut self, channel: usize, row: usize, frames: &[Vec<u8>]) -> Result<()> {
+    fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
         use rayon::prelude::*;
         let array = &self.data[channel];
         let rank = array.dimensionality();
         // One chunk (one file) per frame: compressing and writing them in parallel gives the
         // same files whatever the order.
-        frames.par_iter().enumerate().try_for_each(|(i, frame)| {
+        (0..frames.len()).into_par_iter().try_for_each(|i| {
             let mut idx = vec![0u64; rank];
             idx[0] = (row + i) as u64;
-            array.store_chunk(&idx, frame.as_slice()).map_err(err)
+            array.store_chunk(&idx, frames.get(i)).map_err(err)
         })
     }
 

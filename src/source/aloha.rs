@@ -27,7 +27,8 @@ pub struct AlohaSource {
     /// Keys stored as JPEG rows, with the decoded frame's (height, width).
     jpeg: Vec<(String, (usize, usize))>,
     /// Per episode: where each mapped key's values lie in the file, when every one of them is
-    /// stored contiguously (see [`h5::direct`]); such an episode is read without HDF5.
+    /// stored contiguously or in unfiltered chunks of whole rows (see [`h5::direct`]); such an
+    /// episode is read without HDF5.
     direct: Vec<Located>,
 }
 

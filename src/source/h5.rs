@@ -1,11 +1,13 @@
 //! HDF5 reading shared by the `aloha` and `robomimic` adapters: opening with a clear error,
-//! listing the datasets under a group, and reading one as `f32` or `u8`.
+//! listing the datasets under a group, and reading one as `f32` or `u8`, through HDF5 or, where
+//! the storage allows it, with plain `pread`s ([`direct`]).
 
 use std::path::Path;
 
 use hdf5::types::TypeDescriptor;
 use hdf5::{Dataset, File, Group};
 
+use super::chunk_map::{self, ChunkMap};
 use super::mapping::Raw;
 use crate::error::{Error, Result};
 
@@ -118,15 +120,22 @@ pub fn read(ds: &Dataset, what: impl Fn() -> String) -> Result<Raw> {
     }
 }
 
-/// Where a contiguous, unfiltered dataset's values lie in its file, so that they can be read with
-/// plain `pread`s outside HDF5's global lock (episodes then decode in parallel).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Where an unfiltered dataset's values lie in its file, so that they can be read with plain
+/// `pread`s outside HDF5's global lock (episodes then decode in parallel).
+#[derive(Debug, Clone, PartialEq)]
 pub struct Direct {
-    /// Byte offset of the first element in the file.
-    pub offset: u64,
+    pub place: Place,
     /// Number of elements.
     pub elements: usize,
     pub dtype: DirectType,
+}
+
+/// Contiguous storage, or chunks that are plain slabs of rows.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Place {
+    /// Byte offset of the first element in the file.
+    Contiguous(u64),
+    Chunked(ChunkMap),
 }
 
 /// The little-endian element types read directly.
@@ -147,10 +156,11 @@ impl DirectType {
     }
 }
 
-/// The dataset's location for [`read_direct`], when its layout allows it: contiguous storage
-/// that is allocated, in the file itself (not external), holding f32, f64 or u8 little-endian
-/// values. `None` for anything else (chunked, compressed, compact, other types): those are read
-/// through HDF5.
+/// The dataset's location for [`read_direct`], when its layout allows it: f32, f64 or u8
+/// little-endian values, either in contiguous storage that is allocated and in the file itself
+/// (not external), or chunked as [`chunk_map::locate`] accepts (no filter, chunks of whole rows,
+/// all allocated: ALOHA's one-frame-per-chunk images). `None` for anything else (compressed,
+/// compact, partly allocated, other types): those are read through HDF5.
 pub fn direct(ds: &Dataset) -> Option<Direct> {
     use hdf5::types::{FloatSize, IntSize};
     use hdf5_sys::h5t::{H5T_order_t, H5Tget_order};
@@ -171,13 +181,20 @@ pub fn direct(ds: &Dataset) -> Option<Direct> {
             H5Tget_order(file_type.id()),
         )
     });
-    // HADDR_UNDEF (all ones): not contiguous, not allocated, or external.
     let little = order == H5T_order_t::H5T_ORDER_LE || dtype == DirectType::U8;
-    if offset == u64::MAX || !little || storage != (elements * dtype.size()) as u64 {
+    if !little {
         return None;
     }
+    // HADDR_UNDEF (all ones): not contiguous, not allocated, or external.
+    let place = if offset != u64::MAX && storage == (elements * dtype.size()) as u64 {
+        Place::Contiguous(offset)
+    } else if ds.is_chunked() {
+        Place::Chunked(chunk_map::locate(ds)?)
+    } else {
+        return None;
+    };
     Some(Direct {
-        offset,
+        place,
         elements,
         dtype,
     })
@@ -188,7 +205,10 @@ pub fn direct(ds: &Dataset) -> Option<Direct> {
 pub fn read_direct(file: &std::fs::File, d: &Direct) -> std::io::Result<Raw> {
     use std::os::unix::fs::FileExt;
     let mut bytes = vec![0u8; d.elements * d.dtype.size()];
-    file.read_exact_at(&mut bytes, d.offset)?;
+    match &d.place {
+        Place::Contiguous(offset) => file.read_exact_at(&mut bytes, *offset)?,
+        Place::Chunked(map) => chunk_map::read_rows(file, map, 0, &mut bytes)?,
+    }
     Ok(match d.dtype {
         DirectType::U8 => Raw::U8(bytes),
         DirectType::F32 => Raw::F32(
@@ -224,5 +244,113 @@ pub fn read_strings(ds: &Dataset) -> std::result::Result<Vec<String>, String> {
             .map_err(|e| e.to_string()),
         Ok(other) => Err(format!("expected strings, found {other}")),
         Err(e) => Err(e.to_string()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Frames (t, 4, 5, 3) with a distinct value per byte.
+    fn frames(t: usize) -> ndarray::Array4<u8> {
+        ndarray::Array4::from_shape_fn((t, 4, 5, 3), |(i, y, x, c)| {
+            (i * 7 + y * 31 + x * 3 + c * 101) as u8
+        })
+    }
+
+    fn direct_bytes(path: &Path, ds: &Dataset) -> Option<Vec<u8>> {
+        let d = direct(ds)?;
+        let file = std::fs::File::open(path).unwrap();
+        match read_direct(&file, &d).unwrap() {
+            Raw::U8(v) => Some(v),
+            Raw::F32(_) => panic!("u8 read as f32"),
+        }
+    }
+
+    #[test]
+    fn chunked_frames_read_directly_equal_hdf5s_reading() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("frames.hdf5");
+        let data = frames(11);
+        {
+            let f = File::create(&path).unwrap();
+            // One frame per chunk (ALOHA), and 3 rows per chunk with a partial last chunk.
+            for (name, rows) in [("one", 1), ("three", 3)] {
+                f.new_dataset::<u8>()
+                    .shape(data.shape())
+                    .chunk([rows, 4, 5, 3])
+                    .create(name)
+                    .unwrap()
+                    .write(&data)
+                    .unwrap();
+            }
+            // Chunks written out of order: the map has several runs.
+            let ds = f
+                .new_dataset::<u8>()
+                .shape(data.shape())
+                .chunk([1, 4, 5, 3])
+                .create("shuffled")
+                .unwrap();
+            for t in [5, 0, 10, 3, 1, 2, 4, 9, 6, 8, 7] {
+                ds.write_slice(
+                    data.slice(ndarray::s![t..t + 1, .., .., ..]),
+                    ndarray::s![t..t + 1, .., .., ..],
+                )
+                .unwrap();
+            }
+        }
+        let f = File::open(&path).unwrap();
+        for name in ["one", "three", "shuffled"] {
+            let ds = f.dataset(name).unwrap();
+            let d = direct(&ds).expect("located");
+            assert!(matches!(d.place, Place::Chunked(_)), "{name}");
+            let through_hdf5 = ds.read_raw::<u8>().unwrap();
+            assert_eq!(direct_bytes(&path, &ds).unwrap(), through_hdf5, "{name}");
+            assert_eq!(through_hdf5, data.as_slice().unwrap(), "{name}");
+        }
+        if let Place::Chunked(map) = direct(&f.dataset("shuffled").unwrap()).unwrap().place {
+            assert!(map.runs().len() > 1);
+        }
+    }
+
+    #[test]
+    fn compressed_or_partly_written_chunks_go_through_hdf5() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("frames.hdf5");
+        let data = frames(6);
+        {
+            let f = File::create(&path).unwrap();
+            f.new_dataset::<u8>()
+                .shape(data.shape())
+                .chunk([1, 4, 5, 3])
+                .deflate(1)
+                .create("gzip")
+                .unwrap()
+                .write(&data)
+                .unwrap();
+            // Only frames 0..2 written: the other chunks are not allocated.
+            f.new_dataset::<u8>()
+                .shape(data.shape())
+                .chunk([1, 4, 5, 3])
+                .create("partial")
+                .unwrap()
+                .write_slice(
+                    data.slice(ndarray::s![0..2, .., .., ..]),
+                    ndarray::s![0..2, .., .., ..],
+                )
+                .unwrap();
+            // Chunks that split a frame.
+            f.new_dataset::<u8>()
+                .shape(data.shape())
+                .chunk([1, 2, 5, 3])
+                .create("split")
+                .unwrap()
+                .write(&data)
+                .unwrap();
+        }
+        let f = File::open(&path).unwrap();
+        for name in ["gzip", "partial", "split"] {
+            assert!(direct(&f.dataset(name).unwrap()).is_none(), "{name}");
+        }
     }
 }

@@ -17,7 +17,7 @@ use std::fs::File;
 use std::os::unix::fs::FileExt;
 use std::path::Path;
 
-use super::h5::{Direct, DirectType};
+use super::h5::{Direct, DirectType, Place};
 
 /// An undefined address (all ones).
 const UNDEF: u64 = u64::MAX;
@@ -327,7 +327,7 @@ impl Reader {
         Some(Located {
             shape,
             direct: Direct {
-                offset,
+                place: Place::Contiguous(offset),
                 elements,
                 dtype,
             },

@@ -14,9 +14,11 @@
 //! - `check`: what every episode must satisfy (lengths, finite values, increasing timestamps).
 //! - `mapping`: `[source.channels]` (rename, column slices, concatenation, kind) resolved
 //!   against the keys a source offers, and applied to the arrays read.
-//! - `h5`: HDF5 reading helpers (key listing, typed reads, clear errors).
+//! - `h5`: HDF5 reading helpers (key listing, typed reads, clear errors, reads without HDF5).
 //! - `h5meta`: where contiguous datasets lie, read from a file's metadata without the HDF5
 //!   library (so that the headers of many episode files are read in parallel).
+//! - `chunk_map`: where a chunked, unfiltered HDF5 dataset's chunks lie in its file (read and
+//!   written with `pread`/`pwrite`, outside HDF5's lock; the HDF5 writer uses it too).
 //! - `jpeg`: decoding JPEG frames.
 //! - `parquet_read`: parquet columns (scalars, fixed- and variable-size lists) as rows of numbers.
 //! - `subset`: `[source] episodes = […]`, a view of some episodes of any source.
@@ -24,6 +26,7 @@
 
 mod aloha;
 pub mod check;
+pub mod chunk_map;
 mod dp_zarr;
 pub mod fingerprint;
 mod h5;

@@ -10,8 +10,8 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use super::model::{
-    Alignment, Compression, HierarchySpec, Layout, NormalizeMode, OutputFormat, Padding, Preset,
-    ProfileSpec, SegmentSpec, StatsFormat,
+    Alignment, Compression, HierarchySpec, ImageCompression, Layout, NormalizeMode, OutputFormat,
+    Padding, Preset, ProfileSpec, SegmentSpec, StatsFormat,
 };
 
 /// A profile with every value decided. Later stages never look at presets again.
@@ -40,6 +40,10 @@ pub struct Profile {
     pub compression: Compression,
     /// `None`: the codec's default level.
     pub compression_level: Option<u32>,
+    /// Image frames of the HDF5 layouts (other formats have their own conventions).
+    pub image_compression: ImageCompression,
+    /// `None`: gzip's default level for frames (1).
+    pub image_compression_level: Option<u32>,
     pub zarr_version: u32,
     pub stats_formats: Vec<StatsFormat>,
     pub segment: Option<SegmentSpec>,
@@ -269,6 +273,14 @@ pub fn expand(
         std::convert::identity
     );
     let compression_level = resolve!(compression_level, |_: &PresetValues| None, None, Some);
+    let image_compression = resolve!(
+        image_compression,
+        |_: &PresetValues| None,
+        ImageCompression::None,
+        std::convert::identity
+    );
+    let image_compression_level =
+        resolve!(image_compression_level, |_: &PresetValues| None, None, Some);
     let zarr_version = resolve!(
         zarr_version,
         |_: &PresetValues| None,
@@ -325,6 +337,8 @@ pub fn expand(
         layout,
         compression,
         compression_level,
+        image_compression,
+        image_compression_level,
         zarr_version,
         stats_formats,
         segment,

@@ -6,8 +6,8 @@
 use super::diagnostic::{backticked, did_you_mean, suggest, Diagnostic};
 use super::load::{dotted, LoadedSpec, Target};
 use super::model::{
-    ChannelKindSpec, ChannelSpec, ChannelTable, Compression, Layout, OutputFormat, Preset,
-    ProfileSpec,
+    ChannelKindSpec, ChannelSpec, ChannelTable, Compression, ImageCompression, Layout,
+    OutputFormat, Preset, ProfileSpec,
 };
 use super::preset::{self, ExpandError, Profile};
 
@@ -392,12 +392,58 @@ impl Checker<'_> {
                 Some(_) => {}
             }
         }
+        self.image_options(name, p);
         if !matches!(p.zarr_version, 2 | 3) {
             let message = format!("`zarr_version` must be 2 or 3, not {}", p.zarr_version);
             self.value(&key("zarr_version"), message, "expected 2 or 3", None);
         } else if p.zarr_version != 2 && p.format != OutputFormat::Zarr {
             let message = format!("`zarr_version` needs `format = \"zarr\"`, not `{format}`");
             self.value(&key("zarr_version"), message, "only for zarr", None);
+        }
+    }
+
+    /// `image_compression` and its level: only the HDF5 layouts store frames that way.
+    fn image_options(&mut self, name: &str, p: &Profile) {
+        let key = |k: &'static str| ["profiles", name, k];
+        let set = |k: &str| p.origins.get(k).is_some_and(|o| o != "default");
+        if p.format != OutputFormat::Hdf5 {
+            let how = match p.format {
+                OutputFormat::Zarr => "compresses frames with `compression`",
+                OutputFormat::Parquet => "stores frames as PNG",
+                _ => "stores frames uncompressed, as its codebase does",
+            };
+            for k in ["image_compression", "image_compression_level"] {
+                if set(k) {
+                    let message = format!(
+                        "`{k}` needs `format = \"hdf5\"`; profile `{name}` writes `{}`, which {how}",
+                        p.format.name()
+                    );
+                    self.value(&key(k), message, "only for hdf5", None);
+                }
+            }
+            return;
+        }
+        if let Some(level) = p.image_compression_level {
+            if p.image_compression == ImageCompression::None {
+                let message =
+                    "`image_compression = \"none\"` takes no `image_compression_level`".to_string();
+                let help = Some("set `image_compression = \"gzip\"` to compress frames".into());
+                self.value(
+                    &key("image_compression_level"),
+                    message,
+                    "has no level",
+                    help,
+                );
+            } else if level > 9 {
+                let message =
+                    format!("`image_compression_level` {level} is out of range for gzip (0..=9)");
+                self.value(
+                    &key("image_compression_level"),
+                    message,
+                    "out of range",
+                    None,
+                );
+            }
         }
     }
 
