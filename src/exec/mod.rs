@@ -602,6 +602,11 @@ fn run(
         }
         let processed: Vec<Processed> = processed.into_iter().flatten().collect();
 
+        // Low-dim values wait here, per (rate, channel), for one task per store below.
+        let mut pending: Vec<Vec<Vec<Vec<f32>>>> = rates
+            .iter()
+            .map(|r| vec![Vec::new(); r.lowdim.len()])
+            .collect();
         for (&i, episode) in batch.iter().zip(processed) {
             for (r, (rate, (data, partials))) in rates
                 .iter_mut()
@@ -614,9 +619,7 @@ fn run(
                         rate.partials[c].merge(&p);
                     }
                     match values {
-                        Prepared::Lowdim(v) => Arc::get_mut(&mut rate.lowdim[c])
-                            .expect("no reader while the source is read")
-                            .push(&v)?,
+                        Prepared::Lowdim(v) => pending[r][c].push(v),
                         Prepared::Frames(encoded) => {
                             for (_, sink) in sinks.iter_mut().filter(|(sr, _)| *sr == r) {
                                 let enc = sink.frame_encoding();
@@ -632,6 +635,19 @@ fn run(
             }
             bar.inc(1);
         }
+        // Each store takes its episodes in order; stores are independent, so they fill (and
+        // spill) side by side.
+        let stores: Vec<&mut Arc<LowdimStore>> =
+            rates.iter_mut().flat_map(|r| r.lowdim.iter_mut()).collect();
+        let pushed: Vec<Result<()>> = stores
+            .into_par_iter()
+            .zip(pending.into_iter().flatten().collect::<Vec<_>>())
+            .map(|(store, episodes)| {
+                let store = Arc::get_mut(store).expect("no reader while the source is read");
+                episodes.iter().try_for_each(|v| store.push(v))
+            })
+            .collect();
+        pushed.into_iter().collect::<Result<Vec<()>>>()?;
     }
     bar.finish_and_clear();
     drop(reading);
