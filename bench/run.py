@@ -15,7 +15,9 @@ then measures wall time, CPU time (user + sys) and peak RSS (`/usr/bin/time`) of
 5. bench/loader_bench.py: samples/s of the generated loader (0 and 2 workers, and in memory)
    against an open-the-file-per-item Dataset (ACT's pattern) and in-memory numpy chunks.
 
-The page cache is warm (every measured command runs once untimed first where it only reads);
+Every measurement runs `--repeat` times (3 by default) and the run with the median wall time
+(median samples/s for the loader) is reported; every run's number is kept in the JSON. The page
+cache is warm (every measured command runs once untimed first where it only reads);
 dropping caches needs privileges the harness does not assume (`cache` in the JSON says which).
 Generated data stays under about 6 GB (N/2 and 2N datasets are symlinks to the N files);
 outputs are deleted after each measurement. `--clean` removes WORK at the end.
@@ -54,7 +56,25 @@ def log(msg):
     print(msg, file=sys.stderr, flush=True)
 
 
-def timed(cmd, env=None, cwd=None):
+REPEAT = 3
+
+
+def timed(cmd, env=None, cwd=None, before=None):
+    """Runs cmd REPEAT times under /usr/bin/time (`before()` first each time, untimed); returns the
+    run with the median wall time: its wall, cpu (s) and peak RSS (MiB), with every run's wall
+    time in `walls_s`."""
+    runs = []
+    for _ in range(REPEAT):
+        if before:
+            before()
+        runs.append(timed_once(cmd, env, cwd))
+    runs.sort(key=lambda r: r["wall_s"])
+    median = dict(runs[len(runs) // 2])
+    median["walls_s"] = [r["wall_s"] for r in runs]
+    return median
+
+
+def timed_once(cmd, env=None, cwd=None):
     """Runs cmd under /usr/bin/time; returns wall, cpu (s) and peak RSS (MiB) of the command."""
     out = Path("/tmp/chunkc-bench-time.txt")
     full = ["/usr/bin/time", "-o", str(out), "-f", "%e %U %S %M"] + [str(c) for c in cmd]
@@ -120,7 +140,12 @@ def chunkc(work, label, root, cameras, profiles=ONE, threads=2, keep=False):
     lock = out.parent / "chunkc.lock"
     lock.unlink(missing_ok=True)
     log(f"chunkc {label} (threads={threads})")
-    r = timed([BIN, "build", "-q", "-j", threads, path])
+
+    def clean():
+        shutil.rmtree(out, ignore_errors=True)
+        lock.unlink(missing_ok=True)
+
+    r = timed([BIN, "build", "-q", "-j", threads, path], before=clean)
     r["output_bytes"] = du(out)
     if not keep:
         shutil.rmtree(out)
@@ -153,7 +178,8 @@ def numpy_pipeline(work, label, root, cameras):
     log(f"numpy pipeline {label}")
     cams = ",".join(f"cam{c}" for c in range(cameras))
     r = timed([PY, REPO / "bench" / "numpy_pipeline.py", root / "episodes", out, "--chunk", 100,
-               "--fps", 50, "--cameras", cams], env={"OMP_NUM_THREADS": "1"})
+               "--fps", 50, "--cameras", cams], env={"OMP_NUM_THREADS": "1"},
+              before=lambda: shutil.rmtree(out, ignore_errors=True))
     r["output_bytes"] = du(out)
     shutil.rmtree(out)
     return r
@@ -166,10 +192,16 @@ def warm(root):
 
 def loader(work, mode, profile, source, workers, samples):
     log(f"loader {mode} workers={workers}")
-    r = timed([PY, REPO / "bench" / "loader_bench.py", mode, profile, source / "episodes",
-               "--workers", workers, "--samples", samples])
-    r.update(json.loads(r.pop("stdout").strip().splitlines()[-1]))
-    return r
+    runs = []
+    for _ in range(REPEAT):
+        r = timed_once([PY, REPO / "bench" / "loader_bench.py", mode, profile, source / "episodes",
+                        "--workers", workers, "--samples", samples])
+        r.update(json.loads(r.pop("stdout").strip().splitlines()[-1]))
+        runs.append(r)
+    runs.sort(key=lambda r: r["samples_per_s"])
+    median = dict(runs[len(runs) // 2])
+    median["all_samples_per_s"] = [round(r["samples_per_s"]) for r in runs]
+    return median
 
 
 def machine():
@@ -191,9 +223,13 @@ def main():
     ap.add_argument("--out", type=Path, default=REPO / "bench" / "results.json")
     ap.add_argument("--only", choices=["lowdim", "images", "loader"], action="append")
     ap.add_argument("--clean", action="store_true", help="delete WORK when done")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="runs of every measurement; the median is reported (default 3)")
     args = ap.parse_args()
     if not BIN.exists():
         raise SystemExit(f"{BIN} not found: run `cargo build --release` first")
+    global REPEAT
+    REPEAT = max(1, args.repeat)
     size = SIZES["quick" if args.quick else "full"]
     work = args.work.resolve()
     (work / "runs").mkdir(parents=True, exist_ok=True)
