@@ -415,6 +415,9 @@ impl Sink for Hdf5Writer {
             // The next block is read back and normalized on another thread while HDF5 (one
             // thread at a time) writes this one.
             let mut next = starts.first().map(|&lo| prepare(lo));
+            // Written blocks start going to disk right away (a hint), so the final fsync finds
+            // little left to write.
+            let writeback = std::fs::File::open(self.file.filename()).ok();
             for (i, &lo) in starts.iter().enumerate() {
                 let block = next.take().expect("prepared")?;
                 let rows = block.len() / width;
@@ -428,6 +431,9 @@ impl Sink for Hdf5Writer {
                     || starts.get(i + 1).map(|&lo| prepare(lo)),
                 );
                 written?;
+                if let Some(f) = &writeback {
+                    start_writeback(f, 0, 0);
+                }
                 next = following;
             }
             return Ok(());
