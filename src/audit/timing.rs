@@ -353,10 +353,6 @@ impl Intervals {
         self.add(t.windows(2).map(|w| w[1] - w[0]), times);
     }
 
-    pub fn extend(&mut self, intervals: impl Iterator<Item = f64>) {
-        self.add(intervals, 1);
-    }
-
     fn add(&mut self, intervals: impl Iterator<Item = f64>, times: u64) {
         for v in intervals {
             if let Some(all) = &mut self.all {
@@ -414,18 +410,7 @@ impl Runs {
     }
 }
 
-fn runs_of(intervals: &[f64]) -> Runs {
-    let mut set = Intervals::default();
-    set.extend(intervals.iter().copied());
-    set.runs()
-}
-
-/// Equal-width bins from the smallest to the largest interval.
-pub fn histogram(intervals: &[f64], expected: f64) -> Histogram {
-    histogram_of(&runs_of(intervals), expected)
-}
-
-/// [`histogram`] of the intervals as runs.
+/// Equal-width bins from the smallest to the largest interval (given as runs).
 pub fn histogram_of(runs: &Runs, expected: f64) -> Histogram {
     let total = runs.total();
     if total == 0 {
@@ -454,12 +439,8 @@ pub fn histogram_of(runs: &Runs, expected: f64) -> Histogram {
     Histogram { edges, counts }
 }
 
-/// The modes of the intervals (group centres, in seconds, with their share), largest first.
-pub fn modes(intervals: &[f64], expected: f64, separation: f64) -> Vec<(f64, f64)> {
-    modes_of(&runs_of(intervals), expected, separation)
-}
-
-/// [`modes`] of the intervals as runs: groups of sorted values with no gap wider than
+/// The modes of the intervals (group centres, in seconds, with their share), largest first:
+/// groups of sorted values with no gap wider than
 /// `separation * expected` between neighbours.
 pub fn modes_of(runs: &Runs, expected: f64, separation: f64) -> Vec<(f64, f64)> {
     let total = runs.total() as f64;
@@ -495,6 +476,12 @@ pub fn modes_of(runs: &Runs, expected: f64, separation: f64) -> Vec<(f64, f64)> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn modes(intervals: &[f64], expected: f64, separation: f64) -> Vec<(f64, f64)> {
+        let mut set = Intervals::default();
+        set.add(intervals.iter().copied(), 1);
+        modes_of(&set.runs(), expected, separation)
+    }
 
     fn regular(n: usize, dt: f64) -> Vec<f64> {
         (0..n).map(|i| i as f64 * dt).collect()
