@@ -92,35 +92,43 @@ impl Lock {
 }
 
 /// BLAKE3 of a file's contents, hex. Streams the file (no mmap), so hashing large outputs does
-/// not show up as resident memory; blocks of a large file are hashed on every thread (BLAKE3's
-/// tree gives the same hash however it is split).
+/// not show up as resident memory. A large file is read a block at a time while the block
+/// before is hashed on every thread (BLAKE3's tree gives the same hash however it is split).
 pub fn hash_file(path: &Path) -> Result<String> {
-    use std::io::Read;
     const BLOCK: usize = 8 << 20;
     let mut h = blake3::Hasher::new();
     let mut file = std::fs::File::open(path).at("open", path)?;
     let size = file.metadata().at("stat", path)?.len();
     if size < 2 * BLOCK as u64 {
         h.update_reader(file).at("hash", path)?;
-    } else {
-        let mut block = vec![0u8; BLOCK];
-        loop {
-            let mut filled = 0;
-            while filled < BLOCK {
-                match file.read(&mut block[filled..]) {
-                    Ok(0) => break,
-                    Ok(n) => filled += n,
-                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                    Err(e) => return Err(e).at("hash", path),
-                }
-            }
-            h.update_rayon(&block[..filled]);
-            if filled < BLOCK {
-                break;
-            }
-        }
+        return Ok(h.finalize().to_hex().to_string());
+    }
+    let (mut this, mut next) = (vec![0u8; BLOCK], vec![0u8; BLOCK]);
+    let mut filled = fill(&mut file, &mut this).at("hash", path)?;
+    while filled > 0 {
+        let (_, read) = rayon::join(
+            || h.update_rayon(&this[..filled]),
+            || fill(&mut file, &mut next),
+        );
+        filled = read.at("hash", path)?;
+        std::mem::swap(&mut this, &mut next);
     }
     Ok(h.finalize().to_hex().to_string())
+}
+
+/// Reads from `file` until `buf` is full or the file ends; how many bytes were read.
+fn fill(file: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize> {
+    use std::io::Read;
+    let mut filled = 0;
+    while filled < buf.len() {
+        match file.read(&mut buf[filled..]) {
+            Ok(0) => break,
+            Ok(n) => filled += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(filled)
 }
 
 #[cfg(test)]
@@ -131,7 +139,11 @@ mod tests {
     fn hash_file_equals_hashing_the_bytes_whole() {
         let dir = tempfile::tempdir().unwrap();
         // Small (streamed) and large (blocks hashed on every thread, a partial last block).
-        for (name, len) in [("small", 1000usize), ("large", (8 << 20) * 2 + 12345)] {
+        for (name, len) in [
+            ("small", 1000usize),
+            ("large", (8 << 20) * 2 + 12345),
+            ("whole blocks", (8 << 20) * 3),
+        ] {
             let bytes: Vec<u8> = (0..len).map(|i| (i * 31 + i / 4093) as u8).collect();
             let path = dir.path().join(name);
             std::fs::write(&path, &bytes).unwrap();

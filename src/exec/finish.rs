@@ -3,11 +3,11 @@
 //! file beside it. Returns the BLAKE3 of each file, for the lock.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::RateState;
 use crate::chunk::Sampling;
-use crate::error::{IoContext, Result};
+use crate::error::{Error, IoContext, Result};
 use crate::lock;
 use crate::plan::{Plan, ProfilePlan, META_FILE, STATS_FILE};
 use crate::render;
@@ -54,19 +54,25 @@ pub(super) fn profile(
     };
     let mut segments = Vec::new();
     let mut counts = [0usize; 2];
-    for (e, ep) in p.episodes.iter().enumerate() {
-        let samples = index.samples(e)?;
-        if matches!(p.sampling, Sampling::Segment { .. }) {
-            segments.push(
-                samples
-                    .iter()
-                    .map(|s| [s.t, s.t + s.limit])
-                    .collect::<Vec<_>>(),
-            );
-        }
+    // Each episode's samples, counted on every thread (kept only for segments).
+    let per_episode: Vec<(usize, Option<Vec<[usize; 2]>>)> = {
+        use rayon::prelude::*;
+        let index = &index;
+        (0..p.episodes.len())
+            .into_par_iter()
+            .map(|e| -> Result<_> {
+                let samples = index.samples(e)?;
+                let kept = matches!(p.sampling, Sampling::Segment { .. })
+                    .then(|| samples.iter().map(|s| [s.t, s.t + s.limit]).collect());
+                Ok((samples.len(), kept))
+            })
+            .collect::<Result<_>>()?
+    };
+    for ((ep, (count, kept)), e) in p.episodes.iter().zip(per_episode).zip(0..) {
+        segments.extend(kept);
         let split = usize::from(ep.split != "train");
         index.splits[split].push((counts[split], e));
-        counts[split] += samples.len();
+        counts[split] += count;
     }
     for (episodes, &count) in index.splits.iter_mut().zip(&counts) {
         episodes.push((count, usize::MAX));
@@ -148,11 +154,29 @@ pub(super) fn profile(
 
     drop(documents);
     let _hashing = super::timings::phase("hash outputs");
+    let listed = source::fingerprint::list_files(dir)?;
+    // The files start reaching the disk (fsync, which mostly waits) while they are hashed, so
+    // the commit's fsync finds little left to do.
+    let paths: Vec<PathBuf> = listed.iter().map(|rel| dir.join(rel)).collect();
+    let syncing = std::thread::spawn(move || -> Result<()> {
+        for path in &paths {
+            std::fs::File::open(path)
+                .and_then(|f| f.sync_all())
+                .at("sync", path)?;
+        }
+        Ok(())
+    });
     let mut files = BTreeMap::new();
-    for rel in source::fingerprint::list_files(dir)? {
+    let hashed = listed.iter().try_for_each(|rel| -> Result<()> {
         let name = rel.to_string_lossy().replace('\\', "/");
-        files.insert(name, lock::hash_file(&dir.join(&rel))?);
-    }
+        files.insert(name, lock::hash_file(&dir.join(rel))?);
+        Ok(())
+    });
+    let synced = syncing
+        .join()
+        .map_err(|_| Error::Internal("the thread syncing outputs panicked".into()))?;
+    hashed?;
+    synced?;
     Ok(files)
 }
 

@@ -115,6 +115,7 @@ pub(crate) fn check_output_location(spec: &LoadedSpec, out_dir: &Path) -> Result
 }
 
 pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
+    let whole = timings::phase("whole build");
     let out_dir = spec.resolve(&spec.spec.output.dir);
     // Never create anything (not even the lock) inside a source.
     location::check(spec, &out_dir)?;
@@ -160,6 +161,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
             Outcome::Built(staging, hashes) => {
                 let built: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
                 build_lock.keep();
+                let _commit = timings::phase("commit (fsync)");
                 staging.commit(&built)?;
                 (plan, built, hashes)
             }
@@ -245,6 +247,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         },
     );
     all.write(&lock_path)?;
+    drop(whole);
     timings::report();
     Ok(BuildReport {
         out_dir,

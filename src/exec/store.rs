@@ -132,32 +132,58 @@ impl LowdimStore {
 
     /// Rows `lo..hi`, row-major: borrowed when they are in memory, read back otherwise.
     pub fn rows(&self, lo: usize, hi: usize) -> Result<Cow<'_, [f32]>> {
+        self.check_range(lo, hi)?;
+        let disk = self.disk_rows();
+        if lo >= disk {
+            let width = self.width;
+            return Ok(Cow::Borrowed(
+                &self.mem[(lo - disk) * width..(hi - disk) * width],
+            ));
+        }
+        let mut out = vec![0f32; (hi - lo) * self.width];
+        self.rows_into(lo, &mut out)?;
+        Ok(Cow::Owned(out))
+    }
+
+    /// Rows from `lo` into `out` (whole rows, row-major), wherever they are. Disjoint ranges
+    /// may be read on several threads at once.
+    pub fn rows_into(&self, lo: usize, out: &mut [f32]) -> Result<()> {
         let width = self.width;
+        if width == 0 {
+            return Ok(());
+        }
+        let hi = lo + out.len() / width;
+        self.check_range(lo, hi)?;
+        let disk = self.disk_rows();
+        let disk_hi = hi.min(disk);
+        if lo < disk_hi {
+            let (files, _) = self.spilled.as_ref().expect("rows on disk");
+            // One column's bytes at a time, scattered into the rows straight from the buffer.
+            let mut bytes = vec![0u8; (disk_hi - lo) * 4];
+            for (d, file) in files.iter().enumerate() {
+                file.read_exact_at(&mut bytes, lo as u64 * 4)
+                    .at("read", self.column_path(d))?;
+                for (row, b) in out.chunks_exact_mut(width).zip(bytes.chunks_exact(4)) {
+                    row[d] = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                }
+            }
+        }
+        if hi > disk {
+            let from = lo.max(disk);
+            out[(from - lo) * width..]
+                .copy_from_slice(&self.mem[(from - disk) * width..(hi - disk) * width]);
+        }
+        Ok(())
+    }
+
+    fn check_range(&self, lo: usize, hi: usize) -> Result<()> {
         if hi > self.len() || lo > hi {
             return Err(Error::Internal(format!(
                 "rows {lo}..{hi} of a store of {} rows",
                 self.len()
             )));
         }
-        let disk = self.disk_rows();
-        if lo >= disk {
-            return Ok(Cow::Borrowed(
-                &self.mem[(lo - disk) * width..(hi - disk) * width],
-            ));
-        }
-        let mut out = vec![0f32; (hi - lo) * width];
-        let disk_hi = hi.min(disk);
-        let mut column = Vec::new();
-        for d in 0..width {
-            self.read_column(d, lo, disk_hi, &mut column)?;
-            for (row, &v) in out.chunks_exact_mut(width).zip(&column) {
-                row[d] = v;
-            }
-        }
-        if hi > disk {
-            out[(disk_hi - lo) * width..].copy_from_slice(&self.mem[..(hi - disk) * width]);
-        }
-        Ok(Cow::Owned(out))
+        Ok(())
     }
 
     /// Calls `f` with column `d` of each range of rows in `ranges` (each `lo..hi`, in order), one
@@ -271,7 +297,7 @@ mod tests {
     #[test]
     fn spilled_and_in_memory_stores_read_the_same_rows_and_columns() {
         let tmp = tempfile::tempdir().unwrap();
-        let batches = [3, 17, 1, 40, 9, 0, 25];
+        let batches = [3, 17, 1, 40, 9, 0, 25, 2];
         let width = 3;
         let memory = filled(usize::MAX, &tmp.path().join("m"), width, &batches);
         // 64 bytes: a few rows, so most pushes flush and some rows stay in memory at the end.
@@ -317,5 +343,15 @@ mod tests {
             }
         }
         assert!(spilled.rows(0, n + 1).is_err());
+        // Every range, including those straddling the rows on disk and those in memory, read
+        // into a caller's buffer.
+        let disk = spilled.disk_rows();
+        assert!(0 < disk && disk < n, "rows both on disk and in memory");
+        for (lo, hi) in [(0, n), (disk - 1, disk + 1), (disk, n), (3, disk), (7, 7)] {
+            let mut out = vec![f32::NAN; (hi - lo) * width];
+            spilled.rows_into(lo, &mut out).unwrap();
+            assert_eq!(out, &all[lo * width..hi * width], "rows {lo}..{hi}");
+        }
+        assert!(spilled.rows_into(n - 1, &mut [0.0; 6]).is_err());
     }
 }

@@ -68,6 +68,15 @@ fn group(parent: &Group, name: &str) -> Result<Group> {
         .create(name)?)
 }
 
+/// The bytes of `values` as HDF5 stores them: the datasets' type is the native `f32`.
+fn f32_bytes(values: &[f32]) -> &[u8] {
+    // SAFETY: any initialized `f32` is 4 initialized bytes, u8 has alignment 1, and the slice
+    // borrows `values` for its whole life.
+    unsafe {
+        std::slice::from_raw_parts(values.as_ptr().cast::<u8>(), std::mem::size_of_val(values))
+    }
+}
+
 fn text(s: &str) -> Result<VarLenUnicode> {
     s.parse::<VarLenUnicode>()
         .map_err(|e| Error::Internal(format!("attribute text {s:?}: {e}")))
@@ -159,7 +168,11 @@ impl Hdf5Writer {
                             b.deflate(v.compression_level.unwrap_or(DEFAULT_GZIP_LEVEL) as u8)
                         }
                         Compression::Lzf => b.lzf(),
-                        _ => b,
+                        // Unfiltered: every chunk allocated now and never filled, then written
+                        // straight into (`write_raw_rows`), as uncompressed frames are.
+                        _ => b
+                            .alloc_time(Some(AllocTime::Early))
+                            .fill_time(FillTime::Never),
                     };
                     b.create(ch.name.as_str())?
                 }
@@ -184,6 +197,8 @@ impl Hdf5Writer {
                 }
             };
             chunk_maps.push(match (ch.kind, frames) {
+                // Low-dim channels whose chunks cannot be located go through HDF5.
+                (ChannelKind::Lowdim, _) => chunk_map::locate(&ds),
                 (ChannelKind::Image, FrameEncoding::Raw) => {
                     Some(chunk_map::locate(&ds).ok_or_else(|| {
                         Error::Internal(format!(
@@ -211,8 +226,8 @@ impl Hdf5Writer {
         }
         group(root, "index")?;
         let raw = if chunk_maps.iter().any(Option::is_some) {
-            // Metadata goes through HDF5 (it flushes it on close); frame bytes through this
-            // handle, into chunks HDF5 allocated and never touches again.
+            // Metadata goes through HDF5 (it flushes it on close); uncompressed rows through
+            // this handle, into chunks HDF5 allocated and never touches again.
             Some(
                 std::fs::OpenOptions::new()
                     .write(true)
@@ -294,51 +309,73 @@ impl Hdf5Writer {
     /// Writes uncompressed frames straight into their chunks, allocated when the dataset was
     /// created: plain `pwrite`s, outside HDF5 and its global lock.
     fn write_raw_frames(&self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
-        use std::os::unix::fs::FileExt;
-        let (Some(map), Some(file)) = (&self.chunk_maps[channel], &self.raw) else {
-            return Err(Error::Internal(format!(
-                "channel {channel}: no chunk map for uncompressed frames"
-            )));
-        };
-        if frames.bytes().len() != frames.len() * map.row_bytes {
+        if frames.bytes().len() != frames.len() * self.row_bytes(channel) {
             return Err(Error::Internal(format!(
                 "channel {channel}: {} bytes for {} frames of {} bytes",
                 frames.bytes().len(),
                 frames.len(),
+                self.row_bytes(channel)
+            )));
+        }
+        self.write_raw_rows(channel, row, frames.bytes())
+    }
+
+    fn row_bytes(&self, channel: usize) -> usize {
+        self.chunk_maps[channel].as_ref().map_or(0, |m| m.row_bytes)
+    }
+
+    /// Writes whole rows from `row` (`bytes`, as stored) into the chunks of a channel that has
+    /// a chunk map: one `pwrite` per run of chunks that follow one another in the file (usually
+    /// all of them). Not spread over threads: the kernel serializes buffered writes to one file
+    /// anyway (the inode lock).
+    fn write_raw_rows(&self, channel: usize, row: usize, bytes: &[u8]) -> Result<()> {
+        use std::os::unix::fs::FileExt;
+        let (Some(map), Some(file)) = (&self.chunk_maps[channel], &self.raw) else {
+            return Err(Error::Internal(format!(
+                "channel {channel}: no chunk map to write rows into"
+            )));
+        };
+        let rows = bytes.len() / map.row_bytes.max(1);
+        if rows * map.row_bytes != bytes.len() {
+            return Err(Error::Internal(format!(
+                "channel {channel}: {} bytes are not whole rows of {} bytes",
+                bytes.len(),
                 map.row_bytes
             )));
         }
-        let extents = map.extents(row, row + frames.len());
+        let extents = map.extents(row, row + rows);
         let written: usize = extents.iter().map(|e| e.rows).sum();
-        if written != frames.len() {
+        if written != rows {
             return Err(Error::Internal(format!(
                 "channel {channel}: rows {row}..{} are outside the dataset",
-                row + frames.len()
+                row + rows
             )));
         }
-        // One `pwrite` per run of chunks that follow one another in the file (usually the whole
-        // episode). Not spread over threads: the kernel serializes buffered writes to one file
-        // anyway (the inode lock).
         for e in &extents {
-            let bytes = frames.span(e.row - row, e.row - row + e.rows);
-            file.write_all_at(bytes, e.offset).map_err(|err| {
+            let from = (e.row - row) * map.row_bytes;
+            let part = &bytes[from..from + e.rows * map.row_bytes];
+            file.write_all_at(part, e.offset).map_err(|err| {
                 Error::output(format!(
-                    "writing frames {}..{} of {}: {err}",
+                    "writing rows {}..{} of {}: {err}",
                     e.row,
                     e.row + e.rows,
                     self.names[channel]
                 ))
             })?;
-            start_writeback(file, e.offset, bytes.len());
+            start_writeback(file, e.offset, part.len());
         }
         Ok(())
     }
 
-    /// Writes the whole of a low-dimensional channel.
-    fn write_f32(&self, channel: usize, values: &[f32]) -> Result<()> {
+    /// Writes rows of a low-dimensional channel from `row`: into its chunks directly when they
+    /// are mapped, through HDF5 otherwise.
+    fn write_lowdim_rows(&self, channel: usize, row: usize, values: &[f32]) -> Result<()> {
+        if self.chunk_maps[channel].is_some() {
+            return self.write_raw_rows(channel, row, f32_bytes(values));
+        }
         let rows = values.len() / self.shapes[channel].iter().product::<usize>().max(1);
         let view = self.view(channel, rows, values)?;
-        self.data[channel].write_slice(view, self.selection(channel, 0, rows))?;
+        self.data[channel].write_slice(view, self.selection(channel, row, rows))?;
         Ok(())
     }
 
@@ -357,12 +394,24 @@ impl Hdf5Writer {
         // Within the low-dim memory budget too: a tiny `CHUNKC_SPILL_BYTES` (the tests) makes
         // blocks of a few rows, which start and end inside episodes.
         let block = (INDEX_BLOCK_BYTES.min(crate::exec::spill_budget()) / 32).max(1);
-        for lo in (0..n).step_by(block) {
-            let hi = (lo + block).min(n);
-            let rows = index.rows(split, lo, hi)?;
-            let view = ArrayViewD::from_shape(IxDyn(&[hi - lo, 4]), rows.as_flattened())
-                .map_err(|err| Error::Internal(format!("index/{name}: {err}")))?;
-            ds.write_slice(view, (lo..hi, 0..4))?;
+        let starts: Vec<usize> = (0..n).step_by(block).collect();
+        let generate = |lo: usize| index.rows(split, lo, (lo + block).min(n));
+        // The next block is generated while this one is written.
+        let mut next = starts.first().map(|&lo| generate(lo));
+        for (i, &lo) in starts.iter().enumerate() {
+            let rows = next.take().expect("generated")?;
+            let hi = lo + rows.len();
+            let (written, following) = rayon::join(
+                || -> Result<()> {
+                    let view = ArrayViewD::from_shape(IxDyn(&[hi - lo, 4]), rows.as_flattened())
+                        .map_err(|err| Error::Internal(format!("index/{name}: {err}")))?;
+                    ds.write_slice(view, (lo..hi, 0..4))?;
+                    Ok(())
+                },
+                || starts.get(i + 1).map(|&lo| generate(lo)),
+            );
+            written?;
+            next = following;
         }
         Ok(())
     }
@@ -407,33 +456,33 @@ impl Sink for Hdf5Writer {
                 .max(1);
             let block_rows = chunk_rows * (NORMALIZE_BLOCK_BYTES / (4 * width * chunk_rows)).max(1);
             let starts: Vec<usize> = (0..raw.len()).step_by(block_rows).collect();
+            // A block is read back and normalized in pieces on every thread.
+            let piece_rows = chunk_rows * (block_rows / chunk_rows / 8).max(1);
             let prepare = |lo: usize| -> Result<Vec<f32>> {
-                let mut block = raw.rows(lo, (lo + block_rows).min(raw.len()))?.into_owned();
-                normalizer.apply(&mut block);
+                use rayon::prelude::*;
+                let hi = (lo + block_rows).min(raw.len());
+                let mut block = vec![0f32; (hi - lo) * width];
+                block
+                    .par_chunks_mut(piece_rows * width)
+                    .enumerate()
+                    .try_for_each(|(i, piece)| -> Result<()> {
+                        raw.rows_into(lo + i * piece_rows, piece)?;
+                        normalizer.apply(piece);
+                        Ok(())
+                    })?;
                 Ok(block)
             };
-            // The next block is read back and normalized on another thread while HDF5 (one
-            // thread at a time) writes this one.
+            // The next block is prepared while this one is written (one thread at a time
+            // writes); a thread done writing helps prepare.
             let mut next = starts.first().map(|&lo| prepare(lo));
-            // Written blocks start going to disk right away (a hint), so the final fsync finds
-            // little left to write.
-            let writeback = std::fs::File::open(self.file.filename()).ok();
             for (i, &lo) in starts.iter().enumerate() {
                 let block = next.take().expect("prepared")?;
-                let rows = block.len() / width;
                 let this = &*self;
                 let (written, following) = rayon::join(
-                    || -> Result<()> {
-                        let view = this.view(channel, rows, &block)?;
-                        this.data[channel].write_slice(view, this.selection(channel, lo, rows))?;
-                        Ok(())
-                    },
+                    || this.write_lowdim_rows(channel, lo, &block),
                     || starts.get(i + 1).map(|&lo| prepare(lo)),
                 );
                 written?;
-                if let Some(f) = &writeback {
-                    start_writeback(f, 0, 0);
-                }
                 next = following;
             }
             return Ok(());
@@ -441,7 +490,7 @@ impl Sink for Hdf5Writer {
         // The windows of these layouts are materialized from the whole channel in memory.
         let mut values = raw.rows(0, raw.len())?.into_owned();
         normalizer.apply(&mut values);
-        self.write_f32(channel, &values)?;
+        self.write_lowdim_rows(channel, 0, &values)?;
         // Kept for `/chunks` (materialized or virtual layouts).
         self.kept[channel] = Some((values, normalizer.clone()));
         Ok(())

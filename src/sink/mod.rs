@@ -175,7 +175,7 @@ pub enum Split {
 }
 
 /// The window index of a profile, produced on demand so that it need not be in memory whole.
-pub trait WindowIndex {
+pub trait WindowIndex: Sync {
     /// Number of rows of `split`.
     fn count(&self, split: Split) -> usize;
     /// Rows `lo..hi` of `split`: (episode position, t, limit, sub).
