@@ -15,8 +15,12 @@ then measures wall time, CPU time (user + sys) and peak RSS (`/usr/bin/time`) of
 5. bench/loader_bench.py: samples/s of the generated loader (0 and 2 workers, and in memory)
    against an open-the-file-per-item Dataset (ACT's pattern) and in-memory numpy chunks.
 
-Every measurement runs `--repeat` times (3 by default) and the run with the median wall time
-(median samples/s for the loader) is reported; every run's number is kept in the JSON. The page
+Every measurement runs `--repeat` times (5 by default), interleaved: each round runs every
+measurement of a group once (low-dim: numpy, chunkc 1 profile, the I/O floor, 1 thread, 4
+profiles, 2N; images: numpy, chunkc, the floor, N/2; the loader's six), so that a machine
+whose speed drifts over minutes (a shared VM) slows both sides of a ratio alike. The run with
+the median wall time (median samples/s for the loader) is reported, and each ratio is the
+median of the ratios within a round; every run's number is kept in the JSON, in round order. The page
 cache is warm (every measured command runs once untimed first where it only reads);
 dropping caches needs privileges the harness does not assume (`cache` in the JSON says which).
 Generated data stays under about 6 GB (N/2 and 2N datasets are symlinks to the N files);
@@ -56,22 +60,7 @@ def log(msg):
     print(msg, file=sys.stderr, flush=True)
 
 
-REPEAT = 3
-
-
-def timed(cmd, env=None, cwd=None, before=None):
-    """Runs cmd REPEAT times under /usr/bin/time (`before()` first each time, untimed); returns the
-    run with the median wall time: its wall, cpu (s) and peak RSS (MiB), with every run's wall
-    time in `walls_s`."""
-    runs = []
-    for _ in range(REPEAT):
-        if before:
-            before()
-        runs.append(timed_once(cmd, env, cwd))
-    runs.sort(key=lambda r: r["wall_s"])
-    median = dict(runs[len(runs) // 2])
-    median["walls_s"] = [r["wall_s"] for r in runs]
-    return median
+REPEAT = 5
 
 
 def timed_once(cmd, env=None, cwd=None):
@@ -133,56 +122,94 @@ def spec(root, cameras, profiles, out):
     return path
 
 
-def chunkc(work, label, root, cameras, profiles=ONE, threads=2, keep=False):
+class Case:
+    """One measurement of an interleaved group: a command, what runs untimed before it, and
+    what is kept of its result."""
+
+    def __init__(self, label, cmd, env=None, before=None, after=None):
+        self.label, self.cmd, self.env = label, cmd, env
+        self.before, self.after = before, after
+        self.runs = []
+
+
+def interleaved(cases):
+    """Runs every case once per round, REPEAT rounds; returns label -> the run with the median
+    wall time (median samples/s when the command prints it), with every run's number in round
+    order (`walls_s`, and `all_samples_per_s`)."""
+    for _ in range(REPEAT):
+        for c in cases:
+            log(f"  {c.label}")
+            if c.before:
+                c.before()
+            r = timed_once(c.cmd, c.env)
+            out = r.pop("stdout").strip()
+            if out.startswith("{") or "\n{" in out:
+                r.update(json.loads(out.splitlines()[-1]))
+            if c.after:
+                r.update(c.after() or {})
+            c.runs.append(r)
+    results = {}
+    for c in cases:
+        key = (lambda r: r["samples_per_s"]) if "samples_per_s" in c.runs[0] else (
+            lambda r: r["wall_s"])
+        median = dict(sorted(c.runs, key=key)[len(c.runs) // 2])
+        median["walls_s"] = [r["wall_s"] for r in c.runs]
+        if "samples_per_s" in c.runs[0]:
+            median["all_samples_per_s"] = [round(r["samples_per_s"]) for r in c.runs]
+        results[c.label] = median
+    return results, {c.label: c.runs for c in cases}
+
+
+def chunkc(work, label, root, cameras, profiles=ONE, threads=2):
+    """A chunkc build; its output stays until the case runs again (the I/O floor reads it)."""
     out = work / "runs" / label
-    shutil.rmtree(out, ignore_errors=True)
     path = spec(root, cameras, profiles, out)
     lock = out.parent / "chunkc.lock"
-    lock.unlink(missing_ok=True)
-    log(f"chunkc {label} (threads={threads})")
 
     def clean():
         shutil.rmtree(out, ignore_errors=True)
         lock.unlink(missing_ok=True)
 
-    r = timed([BIN, "build", "-q", "-j", threads, path], before=clean)
-    r["output_bytes"] = du(out)
-    if not keep:
-        shutil.rmtree(out)
-    lock.unlink(missing_ok=True)
-    return r, out
+    clean()
+    return Case(label, [BIN, "build", "-q", "-j", threads, path], before=clean,
+                after=lambda: {"output_bytes": du(out)}), out
 
 
-def io_floor(work, root, out):
+def io_floor(work, label, root, out):
+    """`cat` of the source files, then of the outputs in `out` (as the last build left them)
+    into one file with `dd conv=fsync`."""
     files = sorted(str(p) for p in (root / "episodes").iterdir())
-    outputs = sorted(str(p) for p in out.rglob("*") if p.is_file())
     copy = work / "runs" / "floor.bin"
     script = ('xargs -0 cat < "$1" > /dev/null && xargs -0 cat < "$2" | '
               'dd of="$3" bs=4M conv=fsync status=none')
-    lists = []
-    for name, items in (("src.lst", files), ("out.lst", outputs)):
-        p = work / "runs" / name
-        p.write_text("\0".join(items))
-        lists.append(p)
-    log("I/O floor")
-    r = timed(["bash", "-c", script, "floor", lists[0], lists[1], copy])
-    r["read_bytes"] = sum(os.path.getsize(f) for f in files)
-    r["write_bytes"] = copy.stat().st_size
-    copy.unlink()
-    return r
+    src_list, out_list = work / "runs" / f"{label}-src.lst", work / "runs" / f"{label}-out.lst"
+    src_list.write_text("\0".join(files))
+
+    def before():
+        out_list.write_text("\0".join(sorted(str(p) for p in out.rglob("*") if p.is_file())))
+
+    def after():
+        written = copy.stat().st_size
+        copy.unlink()
+        return {"read_bytes": sum(os.path.getsize(f) for f in files), "write_bytes": written}
+
+    return Case(label, ["bash", "-c", script, "floor", src_list, out_list, copy], before=before,
+                after=after)
 
 
 def numpy_pipeline(work, label, root, cameras):
     out = work / "runs" / label
-    shutil.rmtree(out, ignore_errors=True)
-    log(f"numpy pipeline {label}")
     cams = ",".join(f"cam{c}" for c in range(cameras))
-    r = timed([PY, REPO / "bench" / "numpy_pipeline.py", root / "episodes", out, "--chunk", 100,
-               "--fps", 50, "--cameras", cams], env={"OMP_NUM_THREADS": "1"},
-              before=lambda: shutil.rmtree(out, ignore_errors=True))
-    r["output_bytes"] = du(out)
-    shutil.rmtree(out)
-    return r
+
+    def after():
+        size = du(out)
+        shutil.rmtree(out)
+        return {"output_bytes": size}
+
+    return Case(label, [PY, REPO / "bench" / "numpy_pipeline.py", root / "episodes", out,
+                        "--chunk", 100, "--fps", 50, "--cameras", cams],
+                env={"OMP_NUM_THREADS": "1"},
+                before=lambda: shutil.rmtree(out, ignore_errors=True), after=after)
 
 
 def warm(root):
@@ -190,18 +217,18 @@ def warm(root):
     subprocess.run(["bash", "-c", f'cat "{root}"/episodes/* > /dev/null'], check=True)
 
 
-def loader(work, mode, profile, source, workers, samples):
-    log(f"loader {mode} workers={workers}")
-    runs = []
-    for _ in range(REPEAT):
-        r = timed_once([PY, REPO / "bench" / "loader_bench.py", mode, profile, source / "episodes",
-                        "--workers", workers, "--samples", samples])
-        r.update(json.loads(r.pop("stdout").strip().splitlines()[-1]))
-        runs.append(r)
-    runs.sort(key=lambda r: r["samples_per_s"])
-    median = dict(runs[len(runs) // 2])
-    median["all_samples_per_s"] = [round(r["samples_per_s"]) for r in runs]
-    return median
+def loader(mode, profile, source, workers, samples):
+    return Case(f"loader_{mode}_w{workers}",
+                [PY, REPO / "bench" / "loader_bench.py", mode, profile, source / "episodes",
+                 "--workers", workers, "--samples", samples])
+
+
+def paired(rounds, a, b, field="wall_s"):
+    """The median over rounds of a's value / b's value in the same round."""
+    if a not in rounds or b not in rounds:
+        return None
+    values = sorted(x[field] / y[field] for x, y in zip(rounds[a], rounds[b]) if y[field])
+    return round(values[len(values) // 2], 3) if values else None
 
 
 def machine():
@@ -212,10 +239,6 @@ def machine():
                                      text=True).stdout.strip()}
 
 
-def ratio(a, b):
-    return round(a / b, 3) if b else None
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="small sizes, for a smoke run")
@@ -223,8 +246,8 @@ def main():
     ap.add_argument("--out", type=Path, default=REPO / "bench" / "results.json")
     ap.add_argument("--only", choices=["lowdim", "images", "loader"], action="append")
     ap.add_argument("--clean", action="store_true", help="delete WORK when done")
-    ap.add_argument("--repeat", type=int, default=3,
-                    help="runs of every measurement; the median is reported (default 3)")
+    ap.add_argument("--repeat", type=int, default=5,
+                    help="rounds of every measurement; medians are reported (default 5)")
     args = ap.parse_args()
     if not BIN.exists():
         raise SystemExit(f"{BIN} not found: run `cargo build --release` first")
@@ -240,81 +263,93 @@ def main():
     runs = res["runs"]
     started = time.time()
 
+    rounds = {}
+
+    def measure(cases):
+        results, per_round = interleaved(cases)
+        runs.update(results)
+        rounds.update(per_round)
+
     if "lowdim" in parts:
         n = size["lowdim"]["episodes"]
         low = synth(work, "lowdim", cameras=0, **size["lowdim"])
         low2 = linked(low, work / "data" / f"lowdim-2N-{low.name}", n, repeat=2)
         warm(low)
-        runs["lowdim_numpy"] = numpy_pipeline(work, "np-low", low, 0)
-        runs["lowdim_1p"], out = chunkc(work, "low1", low, 0, keep=True)
-        runs["lowdim_floor"] = io_floor(work, low, out)
-        shutil.rmtree(out)
-        runs["lowdim_1p_1thread"], _ = chunkc(work, "low1t", low, 0, threads=1)
-        runs["lowdim_4p"], _ = chunkc(work, "low4", low, 0, profiles=FOUR)
-        runs["lowdim_1p_2N"], _ = chunkc(work, "low2n", low2, 0)
+        one, out = chunkc(work, "lowdim_1p", low, 0)
+        log("low-dim, interleaved")
+        measure([numpy_pipeline(work, "lowdim_numpy", low, 0), one,
+                 io_floor(work, "lowdim_floor", low, out),
+                 chunkc(work, "lowdim_1p_1thread", low, 0, threads=1)[0],
+                 chunkc(work, "lowdim_4p", low, 0, profiles=FOUR)[0],
+                 chunkc(work, "lowdim_1p_2N", low2, 0)[0]])
+        for label in ("lowdim_1p", "lowdim_1p_1thread", "lowdim_4p", "lowdim_1p_2N"):
+            shutil.rmtree(work / "runs" / label, ignore_errors=True)
     if "images" in parts:
         n = size["images"]["episodes"]
         img = synth(work, "images", cameras=2, **size["images"])
         half = linked(img, work / "data" / f"images-half-{img.name}", n // 2)
         warm(img)
-        runs["images_numpy"] = numpy_pipeline(work, "np-img", img, 2)
-        runs["images_1p"], out = chunkc(work, "img1", img, 2, keep=True)
-        runs["images_floor"] = io_floor(work, img, out)
-        shutil.rmtree(out)
-        runs["images_1p_half"], _ = chunkc(work, "imghalf", half, 2)
+        one, out = chunkc(work, "images_1p", img, 2)
+        log("images, interleaved")
+        measure([numpy_pipeline(work, "images_numpy", img, 2), one,
+                 io_floor(work, "images_floor", img, out),
+                 chunkc(work, "images_1p_half", half, 2)[0]])
+        for label in ("images_1p", "images_1p_half"):
+            shutil.rmtree(work / "runs" / label, ignore_errors=True)
     if "loader" in parts:
         n = size["images"]["episodes"]
         img = synth(work, "images", cameras=2, **size["images"])
         sub = linked(img, work / "data" / "loader-source", min(n, size["loader_episodes"]))
-        _, out = chunkc(work, "loader", sub, 2, keep=True)
+        build, out = chunkc(work, "loader", sub, 2)
+        log("building the loader's dataset")
+        subprocess.run([str(c) for c in build.cmd], check=True)
         profile = out / "act"
         samples = size["loader_samples"]
-        for mode, workers in (("chunkc", 0), ("act", 0), ("chunkc", 2), ("act", 2),
-                              ("chunkc_mem", 0), ("numpy_mem", 0)):
-            runs[f"loader_{mode}_w{workers}"] = loader(work, mode, profile, sub, workers, samples)
+        log("loader, interleaved")
+        measure([loader(mode, profile, sub, workers, samples)
+                 for mode, workers in (("chunkc", 0), ("act", 0), ("chunkc", 2), ("act", 2),
+                                       ("chunkc_mem", 0), ("numpy_mem", 0))])
         shutil.rmtree(out)
 
     for r in runs.values():
         r.pop("stdout", None)
-    g = lambda k, f="wall_s": runs[k][f] if k in runs else None  # noqa: E731
     rows = []
 
     def row(name, value, target, ok):
         rows.append({"ratio": name, "value": value, "target": target,
                      "met": None if value is None else ok(value)})
 
+    pair = lambda a, b, f="wall_s": paired(rounds, a, b, f)  # noqa: E731
+    peak = lambda k: round(max(r["peak_rss_mib"] for r in rounds[k]), 1)  # noqa: E731
     if "lowdim" in parts:
-        row("low-dim: numpy pipeline / chunkc (wall)", ratio(g("lowdim_numpy"), g("lowdim_1p")),
+        row("low-dim: numpy pipeline / chunkc (wall)", pair("lowdim_numpy", "lowdim_1p"),
             ">= 3", lambda v: v >= 3)
-        row("low-dim: chunkc / I/O floor (wall)", ratio(g("lowdim_1p"), g("lowdim_floor")),
+        row("low-dim: chunkc / I/O floor (wall)", pair("lowdim_1p", "lowdim_floor"),
             "<= 3", lambda v: v <= 3)
-        row("low-dim: 4 profiles / 1 profile (wall)", ratio(g("lowdim_4p"), g("lowdim_1p")),
+        row("low-dim: 4 profiles / 1 profile (wall)", pair("lowdim_4p", "lowdim_1p"),
             "<= 1.5", lambda v: v <= 1.5)
-        row("low-dim: 1 thread / 2 threads (wall)", ratio(g("lowdim_1p_1thread"), g("lowdim_1p")),
+        row("low-dim: 1 thread / 2 threads (wall)", pair("lowdim_1p_1thread", "lowdim_1p"),
             ">= 1.7", lambda v: v >= 1.7)
-        row("low-dim: peak RSS 2N / N", ratio(g("lowdim_1p_2N", "peak_rss_mib"),
-                                              g("lowdim_1p", "peak_rss_mib")),
+        row("low-dim: peak RSS 2N / N", pair("lowdim_1p_2N", "lowdim_1p", "peak_rss_mib"),
             "<= 1.1", lambda v: v <= 1.1)
-        row("low-dim: peak RSS MiB (2N)", round(g("lowdim_1p_2N", "peak_rss_mib"), 1), "< 512",
+        row("low-dim: peak RSS MiB (2N, largest run)", peak("lowdim_1p_2N"), "< 512",
             lambda v: v < 512)
     if "images" in parts:
-        row("images: numpy pipeline / chunkc (wall)", ratio(g("images_numpy"), g("images_1p")),
+        row("images: numpy pipeline / chunkc (wall)", pair("images_numpy", "images_1p"),
             ">= 2", lambda v: v >= 2)
-        row("images: chunkc / I/O floor (wall)", ratio(g("images_1p"), g("images_floor")),
+        row("images: chunkc / I/O floor (wall)", pair("images_1p", "images_floor"),
             "<= 2", lambda v: v <= 2)
-        row("images: peak RSS N / (N/2)", ratio(g("images_1p", "peak_rss_mib"),
-                                                g("images_1p_half", "peak_rss_mib")),
+        row("images: peak RSS N / (N/2)", pair("images_1p", "images_1p_half", "peak_rss_mib"),
             "<= 1.1", lambda v: v <= 1.1)
-        row("images: peak RSS MiB (N)", round(g("images_1p", "peak_rss_mib"), 1), "< 512",
+        row("images: peak RSS MiB (N, largest run)", peak("images_1p"), "< 512",
             lambda v: v < 512)
     if "loader" in parts:
-        sps = lambda k: g(k, "samples_per_s")  # noqa: E731
         for w in (0, 2):
             row(f"loader: chunkc / open-per-item, {w} workers (samples/s)",
-                ratio(sps(f"loader_chunkc_w{w}"), sps(f"loader_act_w{w}")), ">= 3",
+                pair(f"loader_chunkc_w{w}", f"loader_act_w{w}", "samples_per_s"), ">= 3",
                 lambda v: v >= 3)
         row("loader: numpy in-memory / chunkc in_memory (samples/s)",
-            ratio(sps("loader_numpy_mem_w0"), sps("loader_chunkc_mem_w0")), "<= 1.5",
+            pair("loader_numpy_mem_w0", "loader_chunkc_mem_w0", "samples_per_s"), "<= 1.5",
             lambda v: v <= 1.5)
     res["table"] = rows
     res["machine_after"] = machine()

@@ -657,61 +657,84 @@ fn run(
     if !excluded.is_empty() {
         return Ok(Err(excluded));
     }
-    let statistics = timings::phase("statistics");
-
-    // Statistics once per (rate, channel), shared by every profile at that rate.
+    // Statistics once per (rate, channel), shared by every profile at that rate; each rate's
+    // profiles finish (normalized writes, window index, documents, hashes) as soon as its
+    // statistics are known, while other rates still reduce theirs. Profiles' files are
+    // independent, and results are gathered in profile order.
     let train_mask: Vec<bool> = ids.iter().map(|&id| plan.split.is_train(id)).collect();
-    let mut stats_by_rate: Vec<BTreeMap<String, ChannelStats>> = Vec::with_capacity(rates.len());
-    for rate in &mut rates {
-        let mut by_channel = BTreeMap::new();
-        for (c, ch) in manifest.channels.iter().enumerate() {
-            let s = match ch.kind {
-                ChannelKind::Lowdim => {
-                    let width = ch.width();
-                    let values = &rate.lowdim[c];
-                    let ends = &rate.ends;
-                    let train: Vec<(usize, usize)> = (0..ends.len())
-                        .filter(|&e| train_mask[e])
-                        .map(|e| {
-                            let start = if e == 0 { 0 } else { ends[e - 1] as usize };
-                            (start, ends[e] as usize)
-                        })
-                        .collect();
-                    let Partial::Lowdim(m) = &rate.partials[c] else {
-                        unreachable!("low-dim partial")
-                    };
-                    stats::lowdim_from(m.clone(), width, |d, f| values.for_column(d, &train, f))?
-                }
-                ChannelKind::Image => match &rate.partials[c] {
-                    Partial::Image(p) => p.clone().finish(),
-                    Partial::Lowdim(_) => unreachable!("image partial"),
-                },
-            };
-            by_channel.insert(ch.name.clone(), s);
-        }
-        stats_by_rate.push(by_channel);
-    }
-
-    drop(statistics);
-    // Profiles finish side by side: their files are independent (HDF5 still writes one thread at
-    // a time), and the results are gathered in profile order.
     let shared = finish::Shared {
         spec,
         plan,
         manifest,
         renderer,
     };
-    let finished: Vec<Result<BTreeMap<String, String>>> = stale
+    // Per rate: (profile position, its sink, its staging directory).
+    type Pending<'d> = Vec<(usize, Box<dyn Sink>, &'d PathBuf)>;
+    let mut by_rate: Vec<Pending> = rates.iter().map(|_| Vec::new()).collect();
+    for (i, ((r, sink), dir)) in sinks.into_iter().zip(&dirs).enumerate() {
+        by_rate[r].push((i, sink, dir));
+    }
+    type Finished = Vec<(usize, Result<BTreeMap<String, String>>)>;
+    let finished: Vec<Finished> = rates
         .par_iter()
-        .zip(sinks)
-        .zip(&dirs)
-        .map(|((p, (r, sink)), dir)| {
-            finish::profile(&shared, p, &rates[r], &stats_by_rate[r], sink, dir)
+        .zip(by_rate)
+        .map(|(rate, profiles)| -> Result<Vec<_>> {
+            let stats = {
+                let _statistics = timings::phase("statistics");
+                rate_stats(rate, manifest, &train_mask)?
+            };
+            Ok(profiles
+                .into_par_iter()
+                .map(|(i, sink, dir)| {
+                    (
+                        i,
+                        finish::profile(&shared, stale[i], rate, &stats, sink, dir),
+                    )
+                })
+                .collect())
         })
-        .collect();
+        // The first failing rate in plan order, whatever finished first.
+        .collect::<Vec<Result<_>>>()
+        .into_iter()
+        .collect::<Result<_>>()?;
+    let mut finished: Finished = finished.into_iter().flatten().collect();
+    finished.sort_by_key(|(i, _)| *i);
+    let finished = finished.into_iter().map(|(_, files)| files);
     let mut hashes = BTreeMap::new();
     for (p, files) in stale.iter().zip(finished) {
         hashes.insert(p.name.clone(), files?);
     }
     Ok(Ok(hashes))
+}
+
+/// The statistics of every channel at one rate: low-dim percentiles from the store (moments were
+/// merged while reading), image statistics from their partials.
+fn rate_stats(
+    rate: &RateState,
+    manifest: &source::Manifest,
+    train_mask: &[bool],
+) -> Result<BTreeMap<String, ChannelStats>> {
+    let mut by_channel = BTreeMap::new();
+    for (c, ch) in manifest.channels.iter().enumerate() {
+        let s = match (&rate.partials[c], ch.kind) {
+            (Partial::Lowdim(m), ChannelKind::Lowdim) => {
+                let values = &rate.lowdim[c];
+                let ends = &rate.ends;
+                let train: Vec<(usize, usize)> = (0..ends.len())
+                    .filter(|&e| train_mask[e])
+                    .map(|e| {
+                        let start = if e == 0 { 0 } else { ends[e - 1] as usize };
+                        (start, ends[e] as usize)
+                    })
+                    .collect();
+                stats::lowdim_from(m.clone(), ch.width(), |d, f| {
+                    values.for_column(d, &train, f)
+                })?
+            }
+            (Partial::Image(p), ChannelKind::Image) => p.clone().finish(),
+            _ => unreachable!("a channel's partial has its kind"),
+        };
+        by_channel.insert(ch.name.clone(), s);
+    }
+    Ok(by_channel)
 }
