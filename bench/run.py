@@ -16,15 +16,15 @@ then measures wall time, CPU time (user + sys) and peak RSS (`/usr/bin/time`) of
    against an open-the-file-per-item Dataset (ACT's pattern) and in-memory numpy chunks.
 
 Every measurement runs `--repeat` times (5 by default), interleaved: each round runs every
-measurement of a group once (low-dim: numpy, chunkc 1 profile, the I/O floor, 1 thread, 4
-profiles, 2N; images: numpy, chunkc, the floor, N/2; the loader's six), so that a machine
-whose speed drifts over minutes (a shared VM) slows both sides of a ratio alike. The run with
-the median wall time (median samples/s for the loader) is reported, and each ratio is the
-median of the ratios within a round; every run's number is kept in the JSON, in round order. The page
-cache is warm (every measured command runs once untimed first where it only reads);
-dropping caches needs privileges the harness does not assume (`cache` in the JSON says which).
-Generated data stays under about 6 GB (N/2 and 2N datasets are symlinks to the N files);
-outputs are deleted after each measurement. `--clean` removes WORK at the end.
+measurement of a group once (low-dim: numpy, chunkc 1 profile, the I/O floor, 1 thread, two
+independent 1-thread builds at once, 4 profiles, 2N; images: numpy, chunkc, the floor, N/2;
+the loader's six), so that a machine whose speed drifts over minutes (a shared VM) slows both
+sides of a ratio alike. The run with the median wall time (median samples/s for the loader) is
+reported, and each ratio is the median of the ratios within a round; every run's number is kept
+in the JSON, in round order. The page cache is warm (each source is read once before its
+group); dropping caches needs privileges the harness does not assume (`cache` in the JSON says
+which). Generated data stays under about 6 GB (N/2 and 2N datasets are symlinks to the N
+files); outputs are deleted as the measurements go. `--clean` removes WORK at the end.
 """
 
 import argparse
@@ -175,6 +175,23 @@ def chunkc(work, label, root, cameras, profiles=ONE, threads=2):
                 after=lambda: {"output_bytes": du(out)}), out
 
 
+def twin_builds(work, root):
+    """Two independent 1-thread builds of the same spec at once (their own output and lock
+    directories): what this machine gives two threads with nothing at all shared between them,
+    the ceiling for `-j 2` against `-j 1`."""
+    outs = [work / "runs" / "lowdim_twin_a", work / "runs-twin" / "lowdim_twin_b"]
+    specs = [spec(root, 0, ONE, out) for out in outs]
+
+    def clean():
+        for out in outs:
+            shutil.rmtree(out, ignore_errors=True)
+            (out.parent / "chunkc.lock").unlink(missing_ok=True)
+
+    script = '"$1" build -q -j 1 "$2" & first=$!; "$1" build -q -j 1 "$3" && wait $first'
+    return Case("lowdim_twin_1thread", ["bash", "-c", script, "twin", BIN, *specs],
+                before=clean, after=clean)
+
+
 def io_floor(work, label, root, out):
     """`cat` of the source files, then of the outputs in `out` (as the last build left them)
     into one file with `dd conv=fsync`."""
@@ -280,6 +297,7 @@ def main():
         measure([numpy_pipeline(work, "lowdim_numpy", low, 0), one,
                  io_floor(work, "lowdim_floor", low, out),
                  chunkc(work, "lowdim_1p_1thread", low, 0, threads=1)[0],
+                 twin_builds(work, low),
                  chunkc(work, "lowdim_4p", low, 0, profiles=FOUR)[0],
                  chunkc(work, "lowdim_1p_2N", low2, 0)[0]])
         for label in ("lowdim_1p", "lowdim_1p_1thread", "lowdim_4p", "lowdim_1p_2N"):
@@ -330,6 +348,9 @@ def main():
             "<= 1.5", lambda v: v <= 1.5)
         row("low-dim: 1 thread / 2 threads (wall)", pair("lowdim_1p_1thread", "lowdim_1p"),
             ">= 1.7", lambda v: v >= 1.7)
+        twin = paired(rounds, "lowdim_1p_1thread", "lowdim_twin_1thread")
+        row("low-dim: machine's ceiling, 2 x 1-thread / two 1-thread builds at once",
+            None if twin is None else round(2 * twin, 3), "(reference)", lambda v: None)
         row("low-dim: peak RSS 2N / N", pair("lowdim_1p_2N", "lowdim_1p", "peak_rss_mib"),
             "<= 1.1", lambda v: v <= 1.1)
         row("low-dim: peak RSS MiB (2N, largest run)", peak("lowdim_1p_2N"), "< 512",
