@@ -70,7 +70,21 @@ if [ "$want" != "$have" ]; then
     else
         say "$requirements changed: updating $venv"
     fi
-    "$venv/bin/python" -m pip install "${quiet[@]}" --disable-pip-version-check -r "$requirements"
+    # torch and its CUDA libraries need ~6 GB installed; pip's cache would hold a second copy of
+    # the downloads, so it is not used, and pip unpacks into the project's own disk, not /tmp
+    # (which can be a small tmpfs).
+    free_mb=$(df -Pm . | awk 'NR==2 {print $4}')
+    if [ -n "$free_mb" ] && [ "$free_mb" -lt 9000 ]; then
+        say "warning: only ${free_mb} MB free on $(df -P . | awk 'NR==2 {print $6}'); the install needs ~9 GB at its peak"
+    fi
+    mkdir -p "$venv/.pip-tmp"
+    if ! TMPDIR="$CHUNKC_ROOT/$venv/.pip-tmp" "$venv/bin/python" -m pip install "${quiet[@]}" \
+        --disable-pip-version-check --no-cache-dir -r "$requirements"; then
+        rm -rf "$venv/.pip-tmp"
+        df -h . >&2 || true
+        die "pip could not install $requirements (see above; free disk space is shown)"
+    fi
+    rm -rf "$venv/.pip-tmp"
     # Written only after a successful install, so an interrupted install is retried next time.
     printf '%s\n' "$want" >"$stamp"
 fi
