@@ -83,6 +83,49 @@ fn tick(v: &f64) -> String {
     }
 }
 
+/// An axis of `n` items (episodes) drawn at 0..n, spanning -0.5..n-0.5: its ticks are whole
+/// numbers 0, step, 2·step, … with a step of 1, 2 or 5 × 10^k (an episode axis never shows 1.5),
+/// and it has no light grid lines between them.
+struct EpisodeAxis {
+    inner: plotters::coord::types::RangedCoordf64,
+    n: usize,
+}
+
+impl Ranged for EpisodeAxis {
+    type FormatOption = plotters::coord::ranged1d::DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
+        self.inner.map(value, limit)
+    }
+
+    fn key_points<Hint: plotters::coord::ranged1d::KeyPointHint>(&self, hint: Hint) -> Vec<f64> {
+        if matches!(
+            hint.weight(),
+            plotters::coord::ranged1d::KeyPointWeight::Any
+        ) || hint.max_num_points() == 0
+        {
+            return Vec::new();
+        }
+        let most = hint.max_num_points().clamp(1, 10);
+        let mut step = 1usize;
+        'find: loop {
+            for m in [1, 2, 5] {
+                if self.n.div_ceil(step * m) <= most {
+                    step *= m;
+                    break 'find;
+                }
+            }
+            step *= 10;
+        }
+        (0..self.n.max(1)).step_by(step).map(|i| i as f64).collect()
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.inner.range()
+    }
+}
+
 const GRID: RGBColor = RGBColor(238, 238, 238);
 
 /// `lo..hi`, widened when empty so that plotters gets a usable range.
@@ -194,7 +237,13 @@ pub fn episode_timing(episodes: &[EpisodeAudit], expected: f64) -> String {
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(70)
-            .build_cartesian_2d(-0.5..n - 0.5, span(ms(lo - pad).max(0.0), ms(hi + pad)))?;
+            .build_cartesian_2d(
+                EpisodeAxis {
+                    inner: (-0.5..n - 0.5).into(),
+                    n: episodes.len(),
+                },
+                span(ms(lo - pad).max(0.0), ms(hi + pad)),
+            )?;
         chart
             .configure_mesh()
             .x_desc("episode (position in source order)")

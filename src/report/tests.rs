@@ -179,6 +179,43 @@ fn every_chart_is_well_formed_svg() {
     assert!(charts[3].contains("suggested K = 9") && charts[3].contains("act K = 40"));
 }
 
+/// The numbers along the bottom of the per-episode chart: the `<text>` elements below the
+/// plotting area whose content is a number.
+fn episode_axis_labels(svg: &str) -> Vec<f64> {
+    let doc = roxmltree::Document::parse(svg).unwrap();
+    let texts: Vec<(f64, f64)> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("text"))
+        .filter_map(|n| {
+            let value = n.text()?.trim().parse::<f64>().ok()?;
+            Some((n.attribute("y")?.parse::<f64>().ok()?, value))
+        })
+        .collect();
+    let bottom = texts.iter().map(|t| t.0).fold(f64::MIN, f64::max);
+    texts
+        .iter()
+        .filter(|t| t.0 == bottom)
+        .map(|t| t.1)
+        .collect()
+}
+
+#[test]
+fn episode_axis_shows_whole_episode_positions() {
+    for n in [1usize, 3, 12, 40, 1234] {
+        let mut episodes = sample_audit().episodes;
+        episodes.resize(n, episodes[0].clone());
+        let labels = episode_axis_labels(&plot::episode_timing(&episodes, 0.05));
+        assert!(!labels.is_empty() && labels.len() <= 10, "{n}: {labels:?}");
+        assert_eq!(labels[0], 0.0, "{n}: {labels:?}");
+        for v in &labels {
+            assert!(
+                v.fract() == 0.0 && *v >= 0.0 && *v < n as f64,
+                "{n}: {labels:?}"
+            );
+        }
+    }
+}
+
 #[test]
 fn audit_page_is_self_contained_and_lists_flagged_episodes() {
     let html = audit_html(&sample_audit(), "Audit <of> test");
