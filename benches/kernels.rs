@@ -140,8 +140,11 @@ fn frames(c: &mut Criterion) {
     for (name, enc) in [
         ("raw", sink::FrameEncoding::Raw),
         ("zlib1", sink::FrameEncoding::Zlib(1)),
+        ("png", sink::FrameEncoding::Png),
     ] {
-        g.bench_function(name, |b| b.iter(|| sink::encode_frame(enc, frame)));
+        g.bench_function(name, |b| {
+            b.iter(|| sink::encode_frame(enc, frame, &[96, 96, 3]))
+        });
     }
     g.finish();
 }
@@ -205,6 +208,7 @@ fn writers(c: &mut Criterion) {
             let ctx = sink::SinkContext {
                 profile: p,
                 dir: out.path(),
+                scratch: out.path(),
                 episode_ends: &ends,
                 episode_ids: &ids,
             };
@@ -218,7 +222,7 @@ fn writers(c: &mut Criterion) {
                     ChannelData::Image(v) => Some(v),
                     _ => None,
                 }) {
-                    Some(v) => sink::Frames::encode(enc, v, 96 * 96 * 3),
+                    Some(v) => sink::Frames::encode(enc, v, &[96, 96, 3]),
                     None => sink::Frames::default(),
                 }
             })
@@ -232,6 +236,7 @@ fn writers(c: &mut Criterion) {
                 let ctx = sink::SinkContext {
                     profile: p,
                     dir: &dir,
+                    scratch: &dir.join(".scratch"),
                     episode_ends: &ends,
                     episode_ids: &ids,
                 };

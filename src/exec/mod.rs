@@ -390,7 +390,7 @@ fn process(
                     let mut encoded: Vec<(FrameEncoding, Frames)> = encodings
                         .iter()
                         .filter(|&&enc| enc != FrameEncoding::Raw)
-                        .map(|&enc| (enc, Frames::encode(enc, &d, width)))
+                        .map(|&enc| (enc, Frames::encode(enc, &d, &ch.shape)))
                         .collect();
                     if encodings.contains(&FrameEncoding::Raw) {
                         encoded.push((FrameEncoding::Raw, Frames::raw(d, width)));
@@ -521,6 +521,7 @@ fn run(
         let sink = sink::create(&SinkContext {
             profile: p,
             dir: &dir,
+            scratch: &staging.scratch_dir(),
             episode_ends: &rates[rate].ends,
             episode_ids: &ids,
         })?;

@@ -69,6 +69,11 @@ fn group(parent: &Group, name: &str) -> Result<Group> {
 }
 
 /// The bytes of `values` as HDF5 stores them: the datasets' type is the native `f32`.
+/// HDF5 stores frames raw or deflated; it never asks for PNGs.
+fn no_png() -> Error {
+    Error::Internal("HDF5 frames are never PNG-encoded".into())
+}
+
 fn f32_bytes(values: &[f32]) -> &[u8] {
     // SAFETY: any initialized `f32` is 4 initialized bytes, u8 has alignment 1, and the slice
     // borrows `values` for its whole life.
@@ -193,6 +198,7 @@ impl Hdf5Writer {
                             .alloc_time(Some(AllocTime::Early))
                             .fill_time(FillTime::Never)
                             .create(ch.name.as_str())?,
+                        FrameEncoding::Png => return Err(no_png()),
                     }
                 }
             };
@@ -430,6 +436,7 @@ impl Sink for Hdf5Writer {
         match self.frames {
             FrameEncoding::Raw => self.write_raw_frames(channel, row, frames),
             FrameEncoding::Zlib(_) => self.write_chunks(channel, row, frames),
+            FrameEncoding::Png => Err(no_png()),
         }
     }
 

@@ -15,8 +15,13 @@
 //! Values are raw: LeRobot normalizes in its policy with `meta/stats.json`, and chunkc's loader
 //! normalizes on read. Writer properties are fixed (created_by, zstd level, no dictionary,
 //! chunk statistics), so the bytes depend only on the contents.
+//!
+//! Frames arrive PNG-encoded (in `exec`'s parallel stage) episode by episode, before the low-dim
+//! channels the same row groups need: they wait in a scratch file per camera, and `finish`
+//! writes the data file one episode (one row group) at a time, so memory holds one episode.
 
 use std::fs::File;
+use std::io::{BufWriter, Read, Seek, Write};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -53,8 +58,8 @@ pub struct LerobotWriter {
     /// Per channel: the name, its shape, its kind.
     channels: Vec<(String, Vec<usize>, ChannelKind)>,
     raw: Vec<Option<Arc<LowdimStore>>>,
-    /// Per channel: PNG frames by stored row (images only).
-    frames: Vec<Vec<Vec<u8>>>,
+    /// Per channel: its PNG frames by stored row (images only).
+    frames: Vec<Option<FrameSpill>>,
     train: Vec<[i64; 4]>,
     val: Vec<[i64; 4]>,
 }
@@ -63,46 +68,102 @@ fn err(e: impl std::fmt::Display) -> Error {
     Error::output(format!("parquet: {e}"))
 }
 
-/// A PNG of one HWC `u8` frame: filter 0 on every row, zlib at a fixed level (deterministic).
-pub fn png(frame: &[u8], shape: &[usize]) -> Vec<u8> {
-    use std::io::Write;
-    let (h, w, c) = match shape {
-        [h, w, c] => (*h, *w, *c),
-        [h, w] => (*h, *w, 1),
-        _ => (1, frame.len(), 1),
-    };
-    let color: u8 = match c {
-        1 => 0,
-        2 => 4,
-        3 => 2,
-        _ => 6,
-    };
-    let mut raw = Vec::with_capacity(h * (w * c + 1));
-    for row in frame.chunks(w * c) {
-        raw.push(0);
-        raw.extend_from_slice(row);
+/// One camera's PNG frames in stored-row order, back to back in a scratch file.
+struct FrameSpill {
+    path: PathBuf,
+    file: BufWriter<File>,
+    /// Exclusive end of each frame in the file.
+    ends: Vec<u64>,
+}
+
+impl FrameSpill {
+    fn create(path: PathBuf, frames: usize) -> Result<Self> {
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).at("create", parent)?;
+        }
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)
+            .at("create", &path)?;
+        Ok(FrameSpill {
+            file: BufWriter::with_capacity(1 << 20, file),
+            path,
+            ends: Vec::with_capacity(frames),
+        })
     }
-    let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::new(6));
-    z.write_all(&raw).expect("writing to a Vec cannot fail");
-    let idat = z.finish().expect("writing to a Vec cannot fail");
-    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
-    let mut chunk = |kind: &[u8], data: &[u8]| {
-        out.extend_from_slice(&(data.len() as u32).to_be_bytes());
-        let mut crc = flate2::Crc::new();
-        crc.update(kind);
-        crc.update(data);
-        out.extend_from_slice(kind);
-        out.extend_from_slice(data);
-        out.extend_from_slice(&crc.sum().to_be_bytes());
-    };
-    let mut ihdr = Vec::with_capacity(13);
-    ihdr.extend_from_slice(&(w as u32).to_be_bytes());
-    ihdr.extend_from_slice(&(h as u32).to_be_bytes());
-    ihdr.extend_from_slice(&[8, color, 0, 0, 0]);
-    chunk(b"IHDR", &ihdr);
-    chunk(b"IDAT", &idat);
-    chunk(b"IEND", &[]);
-    out
+
+    fn push(&mut self, frames: &Frames) -> Result<()> {
+        self.file
+            .write_all(frames.bytes())
+            .at("write", &self.path)?;
+        let mut end = self.ends.last().copied().unwrap_or(0);
+        for f in frames.iter() {
+            end += f.len() as u64;
+            self.ends.push(end);
+        }
+        Ok(())
+    }
+
+    /// Reads the frames back in order, `rows` at a time, and deletes the file.
+    fn into_reader(self) -> Result<SpillReader> {
+        let mut file = self
+            .file
+            .into_inner()
+            .map_err(|e| e.into_error())
+            .at("write", &self.path)?;
+        file.rewind().at("read", &self.path)?;
+        Ok(SpillReader {
+            file: std::io::BufReader::with_capacity(1 << 20, file),
+            path: self.path,
+            ends: self.ends,
+            row: 0,
+        })
+    }
+}
+
+struct SpillReader {
+    path: PathBuf,
+    file: std::io::BufReader<File>,
+    ends: Vec<u64>,
+    row: usize,
+}
+
+impl SpillReader {
+    /// The next `n` frames (rows `row..row + n`) as a LeRobot image column.
+    fn next(&mut self, n: usize, name: &str) -> Result<StructArray> {
+        let (lo, hi) = (self.row, self.row + n);
+        if hi > self.ends.len() {
+            return Err(Error::Internal(format!("missing frames of {name}")));
+        }
+        let start = if lo == 0 { 0 } else { self.ends[lo - 1] };
+        let end = if hi == 0 { 0 } else { self.ends[hi - 1] };
+        let mut bytes = vec![0u8; (end - start) as usize];
+        self.file.read_exact(&mut bytes).at("read", &self.path)?;
+        let mut column = BinaryBuilder::with_capacity(n, bytes.len());
+        let mut paths = StringBuilder::new();
+        let mut at = start;
+        for &end in &self.ends[lo..hi] {
+            column.append_value(&bytes[(at - start) as usize..(end - start) as usize]);
+            paths.append_null();
+            at = end;
+        }
+        self.row = hi;
+        StructArray::try_new(
+            image_fields(),
+            vec![Arc::new(column.finish()), Arc::new(paths.finish())],
+            None,
+        )
+        .map_err(err)
+    }
+}
+
+impl Drop for SpillReader {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
 }
 
 fn image_fields() -> Fields {
@@ -154,18 +215,28 @@ impl LerobotWriter {
             raw: channels.iter().map(|_| None).collect(),
             frames: channels
                 .iter()
-                .map(|(_, _, k)| match k {
-                    ChannelKind::Image => Vec::with_capacity(steps),
-                    ChannelKind::Lowdim => Vec::new(),
+                .enumerate()
+                .map(|(c, (_, _, k))| match k {
+                    ChannelKind::Image => {
+                        let file = format!("{}-frames-{c}", ctx.profile.name);
+                        FrameSpill::create(ctx.scratch.join(file), steps).map(Some)
+                    }
+                    ChannelKind::Lowdim => Ok(None),
                 })
-                .collect(),
+                .collect::<Result<_>>()?,
             channels,
             train: Vec::new(),
             val: Vec::new(),
         })
     }
 
-    fn write_parquet(&self, rel: &str, schema: Arc<Schema>, batches: &[RecordBatch]) -> Result<()> {
+    /// Writes `batches` as they come, one row group each.
+    fn write_parquet(
+        &self,
+        rel: &str,
+        schema: Arc<Schema>,
+        batches: impl IntoIterator<Item = Result<RecordBatch>>,
+    ) -> Result<()> {
         let path = self.dir.join(rel);
         if let Some(parent) = path.parent() {
             std::fs::create_dir_all(parent).at("create", parent)?;
@@ -173,7 +244,7 @@ impl LerobotWriter {
         let file = File::create(&path).at("create", &path)?;
         let mut w = ArrowWriter::try_new(file, schema, Some(self.props.clone())).map_err(err)?;
         for b in batches {
-            w.write(b).map_err(err)?;
+            w.write(&b?).map_err(err)?;
             // One row group per batch.
             w.flush().map_err(err)?;
         }
@@ -191,7 +262,7 @@ impl LerobotWriter {
         std::fs::write(&path, text).at("write", &path)
     }
 
-    fn data(&self) -> Result<()> {
+    fn data(&mut self) -> Result<()> {
         let mut fields = Vec::new();
         for (name, _, kind) in &self.channels {
             let dt = match kind {
@@ -213,18 +284,24 @@ impl LerobotWriter {
             fields.push(Field::new(name, dt, false));
         }
         let schema = Arc::new(Schema::new(fields));
-        let mut batches = Vec::with_capacity(self.ends.len());
+        let mut frames: Vec<Option<SpillReader>> = std::mem::take(&mut self.frames)
+            .into_iter()
+            .map(|f| f.map(FrameSpill::into_reader).transpose())
+            .collect::<Result<_>>()?;
+        let this = &*self;
         let mut start = 0usize;
-        for (e, &end) in self.ends.iter().enumerate() {
+        let batches = this.ends.iter().enumerate().map(|(e, &end)| {
             let (lo, hi) = (start, end as usize);
             start = hi;
             let mut cols: Vec<ArrayRef> = Vec::new();
-            for ((name, _, kind), (raw, frames)) in
-                self.channels.iter().zip(self.raw.iter().zip(&self.frames))
+            for ((name, _, kind), (raw, frames)) in this
+                .channels
+                .iter()
+                .zip(this.raw.iter().zip(frames.iter_mut()))
             {
-                match kind {
-                    ChannelKind::Lowdim => {
-                        let width = self.width(name);
+                match (kind, frames) {
+                    (ChannelKind::Lowdim, _) => {
+                        let width = this.width(name);
                         let raw = raw
                             .as_ref()
                             .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
@@ -238,37 +315,25 @@ impl LerobotWriter {
                         .map_err(err)?;
                         cols.push(Arc::new(list));
                     }
-                    ChannelKind::Image => {
-                        let mut bytes = BinaryBuilder::new();
-                        let mut paths = StringBuilder::new();
-                        for f in frames
-                            .get(lo..hi)
-                            .ok_or_else(|| Error::Internal(format!("missing frames of {name}")))?
-                        {
-                            bytes.append_value(f);
-                            paths.append_null();
-                        }
-                        let s = StructArray::try_new(
-                            image_fields(),
-                            vec![Arc::new(bytes.finish()), Arc::new(paths.finish())],
-                            None,
-                        )
-                        .map_err(err)?;
-                        cols.push(Arc::new(s));
+                    (ChannelKind::Image, Some(frames)) => {
+                        cols.push(Arc::new(frames.next(hi - lo, name)?));
+                    }
+                    (ChannelKind::Image, None) => {
+                        return Err(Error::Internal(format!("no frames of {name}")));
                     }
                 }
             }
             let n = hi - lo;
             cols.push(Arc::new(Float32Array::from_iter_values(
-                (0..n).map(|i| (i as f64 / self.fps) as f32),
+                (0..n).map(|i| (i as f64 / this.fps) as f32),
             )));
             cols.push(i64_col((0..n).map(|i| i as i64)));
-            cols.push(i64_col((0..n).map(|_| self.ids[e] as i64)));
+            cols.push(i64_col((0..n).map(|_| this.ids[e] as i64)));
             cols.push(i64_col((lo..hi).map(|i| i as i64)));
             cols.push(i64_col((0..n).map(|_| 0)));
-            batches.push(RecordBatch::try_new(schema.clone(), cols).map_err(err)?);
-        }
-        self.write_parquet(DATA_PATH, schema, &batches)
+            RecordBatch::try_new(schema.clone(), cols).map_err(err)
+        });
+        this.write_parquet(DATA_PATH, schema.clone(), batches)
     }
 
     fn width(&self, name: &str) -> usize {
@@ -315,7 +380,11 @@ impl LerobotWriter {
             i64_col((0..n).map(|_| 0)),
         ];
         let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
-        self.write_parquet("meta/episodes/chunk-000/file-000.parquet", schema, &[batch])?;
+        self.write_parquet(
+            "meta/episodes/chunk-000/file-000.parquet",
+            schema,
+            [Ok(batch)],
+        )?;
 
         let schema = Arc::new(Schema::new(vec![
             Field::new("task_index", DataType::Int64, false),
@@ -326,7 +395,7 @@ impl LerobotWriter {
             vec![i64_col([0]), Arc::new(StringArray::from(vec![TASK]))],
         )
         .map_err(err)?;
-        self.write_parquet("meta/tasks.parquet", schema, &[batch])
+        self.write_parquet("meta/tasks.parquet", schema, [Ok(batch)])
     }
 
     fn info(&self) -> Result<()> {
@@ -396,7 +465,7 @@ impl LerobotWriter {
             cols.push(i64_col(rows.iter().map(|(_, r)| r[k])));
         }
         let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
-        self.write_parquet(INDEX_FILE, schema, &[batch])
+        self.write_parquet(INDEX_FILE, schema, [Ok(batch)])
     }
 }
 
@@ -406,7 +475,7 @@ impl Sink for LerobotWriter {
     }
 
     fn frame_encoding(&self) -> FrameEncoding {
-        FrameEncoding::Raw
+        FrameEncoding::Png
     }
 
     fn stores_normalized(&self) -> bool {
@@ -414,17 +483,16 @@ impl Sink for LerobotWriter {
     }
 
     fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
-        let (_, shape, _) = &self.channels[channel];
-        let shape = shape.clone();
-        let out = &mut self.frames[channel];
-        if out.len() != row {
+        let spill = self.frames[channel]
+            .as_mut()
+            .ok_or_else(|| Error::Internal(format!("channel {channel} has no frames")))?;
+        if spill.ends.len() != row {
             return Err(Error::Internal(format!(
                 "frames out of order: row {row}, have {}",
-                out.len()
+                spill.ends.len()
             )));
         }
-        out.extend(frames.iter().map(|f| png(f, &shape)));
-        Ok(())
+        spill.push(frames)
     }
 
     /// Raw values: LeRobot normalizes with `meta/stats.json`.
@@ -444,7 +512,7 @@ impl Sink for LerobotWriter {
         Ok(())
     }
 
-    fn finish(self: Box<Self>) -> Result<()> {
+    fn finish(mut self: Box<Self>) -> Result<()> {
         self.data()?;
         self.episodes()?;
         self.info()?;

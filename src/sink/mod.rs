@@ -10,6 +10,7 @@
 //! - `windows`: the rows of one window, as the loader resolves them.
 //! - `act_episodes`: ACT's `episode_<i>.hdf5` files (raw values).
 //! - `lerobot`: a LeRobot v3.0 parquet dataset + the window index (raw values).
+//! - `png`: the PNG encoding of frames that `lerobot` stores.
 //! - `robomimic`: robomimic's `data.hdf5` with `data/demo_<i>` (raw values).
 //! - `documents`: `meta.json` and `stats.json`.
 //! - `dump`: canonical text dumps of written files (golden tests).
@@ -20,6 +21,7 @@ pub mod dump;
 pub mod hdf5;
 mod hdf5_chunks;
 pub mod lerobot;
+pub mod png;
 pub mod robomimic;
 pub mod windows;
 pub mod zarr;
@@ -40,12 +42,15 @@ pub enum FrameEncoding {
     Raw,
     /// A zlib stream at this level: what HDF5's deflate filter stores as a chunk.
     Zlib(u8),
+    /// A PNG file ([`png::encode`]): what LeRobot stores in parquet.
+    Png,
 }
 
-/// Encodes one HWC `u8` frame.
-pub fn encode_frame(encoding: FrameEncoding, frame: &[u8]) -> Vec<u8> {
+/// Encodes one `u8` frame of `shape` (HWC).
+pub fn encode_frame(encoding: FrameEncoding, frame: &[u8], shape: &[usize]) -> Vec<u8> {
     match encoding {
         FrameEncoding::Raw => frame.to_vec(),
+        FrameEncoding::Png => png::encode(frame, shape),
         FrameEncoding::Zlib(level) => {
             use std::io::Write;
             let mut enc = flate2::write::ZlibEncoder::new(
@@ -77,15 +82,16 @@ impl Frames {
         }
     }
 
-    /// Frames of `frame_bytes` bytes each, encoded (in parallel when compressed).
-    pub fn encode(encoding: FrameEncoding, pixels: &[u8], frame_bytes: usize) -> Frames {
+    /// Frames of `shape` (HWC) each, encoded (in parallel when compressed).
+    pub fn encode(encoding: FrameEncoding, pixels: &[u8], shape: &[usize]) -> Frames {
         use rayon::prelude::*;
+        let frame_bytes = shape.iter().product::<usize>();
         if encoding == FrameEncoding::Raw {
             return Frames::raw(pixels.to_vec(), frame_bytes);
         }
         let encoded: Vec<Vec<u8>> = pixels
             .par_chunks(frame_bytes.max(1))
-            .map(|f| encode_frame(encoding, f))
+            .map(|f| encode_frame(encoding, f, shape))
             .collect();
         let mut frames = Frames {
             bytes: Vec::with_capacity(encoded.iter().map(Vec::len).sum()),
@@ -134,6 +140,9 @@ pub struct SinkContext<'a> {
     pub profile: &'a ProfilePlan,
     /// The profile's staging directory.
     pub dir: &'a Path,
+    /// A directory for the sink's temporary files (removed with the staging directory); the
+    /// sink names its files after the profile.
+    pub scratch: &'a Path,
     /// Exclusive ends of each episode in the stored per-step arrays.
     pub episode_ends: &'a [u64],
     /// Source episode ids, in stored order.
