@@ -1,11 +1,12 @@
-//! Where the chunks of a chunked, unfiltered HDF5 dataset lie in its file, so that they can be
-//! read (`pread`) or written (`pwrite`) without HDF5 and its global lock.
+//! Where the chunks of a chunked HDF5 dataset lie in its file, so that they can be read
+//! (`pread`) or written (`pwrite`) without HDF5 and its global lock.
 //!
-//! The ALOHA adapter reads source frames stored one frame per chunk this way (episodes then read
-//! in parallel), and the HDF5 writer writes uncompressed frames into chunks it allocated at
-//! creation. Only datasets whose chunks are plain slabs of rows qualify: no filter, a chunk
-//! shape of `(k, rest of the shape)`, every chunk allocated and full-sized; anything else goes
-//! through HDF5.
+//! The ALOHA and robomimic adapters read source frames stored one frame per chunk this way
+//! (episodes then read in parallel), and the HDF5 writer writes uncompressed frames into chunks
+//! it allocated at creation. Only datasets whose chunks are slabs of whole rows (a chunk shape
+//! of `(k, rest of the shape)`), every one allocated, qualify: either unfiltered and full-sized
+//! ([`ChunkMap`]), or compressed with the deflate filter alone ([`DeflatedMap`], inflated here
+//! with zlib); anything else goes through HDF5.
 //!
 //! The map is compact: chunks that follow one another in the file form one run, so a dataset
 //! written in order costs a few dozen bytes however many chunks it has.
@@ -126,26 +127,20 @@ impl ChunkMap {
     }
 }
 
-/// The chunk map of `ds`, when it qualifies (see the module documentation): chunked, no
-/// filter, chunk shape `(k, rest of the shape)`, every chunk allocated and full-sized.
-pub fn locate(ds: &Dataset) -> Option<ChunkMap> {
-    let shape = ds.shape();
-    let chunk = ds.chunk()?;
-    if shape.is_empty() || chunk.len() != shape.len() || chunk[1..] != shape[1..] {
-        return None;
-    }
-    if !ds.filters().is_empty() {
-        return None;
-    }
-    let element = ds.dtype().ok()?.size();
-    let row_bytes = shape[1..].iter().product::<usize>() * element;
-    let rows_per_chunk = chunk[0];
-    let chunk_bytes = (rows_per_chunk * row_bytes) as u64;
+/// One allocated chunk as HDF5 reports it.
+struct Chunk {
+    /// Its first row.
+    first_row: u64,
+    filter_mask: u32,
+    addr: u64,
+    size: u64,
+}
 
+/// Every chunk of `ds` (through `H5Dchunk_iter`, under HDF5's global lock), or `None` when one
+/// is unallocated or HDF5 cannot list them.
+fn chunks(ds: &Dataset, expected: usize) -> Option<Vec<Chunk>> {
     struct Found {
-        chunks: Vec<(u64, u64)>,
-        rows_per_chunk: u64,
-        chunk_bytes: u64,
+        chunks: Vec<Chunk>,
         ok: bool,
     }
     unsafe extern "C" fn each(
@@ -158,19 +153,20 @@ pub fn locate(ds: &Dataset) -> Option<ChunkMap> {
         // SAFETY: `data` is the `Found` passed to `H5Dchunk_iter` below, alive for the call;
         // `offset` has one entry per dimension (the first is the one read here).
         let found = unsafe { &mut *data.cast::<Found>() };
-        let first = unsafe { *offset };
-        let whole = filter_mask == 0 && size == found.chunk_bytes && addr != haddr_t::MAX;
-        if !whole || first % found.rows_per_chunk != 0 {
+        if addr == haddr_t::MAX {
             found.ok = false;
             return 1; // stop: this dataset goes through HDF5
         }
-        found.chunks.push((first / found.rows_per_chunk, addr));
+        found.chunks.push(Chunk {
+            first_row: unsafe { *offset },
+            filter_mask,
+            addr,
+            size,
+        });
         0
     }
     let mut found = Found {
-        chunks: Vec::with_capacity(shape[0].div_ceil(rows_per_chunk.max(1))),
-        rows_per_chunk: rows_per_chunk.max(1) as u64,
-        chunk_bytes,
+        chunks: Vec::with_capacity(expected),
         ok: true,
     };
     // SAFETY: the dataset id is valid while `ds` lives; the callback only touches `found`,
@@ -183,10 +179,134 @@ pub fn locate(ds: &Dataset) -> Option<ChunkMap> {
             (&mut found as *mut Found).cast(),
         )
     });
-    if status < 0 || !found.ok {
+    (status >= 0 && found.ok).then_some(found.chunks)
+}
+
+/// Rows per chunk and bytes per row of a chunked dataset whose chunks are slabs of whole rows
+/// (chunk shape `(k, rest of the shape)`).
+fn row_slabs(ds: &Dataset) -> Option<(usize, usize)> {
+    let shape = ds.shape();
+    let chunk = ds.chunk()?;
+    if shape.is_empty() || chunk.len() != shape.len() || chunk[1..] != shape[1..] || chunk[0] == 0 {
         return None;
     }
-    ChunkMap::from_chunks(found.chunks, rows_per_chunk, row_bytes, shape[0])
+    let element = ds.dtype().ok()?.size();
+    Some((chunk[0], shape[1..].iter().product::<usize>() * element))
+}
+
+/// The chunk map of `ds`, when it qualifies (see the module documentation): chunked, no
+/// filter, chunk shape `(k, rest of the shape)`, every chunk allocated and full-sized.
+pub fn locate(ds: &Dataset) -> Option<ChunkMap> {
+    if !ds.filters().is_empty() {
+        return None;
+    }
+    let (rows_per_chunk, row_bytes) = row_slabs(ds)?;
+    let rows = ds.shape()[0];
+    let chunk_bytes = (rows_per_chunk * row_bytes) as u64;
+    let all = chunks(ds, rows.div_ceil(rows_per_chunk))?;
+    let mut pairs = Vec::with_capacity(all.len());
+    for c in all {
+        if c.filter_mask != 0 || c.size != chunk_bytes || c.first_row % rows_per_chunk as u64 != 0 {
+            return None;
+        }
+        pairs.push((c.first_row / rows_per_chunk as u64, c.addr));
+    }
+    ChunkMap::from_chunks(pairs, rows_per_chunk, row_bytes, rows)
+}
+
+/// Where the chunks of a deflate-compressed dataset lie (robomimic's and compressed ALOHA
+/// recordings' frames: one gzip-filtered chunk per frame): each chunk's offset and stored size,
+/// in row order, so that they can be read and inflated on any thread.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DeflatedMap {
+    pub rows_per_chunk: usize,
+    pub row_bytes: usize,
+    pub rows: usize,
+    /// (file offset, stored bytes) of chunk `i`.
+    chunks: Vec<(u64, u64)>,
+}
+
+impl DeflatedMap {
+    /// (file offset, stored bytes) of chunk `i`.
+    pub fn chunk(&self, i: usize) -> (u64, u64) {
+        self.chunks[i]
+    }
+}
+
+/// The deflated map of `ds`: chunks of whole rows, the deflate filter alone (no shuffle, no
+/// checksum), every chunk allocated and filtered. `None` for anything else.
+pub fn locate_deflated(ds: &Dataset) -> Option<DeflatedMap> {
+    if !matches!(ds.filters().as_slice(), [hdf5::filters::Filter::Deflate(_)]) {
+        return None;
+    }
+    let (rows_per_chunk, row_bytes) = row_slabs(ds)?;
+    let rows = ds.shape()[0];
+    let n = rows.div_ceil(rows_per_chunk);
+    let mut slots: Vec<Option<(u64, u64)>> = vec![None; n];
+    for c in chunks(ds, n)? {
+        let i = c.first_row / rows_per_chunk as u64;
+        let slot = slots.get_mut(i as usize)?;
+        if c.filter_mask != 0 || c.first_row % rows_per_chunk as u64 != 0 || slot.is_some() {
+            return None;
+        }
+        *slot = Some((c.addr, c.size));
+    }
+    Some(DeflatedMap {
+        rows_per_chunk,
+        row_bytes,
+        rows,
+        chunks: slots.into_iter().collect::<Option<_>>()?,
+    })
+}
+
+/// Reads every row of a dataset mapped by `map` from `file` into `out` (`rows * row_bytes`
+/// bytes): one `pread` and one inflate per chunk, straight into `out` but for a last chunk that
+/// reaches past the dataset's rows.
+pub fn read_deflated(
+    file: &std::fs::File,
+    map: &DeflatedMap,
+    out: &mut [u8],
+) -> std::io::Result<()> {
+    use std::os::unix::fs::FileExt;
+    let chunk_bytes = map.rows_per_chunk * map.row_bytes;
+    let bad = |what: String| std::io::Error::new(std::io::ErrorKind::InvalidData, what);
+    if out.len() != map.rows * map.row_bytes {
+        return Err(bad(format!(
+            "{} bytes asked for a dataset of {}",
+            out.len(),
+            map.rows * map.row_bytes
+        )));
+    }
+    let mut stored = Vec::new();
+    let mut tail = Vec::new();
+    let mut z = flate2::Decompress::new(true);
+    for (i, &(offset, size)) in map.chunks.iter().enumerate() {
+        stored.resize(size as usize, 0);
+        file.read_exact_at(&mut stored, offset)?;
+        let lo = i * chunk_bytes;
+        let hi = (lo + chunk_bytes).min(out.len());
+        // The last chunk's storage holds a whole chunk: inflate it aside, keep the rows.
+        let target: &mut [u8] = if hi - lo == chunk_bytes {
+            &mut out[lo..hi]
+        } else {
+            tail.resize(chunk_bytes, 0);
+            &mut tail
+        };
+        z.reset(true);
+        let status = z
+            .decompress(&stored, target, flate2::FlushDecompress::Finish)
+            .map_err(|e| bad(format!("chunk {i}: {e}")))?;
+        if status != flate2::Status::StreamEnd || z.total_out() != chunk_bytes as u64 {
+            return Err(bad(format!(
+                "chunk {i}: inflates to {} bytes, expected {chunk_bytes}",
+                z.total_out()
+            )));
+        }
+        if hi - lo != chunk_bytes {
+            out[lo..hi].copy_from_slice(&tail[..hi - lo]);
+        }
+    }
+    Ok(())
 }
 
 /// Reads rows `lo..hi` of a dataset mapped by `map` from `file` into `out` (exactly

@@ -7,7 +7,7 @@ use std::path::Path;
 use hdf5::types::TypeDescriptor;
 use hdf5::{Dataset, File, Group};
 
-use super::chunk_map::{self, ChunkMap};
+use super::chunk_map::{self, ChunkMap, DeflatedMap};
 use super::mapping::Raw;
 use crate::error::{Error, Result};
 
@@ -120,8 +120,8 @@ pub fn read(ds: &Dataset, what: impl Fn() -> String) -> Result<Raw> {
     }
 }
 
-/// Where an unfiltered dataset's values lie in its file, so that they can be read with plain
-/// `pread`s outside HDF5's global lock (episodes then decode in parallel).
+/// Where a dataset's values lie in its file, so that they can be read with plain `pread`s (and
+/// inflated) outside HDF5's global lock (episodes then decode in parallel).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Direct {
     pub place: Place,
@@ -130,12 +130,14 @@ pub struct Direct {
     pub dtype: DirectType,
 }
 
-/// Contiguous storage, or chunks that are plain slabs of rows.
+/// Contiguous storage, or chunks that are slabs of rows (plain or deflated).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Place {
     /// Byte offset of the first element in the file.
     Contiguous(u64),
     Chunked(ChunkMap),
+    /// Deflate-compressed chunks of whole rows.
+    Deflated(DeflatedMap),
 }
 
 /// The little-endian element types read directly.
@@ -159,8 +161,10 @@ impl DirectType {
 /// The dataset's location for [`read_direct`], when its layout allows it: f32, f64 or u8
 /// little-endian values, either in contiguous storage that is allocated and in the file itself
 /// (not external), or chunked as [`chunk_map::locate`] accepts (no filter, chunks of whole rows,
-/// all allocated: ALOHA's one-frame-per-chunk images). `None` for anything else (compressed,
-/// compact, partly allocated, other types): those are read through HDF5.
+/// all allocated: ALOHA's one-frame-per-chunk images), or in chunks of whole rows compressed
+/// with the deflate filter alone ([`chunk_map::locate_deflated`]: robomimic's gzip frames).
+/// `None` for anything else (other filters, compact, partly allocated, other types): those are
+/// read through HDF5.
 pub fn direct(ds: &Dataset) -> Option<Direct> {
     use hdf5::types::{FloatSize, IntSize};
     use hdf5_sys::h5t::{H5T_order_t, H5Tget_order};
@@ -189,7 +193,10 @@ pub fn direct(ds: &Dataset) -> Option<Direct> {
     let place = if offset != u64::MAX && storage == (elements * dtype.size()) as u64 {
         Place::Contiguous(offset)
     } else if ds.is_chunked() {
-        Place::Chunked(chunk_map::locate(ds)?)
+        match chunk_map::locate(ds) {
+            Some(map) => Place::Chunked(map),
+            None => Place::Deflated(chunk_map::locate_deflated(ds)?),
+        }
     } else {
         return None;
     };
@@ -208,6 +215,7 @@ pub fn read_direct(file: &std::fs::File, d: &Direct) -> std::io::Result<Raw> {
     match &d.place {
         Place::Contiguous(offset) => file.read_exact_at(&mut bytes, *offset)?,
         Place::Chunked(map) => chunk_map::read_rows(file, map, 0, &mut bytes)?,
+        Place::Deflated(map) => chunk_map::read_deflated(file, map, &mut bytes)?,
     }
     Ok(match d.dtype {
         DirectType::U8 => Raw::U8(bytes),
@@ -314,7 +322,88 @@ mod tests {
     }
 
     #[test]
-    fn compressed_or_partly_written_chunks_go_through_hdf5() {
+    fn deflated_chunks_read_directly_equal_hdf5s_reading() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("frames.hdf5");
+        let data = frames(11);
+        let lowdim = ndarray::Array2::from_shape_fn((11, 7), |(t, d)| (t as f64).sin() + d as f64);
+        {
+            let f = File::create(&path).unwrap();
+            // One frame per chunk (robomimic), and 3 rows per chunk with a partial last chunk.
+            for (name, rows) in [("one", 1), ("three", 3)] {
+                f.new_dataset::<u8>()
+                    .shape(data.shape())
+                    .chunk([rows, 4, 5, 3])
+                    .deflate(4)
+                    .create(name)
+                    .unwrap()
+                    .write(&data)
+                    .unwrap();
+            }
+            f.new_dataset::<f64>()
+                .shape(lowdim.shape())
+                .chunk([4, 7])
+                .deflate(9)
+                .create("lowdim")
+                .unwrap()
+                .write(&lowdim)
+                .unwrap();
+        }
+        let f = File::open(&path).unwrap();
+        for name in ["one", "three"] {
+            let ds = f.dataset(name).unwrap();
+            let d = direct(&ds).expect("located");
+            assert!(matches!(d.place, Place::Deflated(_)), "{name}");
+            let through_hdf5 = ds.read_raw::<u8>().unwrap();
+            assert_eq!(direct_bytes(&path, &ds).unwrap(), through_hdf5, "{name}");
+            assert_eq!(through_hdf5, data.as_slice().unwrap(), "{name}");
+        }
+        let ds = f.dataset("lowdim").unwrap();
+        let file = std::fs::File::open(&path).unwrap();
+        match read_direct(&file, &direct(&ds).expect("located")).unwrap() {
+            Raw::F32(v) => {
+                let want: Vec<f32> = lowdim.iter().map(|&x| x as f32).collect();
+                assert_eq!(v, want);
+            }
+            Raw::U8(_) => panic!("f64 read as u8"),
+        }
+    }
+
+    #[test]
+    fn a_damaged_deflated_chunk_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("frames.hdf5");
+        {
+            let f = File::create(&path).unwrap();
+            f.new_dataset::<u8>()
+                .shape([3, 4, 5, 3])
+                .chunk([1, 4, 5, 3])
+                .deflate(1)
+                .create("gzip")
+                .unwrap()
+                .write(&frames(3))
+                .unwrap();
+        }
+        let d = direct(&File::open(&path).unwrap().dataset("gzip").unwrap()).unwrap();
+        let Place::Deflated(map) = &d.place else {
+            panic!("not located as deflated chunks");
+        };
+        // Overwrite the middle of chunk 1's stored bytes.
+        let (offset, size) = map.chunk(1);
+        {
+            use std::os::unix::fs::FileExt;
+            let file = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+            file.write_all_at(&vec![0xA5; size as usize / 2], offset + size / 4)
+                .unwrap();
+        }
+        let file = std::fs::File::open(&path).unwrap();
+        let e = read_direct(&file, &d).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::InvalidData, "{e}");
+        assert!(e.to_string().contains("chunk 1"), "{e}");
+    }
+
+    #[test]
+    fn other_filters_or_partly_written_chunks_go_through_hdf5() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("frames.hdf5");
         let data = frames(6);
@@ -323,33 +412,47 @@ mod tests {
             f.new_dataset::<u8>()
                 .shape(data.shape())
                 .chunk([1, 4, 5, 3])
+                .shuffle()
                 .deflate(1)
-                .create("gzip")
+                .create("shuffle_gzip")
+                .unwrap()
+                .write(&data)
+                .unwrap();
+            f.new_dataset::<u8>()
+                .shape(data.shape())
+                .chunk([1, 4, 5, 3])
+                .lzf()
+                .create("lzf")
                 .unwrap()
                 .write(&data)
                 .unwrap();
             // Only frames 0..2 written: the other chunks are not allocated.
-            f.new_dataset::<u8>()
-                .shape(data.shape())
-                .chunk([1, 4, 5, 3])
-                .create("partial")
-                .unwrap()
-                .write_slice(
-                    data.slice(ndarray::s![0..2, .., .., ..]),
-                    ndarray::s![0..2, .., .., ..],
-                )
-                .unwrap();
+            for (name, gzip) in [("partial", false), ("partial_gzip", true)] {
+                let b = f
+                    .new_dataset::<u8>()
+                    .shape(data.shape())
+                    .chunk([1, 4, 5, 3]);
+                let b = if gzip { b.deflate(1) } else { b };
+                b.create(name)
+                    .unwrap()
+                    .write_slice(
+                        data.slice(ndarray::s![0..2, .., .., ..]),
+                        ndarray::s![0..2, .., .., ..],
+                    )
+                    .unwrap();
+            }
             // Chunks that split a frame.
             f.new_dataset::<u8>()
                 .shape(data.shape())
                 .chunk([1, 2, 5, 3])
+                .deflate(1)
                 .create("split")
                 .unwrap()
                 .write(&data)
                 .unwrap();
         }
         let f = File::open(&path).unwrap();
-        for name in ["gzip", "partial", "split"] {
+        for name in ["shuffle_gzip", "lzf", "partial", "partial_gzip", "split"] {
             assert!(direct(&f.dataset(name).unwrap()).is_none(), "{name}");
         }
     }

@@ -20,6 +20,8 @@ use crate::spec::{LoadedSpec, SourceFormat};
 pub struct RobomimicSource {
     path: PathBuf,
     file: File,
+    /// The same file opened with std, for datasets read outside HDF5 ([`h5::direct`]).
+    raw: std::fs::File,
     manifest: Manifest,
     /// Group names under `data/`, in episode order.
     demos: Vec<String>,
@@ -182,9 +184,13 @@ impl RobomimicSource {
         let name = PathBuf::from(path.file_name().unwrap_or_default());
         let fingerprint = fingerprint::of_files(dir, &[name])?;
 
+        let raw = std::fs::File::open(path)
+            .map_err(|e| Error::source(format!("{shown}: cannot open: {e}")))?;
+
         Ok(RobomimicSource {
             path: path.to_path_buf(),
             file,
+            raw,
             manifest: Manifest {
                 format: SourceFormat::RobomimicHdf5,
                 fps,
@@ -278,7 +284,13 @@ impl Source for RobomimicSource {
         let group = h5::group(&self.file, &format!("data/{demo}"), &self.path)?;
         let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
             let ds = h5::dataset(&group, key, &self.path)?;
-            h5::read(&ds, || format!("{place}/{key}"))
+            // Located under HDF5's lock, then read (and inflated) outside it, so that episodes
+            // decode in parallel.
+            match h5::direct(&ds) {
+                Some(d) => h5::read_direct(&self.raw, &d)
+                    .map_err(|e| Error::source(format!("{place}/{key}: cannot read: {e}"))),
+                None => h5::read(&ds, || format!("{place}/{key}")),
+            }
         })?;
         Ok(Episode {
             id: info.id,
