@@ -91,44 +91,11 @@ impl Lock {
     }
 }
 
-/// BLAKE3 of a file's contents, hex. Streams the file (no mmap), so hashing large outputs does
-/// not show up as resident memory. A large file is read a block at a time while the block
-/// before is hashed on every thread (BLAKE3's tree gives the same hash however it is split).
+/// BLAKE3 of a file's contents, hex ([`crate::source::fingerprint::hash_file`]).
 pub fn hash_file(path: &Path) -> Result<String> {
-    const BLOCK: usize = 8 << 20;
-    let mut h = blake3::Hasher::new();
-    let mut file = std::fs::File::open(path).at("open", path)?;
-    let size = file.metadata().at("stat", path)?.len();
-    if size < 2 * BLOCK as u64 {
-        h.update_reader(file).at("hash", path)?;
-        return Ok(h.finalize().to_hex().to_string());
-    }
-    let (mut this, mut next) = (vec![0u8; BLOCK], vec![0u8; BLOCK]);
-    let mut filled = fill(&mut file, &mut this).at("hash", path)?;
-    while filled > 0 {
-        let (_, read) = rayon::join(
-            || h.update_rayon(&this[..filled]),
-            || fill(&mut file, &mut next),
-        );
-        filled = read.at("hash", path)?;
-        std::mem::swap(&mut this, &mut next);
-    }
-    Ok(h.finalize().to_hex().to_string())
-}
-
-/// Reads from `file` until `buf` is full or the file ends; how many bytes were read.
-fn fill(file: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize> {
-    use std::io::Read;
-    let mut filled = 0;
-    while filled < buf.len() {
-        match file.read(&mut buf[filled..]) {
-            Ok(0) => break,
-            Ok(n) => filled += n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(filled)
+    Ok(crate::source::fingerprint::hash_file(path)?
+        .to_hex()
+        .to_string())
 }
 
 #[cfg(test)]

@@ -50,24 +50,46 @@ pub fn of_files(root: &Path, files: &[PathBuf]) -> Result<String> {
     Ok(all.finalize().to_hex().to_string())
 }
 
-/// BLAKE3 of one file's contents, read in 1 MiB pieces: a multi-gigabyte source file (one
-/// robomimic HDF5 holds every episode) never sits in memory whole.
-fn hash_file(path: &Path) -> Result<blake3::Hash> {
-    use std::io::Read;
+/// BLAKE3 of a file's contents (sources for their fingerprint, outputs for the lock). Streams
+/// the file (no mmap, never whole in memory: one robomimic HDF5 holds every episode), so hashing
+/// large files does not show up as resident memory. A large file is read a block at a time
+/// while the block before is hashed on every thread (BLAKE3's tree gives the same hash however
+/// it is split).
+pub fn hash_file(path: &Path) -> Result<blake3::Hash> {
+    const BLOCK: usize = 8 << 20;
+    let mut h = blake3::Hasher::new();
     let mut file = std::fs::File::open(path).at("open", path)?;
-    let mut hasher = blake3::Hasher::new();
-    let mut buf = vec![0u8; 1 << 20];
-    loop {
-        let n = match file.read(&mut buf) {
-            Ok(0) => break,
-            Ok(n) => n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-            Err(e) => return Err(e).at("read", path),
-        };
-        // Pieces this large hash faster across threads (the result is the same either way).
-        hasher.update_rayon(&buf[..n]);
+    let size = file.metadata().at("stat", path)?.len();
+    if size < 2 * BLOCK as u64 {
+        h.update_reader(file).at("hash", path)?;
+        return Ok(h.finalize());
     }
-    Ok(hasher.finalize())
+    let (mut this, mut next) = (vec![0u8; BLOCK], vec![0u8; BLOCK]);
+    let mut filled = fill(&mut file, &mut this).at("hash", path)?;
+    while filled > 0 {
+        let (_, read) = rayon::join(
+            || h.update_rayon(&this[..filled]),
+            || fill(&mut file, &mut next),
+        );
+        filled = read.at("hash", path)?;
+        std::mem::swap(&mut this, &mut next);
+    }
+    Ok(h.finalize())
+}
+
+/// Reads from `file` until `buf` is full or the file ends; how many bytes were read.
+fn fill(file: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize> {
+    use std::io::Read;
+    let mut filled = 0;
+    while filled < buf.len() {
+        match file.read(&mut buf[filled..]) {
+            Ok(0) => break,
+            Ok(n) => filled += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(filled)
 }
 
 #[cfg(test)]
@@ -91,12 +113,15 @@ mod tests {
     fn streamed_hash_equals_the_whole_file_hash() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("big");
-        // Larger than one read, and not a multiple of it.
-        let bytes: Vec<u8> = (0..(3u32 << 20) + 12345)
+        // Several blocks (the double-buffered path), and not a multiple of one.
+        let bytes: Vec<u8> = (0..(33u32 << 20) + 12345)
             .map(|i| (i * 7 % 251) as u8)
             .collect();
         std::fs::write(&path, &bytes).unwrap();
         assert_eq!(hash_file(&path).unwrap(), blake3::hash(&bytes));
+        // Small files are hashed in one go.
+        std::fs::write(&path, &bytes[..1000]).unwrap();
+        assert_eq!(hash_file(&path).unwrap(), blake3::hash(&bytes[..1000]));
         std::fs::write(&path, b"").unwrap();
         assert_eq!(hash_file(&path).unwrap(), blake3::hash(b""));
     }
