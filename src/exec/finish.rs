@@ -5,6 +5,8 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use rayon::prelude::*;
+
 use super::RateState;
 use crate::chunk::Sampling;
 use crate::error::{Error, IoContext, Result};
@@ -15,6 +17,9 @@ use crate::sink::{self, documents, Sink};
 use crate::source::{self, ChannelKind, Manifest};
 use crate::spec::LoadedSpec;
 use crate::stats::{normalize::Normalizer, ChannelStats};
+
+/// Threads that fsync a profile's outputs while they are hashed (they mostly wait on the disk).
+const SYNC_THREADS: usize = 4;
 
 /// What every profile of a build shares.
 pub(super) struct Shared<'a> {
@@ -56,7 +61,6 @@ pub(super) fn profile(
     let mut counts = [0usize; 2];
     // Each episode's samples, counted on every thread (kept only for segments).
     let per_episode: Vec<(usize, Option<Vec<[usize; 2]>>)> = {
-        use rayon::prelude::*;
         let index = &index;
         (0..p.episodes.len())
             .into_par_iter()
@@ -156,26 +160,39 @@ pub(super) fn profile(
     let _hashing = super::timings::phase("hash outputs");
     let listed = source::fingerprint::list_files(dir)?;
     // The files start reaching the disk (fsync, which mostly waits) while they are hashed, so
-    // the commit's fsync finds little left to do.
+    // the commit need not sync them again. Several syncing threads: an output of many small
+    // files (a Zarr store holds one per frame) waits on the disk once per file.
     let paths: Vec<PathBuf> = listed.iter().map(|rel| dir.join(rel)).collect();
-    let syncing = std::thread::spawn(move || -> Result<()> {
-        for path in &paths {
-            std::fs::File::open(path)
-                .and_then(|f| f.sync_all())
-                .at("sync", path)?;
-        }
-        Ok(())
-    });
-    let mut files = BTreeMap::new();
-    let hashed = listed.iter().try_for_each(|rel| -> Result<()> {
-        let name = rel.to_string_lossy().replace('\\', "/");
-        files.insert(name, lock::hash_file(&dir.join(rel))?);
-        Ok(())
-    });
+    let paths = std::sync::Arc::new(paths);
+    let syncing: Vec<_> = (0..SYNC_THREADS)
+        .map(|k| {
+            let paths = std::sync::Arc::clone(&paths);
+            std::thread::spawn(move || -> Result<()> {
+                for path in paths.iter().skip(k).step_by(SYNC_THREADS) {
+                    std::fs::File::open(path)
+                        .and_then(|f| f.sync_all())
+                        .at("sync", path)?;
+                }
+                Ok(())
+            })
+        })
+        .collect();
+    // Small files side by side; a large one is hashed on every thread by `hash_file` itself.
+    let hashed: Result<BTreeMap<String, String>> = listed
+        .par_iter()
+        .map(|rel| -> Result<(String, String)> {
+            let name = rel.to_string_lossy().replace('\\', "/");
+            Ok((name, lock::hash_file(&dir.join(rel))?))
+        })
+        .collect();
     let synced = syncing
-        .join()
-        .map_err(|_| Error::Internal("the thread syncing outputs panicked".into()))?;
-    hashed?;
+        .into_iter()
+        .map(|t| {
+            t.join()
+                .map_err(|_| Error::Internal("a thread syncing outputs panicked".into()))?
+        })
+        .collect::<Result<Vec<()>>>();
+    let files = hashed?;
     synced?;
     Ok(files)
 }

@@ -704,6 +704,8 @@ fn run(
     let mut hashes = BTreeMap::new();
     for (p, files) in stale.iter().zip(finished) {
         hashes.insert(p.name.clone(), files?);
+        // `finish::profile` fsynced every file it hashed.
+        staging.files_synced(&p.name);
     }
     Ok(Ok(hashes))
 }

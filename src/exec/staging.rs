@@ -105,6 +105,8 @@ pub struct Staging {
     out_dir: PathBuf,
     dir: PathBuf,
     committed: bool,
+    /// Profiles whose every file is already on disk ([`Staging::files_synced`]).
+    synced: std::sync::Mutex<std::collections::BTreeSet<String>>,
 }
 
 impl Staging {
@@ -147,6 +149,7 @@ impl Staging {
             out_dir: out_dir.to_path_buf(),
             dir,
             committed: false,
+            synced: Default::default(),
         })
     }
 
@@ -164,10 +167,21 @@ impl Staging {
         self.dir.join(".spill")
     }
 
+    /// Records that every file of profile `name` has been fsynced (as `exec::finish` does while
+    /// it hashes them), so that [`Staging::commit`] need not sync them again: a second `fsync`
+    /// of a clean file still costs a system call, and a Zarr output holds one file per frame.
+    pub fn files_synced(&self, name: &str) {
+        self.synced
+            .lock()
+            .expect("no panic while holding it")
+            .insert(name.to_string());
+    }
+
     /// Moves every staged profile into place, replacing the previous output of that profile.
     pub fn commit(mut self, profiles: &[String]) -> Result<()> {
         // Everything staged reaches the disk before any of it becomes visible.
-        for name in profiles {
+        let synced = std::mem::take(&mut *self.synced.lock().expect("no panic while holding it"));
+        for name in profiles.iter().filter(|n| !synced.contains(*n)) {
             sync_tree(&self.dir.join(name))?;
         }
         for name in profiles {

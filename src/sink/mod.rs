@@ -6,7 +6,7 @@
 //! low-dimensional channel whole, then the window index, then `finish`.
 //!
 //! - `hdf5` (+ `hdf5_chunks`): chunkc's own HDF5 layouts `index`, `materialized`, `virtual`.
-//! - `zarr`: a Diffusion Policy replay buffer (raw values) + the window index.
+//! - `zarr` (+ `zarr_store`): a Diffusion Policy replay buffer (raw values) + the window index.
 //! - `windows`: the rows of one window, as the loader resolves them.
 //! - `act_episodes`: ACT's `episode_<i>.hdf5` files (raw values).
 //! - `lerobot`: a LeRobot v3.0 parquet dataset + the window index (raw values).
@@ -25,6 +25,7 @@ pub mod png;
 pub mod robomimic;
 pub mod windows;
 pub mod zarr;
+mod zarr_store;
 
 use std::path::Path;
 use std::sync::Arc;

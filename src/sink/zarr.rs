@@ -21,9 +21,9 @@ use std::sync::Arc;
 
 use serde_json::{json, Value};
 use zarrs::array::{Array, ArrayMetadataOptions};
-use zarrs::filesystem::FilesystemStore;
 use zarrs::metadata::ArrayMetadata;
 
+use super::zarr_store::DirStore;
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
 use crate::exec::LowdimStore;
@@ -40,11 +40,11 @@ const LOWDIM_BLOCK_BYTES: usize = 4 << 20;
 
 pub struct ZarrWriter {
     root: PathBuf,
-    store: Arc<FilesystemStore>,
+    store: Arc<DirStore>,
     version: u32,
     compression: Compression,
     level: u32,
-    data: Vec<Array<FilesystemStore>>,
+    data: Vec<Array<DirStore>>,
     chunk_rows: Vec<usize>,
     widths: Vec<usize>,
 }
@@ -57,7 +57,7 @@ impl ZarrWriter {
     pub fn create(ctx: &SinkContext) -> Result<Self> {
         let root = ctx.dir.join(ZARR_DIR);
         let v = &ctx.profile.values;
-        let store = Arc::new(FilesystemStore::new(&root).map_err(err)?);
+        let store = Arc::new(DirStore::new(root.clone()));
         let mut w = ZarrWriter {
             root,
             store,
@@ -136,7 +136,7 @@ impl ZarrWriter {
         dtype: &str,
         shape: &[usize],
         chunks: &[usize],
-    ) -> Result<Array<FilesystemStore>> {
+    ) -> Result<Array<DirStore>> {
         let typesize = if dtype == "uint8" {
             1
         } else {
@@ -182,7 +182,7 @@ impl ZarrWriter {
 
     /// Stores `values` of `array` (row-major, `width` per row) chunk by chunk along time.
     fn rows<T: zarrs::array::Element + Copy + Default>(
-        array: &Array<FilesystemStore>,
+        array: &Array<DirStore>,
         values: &[T],
         width: usize,
         chunk_rows: usize,
