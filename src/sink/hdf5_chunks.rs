@@ -71,6 +71,27 @@ fn chunks_group(file: &File, w: &Windows) -> Result<Group> {
     Ok(g)
 }
 
+/// A dataset of `shape` chunked about 64 KiB at a time along its first axis (reading one window
+/// stays cheap), deflated when `gzip`.
+fn dense<T: hdf5::H5Type>(
+    g: &Group,
+    name: &str,
+    shape: Vec<usize>,
+    gzip: bool,
+) -> Result<(hdf5::Dataset, usize)> {
+    let mut chunk = shape.clone();
+    let row: usize = shape[1..].iter().product::<usize>().max(1) * std::mem::size_of::<T>();
+    chunk[0] = (64 * 1024 / row).clamp(1, shape[0].max(1));
+    let rows = chunk[0];
+    let b = g
+        .new_dataset::<T>()
+        .shape(shape)
+        .chunk(chunk)
+        .obj_track_times(false);
+    let b = if gzip { b.deflate(4) } else { b };
+    Ok((b.create(name)?, rows))
+}
+
 fn write_dense<T: hdf5::H5Type>(
     g: &Group,
     name: &str,
@@ -78,24 +99,43 @@ fn write_dense<T: hdf5::H5Type>(
     values: &[T],
     gzip: bool,
 ) -> Result<()> {
-    let mut chunk = shape.clone();
-    // About 64 KiB per chunk: reading one window stays cheap.
-    let row: usize = shape[1..].iter().product::<usize>().max(1) * std::mem::size_of::<T>();
-    chunk[0] = (64 * 1024 / row).clamp(1, shape[0].max(1));
-    let b = g
-        .new_dataset::<T>()
-        .shape(shape)
-        .chunk(chunk)
-        .obj_track_times(false);
-    let b = if gzip { b.deflate(4) } else { b };
-    let ds = b.create(name)?;
+    let (ds, _) = dense::<T>(g, name, shape, gzip)?;
     if !values.is_empty() {
         ds.write_raw(values)?;
     }
     Ok(())
 }
 
-/// `/chunks` of the `materialized` layout.
+/// Windows materialized and written at once: about this many bytes of values.
+const BLOCK_BYTES: usize = 4 << 20;
+
+/// [`BLOCK_BYTES`], or `CHUNKC_CHUNKS_BLOCK_BYTES` when set (the tests make it tiny, so that
+/// small datasets are written in many blocks).
+fn block_bytes() -> usize {
+    std::env::var("CHUNKC_CHUNKS_BLOCK_BYTES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(BLOCK_BYTES)
+}
+
+/// Writes `values` (whole rows of `ds`, flattened) at rows `lo..` of `ds`.
+fn write_rows<T: hdf5::H5Type>(ds: &hdf5::Dataset, lo: usize, values: &[T]) -> Result<()> {
+    let shape = ds.shape();
+    let width = shape[1..].iter().product::<usize>().max(1);
+    let rows = values.len() / width;
+    let mut dims = shape.clone();
+    dims[0] = rows;
+    let view = ndarray::ArrayView::from_shape(ndarray::IxDyn(&dims), values)
+        .map_err(|e| Error::Internal(format!("materialized rows: {e}")))?;
+    let mut sel: Vec<hdf5::SliceOrIndex> = vec![(lo..lo + rows).into()];
+    sel.extend(shape[1..].iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
+    ds.write_slice(view, hdf5::Hyperslab::from(sel))?;
+    Ok(())
+}
+
+/// `/chunks` of the `materialized` layout, a block of windows at a time (whole chunks of the
+/// values; the small deflated `_is_pad` chunks complete in HDF5's chunk cache), so memory holds
+/// one block, not K copies of the channel.
 pub fn materialize(file: &File, w: &Windows, channels: &[Stored]) -> Result<()> {
     let g = chunks_group(file, w)?;
     let n = w.rows.len();
@@ -106,39 +146,40 @@ pub fn materialize(file: &File, w: &Windows, channels: &[Stored]) -> Result<()> 
         } else {
             w.window.obs_history
         };
-        let mut values = Vec::with_capacity(n * steps * ch.width);
-        let mut pads = Vec::with_capacity(n * steps);
-        for r in &w.rows {
-            let (ep, t, limit) = (r[0] as usize, r[1] as usize, r[2] as usize);
-            let start = w.start(ep);
-            let row = |i: usize| &ch.values[(start + i) * ch.width..(start + i + 1) * ch.width];
-            if is_action {
-                for s in action_steps(w.window, t, limit, w.len(ep)) {
-                    match s {
-                        Step::Row(i) => values.extend_from_slice(row(i)),
-                        Step::Pad(i) => {
-                            values.extend(pad_row(w.padding, ch.normalizer, row(i)));
-                        }
-                    }
-                    pads.push(matches!(s, Step::Pad(_)));
-                }
-            } else {
-                for (i, pad) in obs_steps(w.window, t) {
-                    values.extend_from_slice(row(i));
-                    pads.push(pad);
-                }
-            }
-        }
         let mut shape = vec![n, steps];
         shape.extend(ch.shape);
-        write_dense(&g, ch.name, shape, &values, false)?;
-        write_dense(
-            &g,
-            &format!("{}_is_pad", ch.name),
-            vec![n, steps],
-            &pads,
-            true,
-        )?;
+        let (values_ds, chunk_rows) = dense::<f32>(&g, ch.name, shape, false)?;
+        let (pads_ds, _) = dense::<bool>(&g, &format!("{}_is_pad", ch.name), vec![n, steps], true)?;
+        let row_bytes = steps * ch.width * 4;
+        let block = chunk_rows * (block_bytes() / (row_bytes * chunk_rows).max(1)).max(1);
+        for lo in (0..n).step_by(block) {
+            let hi = (lo + block).min(n);
+            let mut values = Vec::with_capacity((hi - lo) * steps * ch.width);
+            let mut pads = Vec::with_capacity((hi - lo) * steps);
+            for r in &w.rows[lo..hi] {
+                let (ep, t, limit) = (r[0] as usize, r[1] as usize, r[2] as usize);
+                let start = w.start(ep);
+                let row = |i: usize| &ch.values[(start + i) * ch.width..(start + i + 1) * ch.width];
+                if is_action {
+                    for s in action_steps(w.window, t, limit, w.len(ep)) {
+                        match s {
+                            Step::Row(i) => values.extend_from_slice(row(i)),
+                            Step::Pad(i) => {
+                                values.extend(pad_row(w.padding, ch.normalizer, row(i)));
+                            }
+                        }
+                        pads.push(matches!(s, Step::Pad(_)));
+                    }
+                } else {
+                    for (i, pad) in obs_steps(w.window, t) {
+                        values.extend_from_slice(row(i));
+                        pads.push(pad);
+                    }
+                }
+            }
+            write_rows(&values_ds, lo, &values)?;
+            write_rows(&pads_ds, lo, &pads)?;
+        }
     }
     Ok(())
 }
@@ -190,56 +231,83 @@ impl Drop for Space {
     }
 }
 
-/// Runs of consecutive window positions `(i, source row)` with consecutive source rows.
-fn runs(items: &[(usize, usize)]) -> Vec<(usize, usize, usize)> {
-    let mut out: Vec<(usize, usize, usize)> = Vec::new();
-    for &(i, r) in items {
-        match out.last_mut() {
-            Some((i0, r0, n)) if *i0 + *n == i && *r0 + *n == r => *n += 1,
-            _ => out.push((i, r, 1)),
-        }
+/// `(first window, first source row, length)`: a block of windows whose step maps onto
+/// consecutive source rows.
+type Run = (usize, usize, usize);
+
+/// Adds `(window i, source row r)` to `runs` of consecutive window positions with consecutive
+/// source rows: `(first window, first row, length)`.
+fn extend_runs(runs: &mut Vec<Run>, i: usize, r: usize) {
+    match runs.last_mut() {
+        Some((i0, r0, n)) if *i0 + *n == i && *r0 + *n == r => *n += 1,
+        _ => runs.push((i, r, 1)),
     }
-    out
 }
 
-/// `/chunks` of the `virtual` layout (action only).
+/// `/chunks` of the `virtual` layout (action only). One pass over the windows builds the
+/// mappings' row blocks directly and writes `action_is_pad` a block of windows at a time, so
+/// memory holds the blocks and the pad rows, not K entries per window.
 pub fn virtual_action(file: &File, w: &Windows, action: &Stored) -> Result<()> {
     let g = chunks_group(file, w)?;
     let (n, k, a) = (w.rows.len(), w.window.chunk, action.width);
     let steps = *w.episode_ends.last().unwrap_or(&0) as usize;
-    // Per (split, k): valid (window, data row) pairs and padded (window, pad row) pairs.
+    let (is_pad_ds, _) = dense::<bool>(&g, "action_is_pad", vec![n, k], true)?;
+    // Deflated chunks written in part complete in HDF5's chunk cache: no alignment needed.
+    let block = (block_bytes() / k.max(1)).max(1);
+    let mut is_pad: Vec<bool> = Vec::with_capacity(block.min(n) * k);
+    let mut is_pad_lo = 0;
+    // Pad rows in mapping order: per split, per step k, in window order.
     let mut pad_values: Vec<f32> = Vec::new();
-    let mut mappings: Vec<(Vec<(usize, usize)>, bool)> = Vec::new();
-    let mut is_pad = vec![false; n * k];
+    // Per (split, k): the row blocks of the valid steps (onto /data/action), then of the padded
+    // ones (onto /chunks/action_pad).
+    let mut mappings: Vec<(Vec<Run>, bool)> = Vec::new();
     let splits = [(0, w.num_train), (w.num_train, n)];
-    let resolved: Vec<Vec<Step>> = w
-        .rows
-        .iter()
-        .map(|r| action_steps(w.window, r[1] as usize, r[2] as usize, w.len(r[0] as usize)))
-        .collect();
     for (lo, hi) in splits {
-        for step in 0..k {
-            let mut valid = Vec::new();
-            let mut padded = Vec::new();
-            for i in lo..hi {
-                let start = w.start(w.rows[i][0] as usize);
-                match resolved[i][step] {
-                    Step::Row(r) => valid.push((i, start + r)),
-                    Step::Pad(r) => {
-                        is_pad[i * k + step] = true;
-                        padded.push((i, pad_values.len() / a.max(1)));
-                        let edge = &action.values[(start + r) * a..(start + r + 1) * a];
-                        pad_values.extend(pad_row(w.padding, action.normalizer, edge));
+        let mut valid = vec![Vec::new(); k];
+        let mut padded = vec![Vec::new(); k];
+        // Per k: this split's pad rows, numbered from 0 until they are placed.
+        let mut pads: Vec<Vec<f32>> = vec![Vec::new(); k];
+        for i in lo..hi {
+            let r = w.rows[i];
+            let start = w.start(r[0] as usize);
+            let resolved =
+                action_steps(w.window, r[1] as usize, r[2] as usize, w.len(r[0] as usize));
+            for (step, s) in resolved.into_iter().enumerate() {
+                match s {
+                    Step::Row(row) => {
+                        extend_runs(&mut valid[step], i, start + row);
+                        is_pad.push(false);
+                    }
+                    Step::Pad(row) => {
+                        extend_runs(&mut padded[step], i, pads[step].len() / a.max(1));
+                        let edge = &action.values[(start + row) * a..(start + row + 1) * a];
+                        pads[step].extend(pad_row(w.padding, action.normalizer, edge));
+                        is_pad.push(true);
                     }
                 }
             }
+            if is_pad.len() == block * k {
+                write_rows(&is_pad_ds, is_pad_lo, &is_pad)?;
+                is_pad_lo += block;
+                is_pad.clear();
+            }
+        }
+        for (step, (valid, padded)) in valid.into_iter().zip(padded).enumerate() {
+            let first = pad_values.len() / a.max(1);
+            pad_values.extend_from_slice(&pads[step]);
+            let padded = padded
+                .into_iter()
+                .map(|(i, r, len)| (i, first + r, len))
+                .collect();
             mappings.push((valid, false));
             mappings.push((padded, true));
         }
     }
+    if !is_pad.is_empty() {
+        write_rows(&is_pad_ds, is_pad_lo, &is_pad)?;
+    }
     let pad_rows = pad_values.len() / a.max(1);
     write_dense(&g, "action_pad", vec![pad_rows, a], &pad_values, false)?;
-    write_dense(&g, "action_is_pad", vec![n, k], &is_pad, true)?;
 
     // SAFETY (all calls below): ids are created here and closed before returning; strings are
     // NUL-terminated and outlive the calls; the HDF5 lock is held by `sync`.
@@ -257,15 +325,15 @@ pub fn virtual_action(file: &File, w: &Windows, action: &Stored) -> Result<()> {
     let data = CString::new("/data/action").unwrap();
     let pads = CString::new("/chunks/action_pad").unwrap();
     let mut result = Ok(());
-    for (m, (pairs, is_pad_map)) in mappings.iter().enumerate() {
-        if pairs.is_empty() {
+    for (m, (blocks, is_pad_map)) in mappings.iter().enumerate() {
+        if blocks.is_empty() {
             continue;
         }
         let step = (m / 2) % k;
         let source_rows = if *is_pad_map { pad_rows } else { steps };
         let mut vspace = Space::new(&[n, k, a])?;
         let mut sspace = Space::new(&[source_rows, a])?;
-        for (i, r, len) in runs(pairs) {
+        for &(i, r, len) in blocks {
             vspace.add(&[i, step, 0], &[len, 1, a])?;
             sspace.add(&[r, 0], &[len, a])?;
         }

@@ -60,7 +60,9 @@ layout = "materialized"
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     d = tmp_path_factory.mktemp("formats")
-    run_chunkc("build", "-q", write_spec(d, PROFILES))
+    # /chunks of the materialized and virtual layouts written a few hundred windows at a time
+    # (4 MiB by default: one block for this dataset; the golden test covers that case).
+    run_chunkc("build", "-q", write_spec(d, PROFILES), env={"CHUNKC_CHUNKS_BLOCK_BYTES": "4096"})
     return d / "out"
 
 
