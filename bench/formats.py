@@ -9,7 +9,7 @@ and state, at 50 Hz) written by `chunkc synth` in each layout that carries frame
 robomimic stores them) and Diffusion Policy zarr (Blosc chunks). LeRobot sources keep frames in
 mp4 videos, which chunkc does not decode, so they are not here. Each source is built into each
 output format with the spec `chunkc synth` wrote (one `act` profile), `format` changed: hdf5
-(index layout), zarr, parquet, act_episodes, robomimic_hdf5. Sources are cached under
+(index, materialized and virtual layouts), zarr, parquet, act_episodes, robomimic_hdf5. Sources are cached under
 WORK/formats by their parameters (about 8.5 GB); each output is deleted after its run. With
 `--repeat N` the run with the median wall time is reported. `--bin` times another chunkc
 binary (an older build, for a before/after table) on the same sources.
@@ -17,6 +17,7 @@ binary (an older build, for a before/after table) on the same sources.
 
 import argparse
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -27,7 +28,8 @@ import run  # noqa: E402
 from run import REPO, log, timed_once  # noqa: E402
 
 SOURCES = {"aloha": "aloha-hdf5", "robomimic": "robomimic-hdf5", "dp_zarr": "diffusion-policy-zarr"}
-FORMATS = ["hdf5", "zarr", "parquet", "act_episodes", "robomimic_hdf5"]
+FORMATS = ["hdf5", "hdf5/materialized", "hdf5/virtual", "zarr", "parquet", "act_episodes",
+           "robomimic_hdf5"]
 SIZES = {"full": dict(episodes=200, steps=300), "quick": dict(episodes=10, steps=300)}
 
 
@@ -48,11 +50,12 @@ def spec_for(root, fmt, out):
     lines = []
     for line in (root / "spec.toml").read_text().splitlines():
         if line.startswith('format = "hdf5"'):
-            line = f'format = "{fmt}"'
+            name, _, layout = fmt.partition("/")
+            line = f'format = "{name}"' + (f'\nlayout = "{layout}"' if layout else "")
         elif line.startswith("dir = "):
             line = f'dir = "{out}"'
         lines.append(line)
-    path = root / f"bench-{fmt}.toml"
+    path = root / f"bench-{fmt.replace('/', '-')}.toml"
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -72,7 +75,9 @@ def main():
     results = []
     for layout in SOURCES:
         root = source(args.work, layout, **size)
-        # Warm the page cache: every source is read once before it is timed.
+        # A source just generated is still being written back: wait for the disk, then warm
+        # the page cache (every source is read once before it is timed).
+        os.sync()
         for p in root.rglob("*"):
             if p.is_file():
                 with open(p, "rb") as f:
