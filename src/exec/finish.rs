@@ -163,36 +163,38 @@ pub(super) fn profile(
     // the commit need not sync them again. Several syncing threads: an output of many small
     // files (a Zarr store holds one per frame) waits on the disk once per file.
     let paths: Vec<PathBuf> = listed.iter().map(|rel| dir.join(rel)).collect();
-    let paths = std::sync::Arc::new(paths);
-    let syncing: Vec<_> = (0..SYNC_THREADS)
-        .map(|k| {
-            let paths = std::sync::Arc::clone(&paths);
-            std::thread::spawn(move || -> Result<()> {
-                for path in paths.iter().skip(k).step_by(SYNC_THREADS) {
-                    std::fs::File::open(path)
-                        .and_then(|f| f.sync_all())
-                        .at("sync", path)?;
-                }
-                Ok(())
+    let (files, synced) = std::thread::scope(|scope| {
+        let syncing: Vec<_> = (0..SYNC_THREADS)
+            .map(|k| {
+                let paths = &paths;
+                scope.spawn(move || -> Result<()> {
+                    for path in paths.iter().skip(k).step_by(SYNC_THREADS) {
+                        std::fs::File::open(path)
+                            .and_then(|f| f.sync_all())
+                            .at("sync", path)?;
+                    }
+                    Ok(())
+                })
             })
-        })
-        .collect();
-    // Small files side by side; a large one is hashed on every thread by `hash_file` itself.
-    let hashed: Result<BTreeMap<String, String>> = listed
-        .par_iter()
-        .map(|rel| -> Result<(String, String)> {
-            let name = rel.to_string_lossy().replace('\\', "/");
-            Ok((name, lock::hash_file(&dir.join(rel))?))
-        })
-        .collect();
-    let synced = syncing
-        .into_iter()
-        .map(|t| {
-            t.join()
-                .map_err(|_| Error::Internal("a thread syncing outputs panicked".into()))?
-        })
-        .collect::<Result<Vec<()>>>();
-    let files = hashed?;
+            .collect();
+        // Small files side by side; a large one is hashed on every thread by `hash_file` itself.
+        let hashed: Result<BTreeMap<String, String>> = listed
+            .par_iter()
+            .map(|rel| -> Result<(String, String)> {
+                let name = rel.to_string_lossy().replace('\\', "/");
+                Ok((name, lock::hash_file(&dir.join(rel))?))
+            })
+            .collect();
+        let synced = syncing
+            .into_iter()
+            .map(|t| {
+                t.join()
+                    .map_err(|_| Error::Internal("a thread syncing outputs panicked".into()))?
+            })
+            .collect::<Result<Vec<()>>>();
+        (hashed, synced)
+    });
+    let files = files?;
     synced?;
     Ok(files)
 }

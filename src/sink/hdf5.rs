@@ -68,12 +68,26 @@ fn group(parent: &Group, name: &str) -> Result<Group> {
         .create(name)?)
 }
 
-/// The bytes of `values` as HDF5 stores them: the datasets' type is the native `f32`.
 /// HDF5 stores frames raw or deflated; it never asks for PNGs.
 fn no_png() -> Error {
     Error::Internal("HDF5 frames are never PNG-encoded".into())
 }
 
+/// Writes `values` (whole rows of `ds`, flattened) at rows `lo..` of `ds`, through HDF5.
+pub(super) fn write_rows<T: hdf5::H5Type>(ds: &Dataset, lo: usize, values: &[T]) -> Result<()> {
+    let shape = ds.shape();
+    let rows = values.len() / shape[1..].iter().product::<usize>().max(1);
+    let mut dims = shape.clone();
+    dims[0] = rows;
+    let view = ArrayViewD::from_shape(IxDyn(&dims), values)
+        .map_err(|e| Error::Internal(format!("rows of {}: {e}", ds.name())))?;
+    let mut sel: Vec<hdf5::SliceOrIndex> = vec![(lo..lo + rows).into()];
+    sel.extend(shape[1..].iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
+    ds.write_slice(view, hdf5::Hyperslab::from(sel))?;
+    Ok(())
+}
+
+/// The bytes of `values` as HDF5 stores them: the datasets' type is the native `f32`.
 fn f32_bytes(values: &[f32]) -> &[u8] {
     // SAFETY: any initialized `f32` is 4 initialized bytes, u8 has alignment 1, and the slice
     // borrows `values` for its whole life.
@@ -259,28 +273,6 @@ impl Hdf5Writer {
         })
     }
 
-    fn selection(&self, channel: usize, row: usize, rows: usize) -> hdf5::Hyperslab {
-        let mut sel: Vec<hdf5::SliceOrIndex> = vec![(row..row + rows).into()];
-        sel.extend(
-            self.shapes[channel]
-                .iter()
-                .map(|&d| hdf5::SliceOrIndex::from(0..d)),
-        );
-        hdf5::Hyperslab::from(sel)
-    }
-
-    fn view<'a, T>(
-        &self,
-        channel: usize,
-        rows: usize,
-        values: &'a [T],
-    ) -> Result<ArrayViewD<'a, T>> {
-        let mut shape = vec![rows];
-        shape.extend(&self.shapes[channel]);
-        ArrayViewD::from_shape(IxDyn(&shape), values)
-            .map_err(|e| Error::Internal(format!("channel {channel}: {e}")))
-    }
-
     /// Writes frames already compressed as HDF5's deflate filter stores a chunk, directly as
     /// chunks: HDF5 would compress them on one thread under its global lock.
     fn write_chunks(&self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
@@ -379,10 +371,7 @@ impl Hdf5Writer {
         if self.chunk_maps[channel].is_some() {
             return self.write_raw_rows(channel, row, f32_bytes(values));
         }
-        let rows = values.len() / self.shapes[channel].iter().product::<usize>().max(1);
-        let view = self.view(channel, rows, values)?;
-        self.data[channel].write_slice(view, self.selection(channel, row, rows))?;
-        Ok(())
+        write_rows(&self.data[channel], row, values)
     }
 
     /// Writes one split's window index: rows of (episode position, current step, limit, sub);

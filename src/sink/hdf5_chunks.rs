@@ -17,6 +17,7 @@ use hdf5::{File, Group};
 use hdf5_sys::h5::hsize_t;
 use hdf5_sys::h5i::hid_t;
 
+use super::hdf5::write_rows;
 use super::windows::{action_steps, obs_steps, pad_row, Step};
 use crate::chunk::Window;
 use crate::error::{Error, Result};
@@ -116,21 +117,6 @@ fn block_bytes() -> usize {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(BLOCK_BYTES)
-}
-
-/// Writes `values` (whole rows of `ds`, flattened) at rows `lo..` of `ds`.
-fn write_rows<T: hdf5::H5Type>(ds: &hdf5::Dataset, lo: usize, values: &[T]) -> Result<()> {
-    let shape = ds.shape();
-    let width = shape[1..].iter().product::<usize>().max(1);
-    let rows = values.len() / width;
-    let mut dims = shape.clone();
-    dims[0] = rows;
-    let view = ndarray::ArrayView::from_shape(ndarray::IxDyn(&dims), values)
-        .map_err(|e| Error::Internal(format!("materialized rows: {e}")))?;
-    let mut sel: Vec<hdf5::SliceOrIndex> = vec![(lo..lo + rows).into()];
-    sel.extend(shape[1..].iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
-    ds.write_slice(view, hdf5::Hyperslab::from(sel))?;
-    Ok(())
 }
 
 /// `/chunks` of the `materialized` layout, a block of windows at a time (whole chunks of the
