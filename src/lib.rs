@@ -34,12 +34,14 @@
 //!
 //! Supporting pieces: [`chunk`] decides which rows every window reads (the invariants "never
 //! across an episode" and "the observation belongs to the chunk's first step" live there);
-//! [`error`] holds the error type and exit codes; [`synth`] writes synthetic sources in every
+//! [`error`] holds the error type and exit codes; [`bytes`] views `f32` values as the
+//! little-endian bytes of files; [`synth`] writes synthetic sources in every
 //! input layout (`chunkc synth`, for the benchmarks and tests); [`fuzzing`] has the fuzz targets'
 //! bodies (one per input parser; see `fuzz/`).
 
 pub mod analyze;
 pub mod audit;
+pub mod bytes;
 pub mod chunk;
 pub mod error;
 pub mod exec;

@@ -492,7 +492,7 @@ fn run(
                             ChannelKind::Image => 0,
                         };
                         let dir = staging.scratch_dir().join(format!("rate{r}-channel{c}"));
-                        Arc::new(LowdimStore::new(width, budget, dir))
+                        Arc::new(LowdimStore::new(width, budget, dir, total as usize))
                     })
                     .collect(),
                 partials: manifest
@@ -606,8 +606,9 @@ fn run(
         }
         let processed: Vec<Processed> = processed.into_iter().flatten().collect();
 
-        // Low-dim values wait here, per (rate, channel), for one task per store below.
-        let mut pending: Vec<Vec<Vec<Vec<f32>>>> = rates
+        // Low-dim values wait here, per (rate, channel), for one task per store below, each
+        // with whether it is a training episode's.
+        let mut pending: Vec<Vec<Vec<(Vec<f32>, bool)>>> = rates
             .iter()
             .map(|r| vec![Vec::new(); r.lowdim.len()])
             .collect();
@@ -618,12 +619,13 @@ fn run(
                 .enumerate()
             {
                 let row = if i == 0 { 0 } else { rate.ends[i - 1] as usize };
+                let train = plan.split.is_train(manifest.episodes[i].id);
                 for (c, (values, partial)) in data.into_iter().zip(partials).enumerate() {
                     if let Some(p) = partial {
                         rate.partials[c].merge(&p);
                     }
                     match values {
-                        Prepared::Lowdim(v) => pending[r][c].push(v),
+                        Prepared::Lowdim(v) => pending[r][c].push((v, train)),
                         Prepared::Frames(encoded) => {
                             for (_, sink) in sinks.iter_mut().filter(|(sr, _)| *sr == r) {
                                 let enc = sink.frame_encoding();
@@ -648,7 +650,9 @@ fn run(
             .zip(pending.into_iter().flatten().collect::<Vec<_>>())
             .map(|(store, episodes)| {
                 let store = Arc::get_mut(store).expect("no reader while the source is read");
-                episodes.iter().try_for_each(|v| store.push(v))
+                episodes
+                    .iter()
+                    .try_for_each(|(v, train)| store.push(v, *train))
             })
             .collect();
         pushed.into_iter().collect::<Result<Vec<()>>>()?;
@@ -730,7 +734,9 @@ fn rate_stats(
                         (start, ends[e] as usize)
                     })
                     .collect();
-                stats::lowdim_from(m.clone(), ch.width(), |d, f| {
+                // The store counted the first percentile pass as the rows arrived.
+                let high = Some(values.high_counts());
+                stats::lowdim_from(m.clone(), ch.width(), high, |d, f| {
                     values.for_column(d, &train, f)
                 })?
             }

@@ -2,9 +2,11 @@
 //!
 //! Exact percentiles need every value of a column, and normalized values can only be written once
 //! the statistics are known, so exec keeps every low-dim value until the end of the build. A
-//! [`LowdimStore`] keeps them in memory (row-major, as read) up to a byte budget; beyond it, it
-//! spills to one file per column in the build's staging directory, appending each flushed block's
-//! columns, and from then on keeps at most a budget's worth of rows in memory. Reading is then
+//! [`LowdimStore`] knows how many rows it will hold: when they fit in a byte budget it keeps them
+//! in memory (row-major, as read, one allocation); otherwise it spills from the start to one file
+//! per column in the build's staging directory, a quarter budget of rows at a time, and keeps at
+//! most that many rows in memory. As training rows are pushed it counts each column's first
+//! percentile pass ([`LowdimStore::high_counts`]), so statistics read a column once. Reading is then
 //! (a) one column at a time, for statistics ([`LowdimStore::for_column`]), and (b) a block of rows at
 //! a time, for moments, the writers and per-episode exports ([`LowdimStore::rows`]), read back
 //! from the column files and interleaved. Small builds never touch the disk.
@@ -15,16 +17,14 @@
 use std::borrow::Cow;
 use std::fs::File;
 use std::io::Write;
-use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 
+use crate::bytes;
 use crate::error::{Error, IoContext, Result};
+use crate::stats::HighCounts;
 
 /// Bytes of values one store keeps in memory before it spills.
 pub const DEFAULT_BUDGET: usize = 32 << 20;
-
-/// Rows transposed and appended to the column files at once when the store flushes.
-const SLAB_ROWS: usize = 1 << 16;
 
 /// The budget: `CHUNKC_SPILL_BYTES` if set, else [`DEFAULT_BUDGET`].
 pub fn budget_from_env() -> usize {
@@ -38,24 +38,54 @@ pub fn budget_from_env() -> usize {
 #[derive(Debug)]
 pub struct LowdimStore {
     width: usize,
-    budget: usize,
     /// Where the column files go, created when the store first spills.
     dir: PathBuf,
-    /// Rows not on disk (all of them until the store spills), row-major.
+    /// Rows not on disk (all of them until the store spills), row-major. Its capacity is set
+    /// once: every row when they fit in the budget, else a quarter of it (the store flushes a
+    /// quarter budget at a time), so pushing never reallocates and copies it.
     mem: Vec<f32>,
+    /// Bytes of `mem` that make the store flush.
+    flush_at: usize,
     /// One file per column once spilled, and how many rows they hold.
     spilled: Option<(Vec<File>, usize)>,
+    /// Column-major scratch of one flush (kept: flushing allocates nothing after the first).
+    columns: Vec<f32>,
+    /// Per column, the first pass of the exact percentiles over the training rows, counted as
+    /// they are pushed (see [`crate::stats::percentiles_counted`]): statistics then read each column
+    /// once instead of twice.
+    high: Vec<HighCounts>,
 }
 
 impl LowdimStore {
-    pub fn new(width: usize, budget: usize, dir: PathBuf) -> Self {
+    /// A store for `rows` rows (a capacity hint: more may be pushed) of `width` values.
+    pub fn new(width: usize, budget: usize, dir: PathBuf, rows: usize) -> Self {
+        let bytes = rows.saturating_mul(width).saturating_mul(4);
+        // Rows that will spill go a quarter budget at a time (at least a row); rows that fit
+        // stay, in one allocation of their exact size.
+        let flush_at = if bytes <= budget {
+            budget
+        } else {
+            (budget / 4).max(4 * width)
+        };
+        let capacity = if bytes <= budget {
+            rows * width
+        } else {
+            flush_at / 4 + width
+        };
         LowdimStore {
             width,
-            budget,
             dir,
-            mem: Vec::new(),
+            mem: Vec::with_capacity(capacity),
+            flush_at,
             spilled: None,
+            columns: Vec::new(),
+            high: (0..width).map(|_| HighCounts::new()).collect(),
         }
+    }
+
+    /// Per column, the first pass of the percentiles over the training rows pushed so far.
+    pub fn high_counts(&self) -> &[HighCounts] {
+        &self.high
     }
 
     pub fn width(&self) -> usize {
@@ -80,14 +110,20 @@ impl LowdimStore {
         self.spilled.as_ref().map_or(0, |(_, rows)| *rows)
     }
 
-    /// Appends whole rows.
-    pub fn push(&mut self, values: &[f32]) -> Result<()> {
+    /// Appends whole rows; `train`: they are training rows, counted for the percentiles.
+    pub fn push(&mut self, values: &[f32], train: bool) -> Result<()> {
         if self.width == 0 {
             return Ok(());
         }
         debug_assert_eq!(values.len() % self.width, 0);
+        if train {
+            // One column at a time: the rows are in cache, and each pass touches one table.
+            for (d, high) in self.high.iter_mut().enumerate() {
+                high.add_strided(values, d, self.width);
+            }
+        }
         self.mem.extend_from_slice(values);
-        if self.mem.len() * 4 > self.budget {
+        if self.mem.len() * 4 > self.flush_at {
             self.flush()?;
         }
         Ok(())
@@ -113,16 +149,14 @@ impl LowdimStore {
         }
         let rows = self.mem.len() / width;
         let (files, on_disk) = self.spilled.as_mut().expect("created above");
-        // A slab of rows at a time: the transposed copy stays small.
-        for slab in self.mem.chunks(SLAB_ROWS * width) {
-            for (d, (file, column)) in files.iter_mut().zip(transpose(slab, width)).enumerate() {
-                let path = self.dir.join(format!("{d}.f32"));
-                file.write_all(&column).at("write", &path)?;
-            }
+        transpose(&self.mem, width, &mut self.columns);
+        for (d, (file, column)) in files.iter_mut().zip(self.columns.chunks(rows)).enumerate() {
+            let path = self.dir.join(format!("{d}.f32"));
+            file.write_all(bytes::f32_bytes(column))
+                .at("write", &path)?;
         }
         *on_disk += rows;
         self.mem.clear();
-        self.mem.shrink_to(self.budget / 4 + width);
         Ok(())
     }
 
@@ -158,13 +192,13 @@ impl LowdimStore {
         let disk_hi = hi.min(disk);
         if lo < disk_hi {
             let (files, _) = self.spilled.as_ref().expect("rows on disk");
-            // One column's bytes at a time, scattered into the rows straight from the buffer.
-            let mut bytes = vec![0u8; (disk_hi - lo) * 4];
+            // One column at a time, scattered into the rows straight from the buffer.
+            let mut column = vec![0f32; disk_hi - lo];
             for (d, file) in files.iter().enumerate() {
-                file.read_exact_at(&mut bytes, lo as u64 * 4)
+                bytes::read_f32_at(file, &mut column, lo as u64 * 4)
                     .at("read", self.column_path(d))?;
-                for (row, b) in out.chunks_exact_mut(width).zip(bytes.chunks_exact(4)) {
-                    row[d] = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                for (row, &v) in out.chunks_exact_mut(width).zip(&column) {
+                    row[d] = v;
                 }
             }
         }
@@ -225,17 +259,9 @@ impl LowdimStore {
     /// Rows `lo..hi` (all on disk) of column `d` into `out`.
     fn read_column(&self, d: usize, lo: usize, hi: usize, out: &mut Vec<f32>) -> Result<()> {
         let (files, _) = self.spilled.as_ref().expect("rows on disk");
-        let mut bytes = vec![0u8; (hi - lo) * 4];
-        files[d]
-            .read_exact_at(&mut bytes, lo as u64 * 4)
-            .at("read", self.column_path(d))?;
         out.clear();
-        out.extend(
-            bytes
-                .chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-        );
-        Ok(())
+        out.resize(hi - lo, 0.0);
+        bytes::read_f32_at(&files[d], out, lo as u64 * 4).at("read", self.column_path(d))
     }
 
     /// The directory of the column files, for messages.
@@ -244,19 +270,20 @@ impl LowdimStore {
     }
 }
 
-/// Row-major `f32` rows of `width` values → one little-endian byte column per dimension.
-/// Blocks of rows are transposed in parallel (each block fits in cache); the bytes do not
-/// depend on the thread count.
-fn transpose(values: &[f32], width: usize) -> Vec<Vec<u8>> {
+/// Row-major `f32` rows of `width` values → `columns`, column-major (one column after another),
+/// reusing its allocation. Blocks of rows are transposed in parallel (each block fits in
+/// cache); the result does not depend on the thread count.
+fn transpose(values: &[f32], width: usize, columns: &mut Vec<f32>) {
     use rayon::prelude::*;
     const BLOCK_ROWS: usize = 4096;
     let rows = values.len() / width;
-    let mut columns: Vec<Vec<u8>> = vec![vec![0u8; rows * 4]; width];
-    let mut blocks: Vec<Vec<&mut [u8]>> = (0..rows.div_ceil(BLOCK_ROWS))
+    columns.clear();
+    columns.resize(rows * width, 0.0);
+    let mut blocks: Vec<Vec<&mut [f32]>> = (0..rows.div_ceil(BLOCK_ROWS))
         .map(|_| Vec::with_capacity(width))
         .collect();
-    for column in &mut columns {
-        for (b, part) in column.chunks_mut(BLOCK_ROWS * 4).enumerate() {
+    for column in columns.chunks_mut(rows.max(1)) {
+        for (b, part) in column.chunks_mut(BLOCK_ROWS).enumerate() {
             blocks[b].push(part);
         }
     }
@@ -265,14 +292,13 @@ fn transpose(values: &[f32], width: usize) -> Vec<Vec<u8>> {
         .enumerate()
         .for_each(|(b, mut parts)| {
             let block = &values[b * BLOCK_ROWS * width..];
-            let n = parts[0].len() / 4;
+            let n = parts[0].len();
             for (r, row) in block.chunks_exact(width).take(n).enumerate() {
-                for (part, v) in parts.iter_mut().zip(row) {
-                    part[4 * r..4 * r + 4].copy_from_slice(&v.to_le_bytes());
+                for (part, &v) in parts.iter_mut().zip(row) {
+                    part[r] = v;
                 }
             }
         });
-    columns
 }
 
 #[cfg(test)]
@@ -280,7 +306,8 @@ mod tests {
     use super::*;
 
     fn filled(budget: usize, dir: &Path, width: usize, batches: &[usize]) -> LowdimStore {
-        let mut store = LowdimStore::new(width, budget, dir.to_path_buf());
+        let rows: usize = batches.iter().sum();
+        let mut store = LowdimStore::new(width, budget, dir.to_path_buf(), rows);
         let mut next = 0f32;
         for &rows in batches {
             let values: Vec<f32> = (0..rows * width)
@@ -289,7 +316,7 @@ mod tests {
                     next * 0.37 - 5.0
                 })
                 .collect();
-            store.push(&values).unwrap();
+            store.push(&values, true).unwrap();
         }
         store
     }
@@ -300,8 +327,9 @@ mod tests {
         let batches = [3, 17, 1, 40, 9, 0, 25, 2];
         let width = 3;
         let memory = filled(usize::MAX, &tmp.path().join("m"), width, &batches);
-        // 64 bytes: a few rows, so most pushes flush and some rows stay in memory at the end.
-        let spilled = filled(64, &tmp.path().join("s"), width, &batches);
+        // 256 bytes (it flushes 64 at a time): a few rows, so most pushes flush and some rows
+        // stay in memory at the end.
+        let spilled = filled(256, &tmp.path().join("s"), width, &batches);
         assert!(!memory.is_spilled());
         assert!(
             !tmp.path().join("m").exists(),

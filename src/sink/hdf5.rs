@@ -20,6 +20,7 @@ use ndarray::{ArrayViewD, IxDyn};
 
 use super::hdf5_chunks::{self, Stored, Windows};
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
+use crate::bytes::f32_bytes;
 use crate::chunk::Window;
 use crate::error::{Error, Result};
 use crate::exec::LowdimStore;
@@ -85,15 +86,6 @@ pub(super) fn write_rows<T: hdf5::H5Type>(ds: &Dataset, lo: usize, values: &[T])
     sel.extend(shape[1..].iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
     ds.write_slice(view, hdf5::Hyperslab::from(sel))?;
     Ok(())
-}
-
-/// The bytes of `values` as HDF5 stores them: the datasets' type is the native `f32`.
-fn f32_bytes(values: &[f32]) -> &[u8] {
-    // SAFETY: any initialized `f32` is 4 initialized bytes, u8 has alignment 1, and the slice
-    // borrows `values` for its whole life.
-    unsafe {
-        std::slice::from_raw_parts(values.as_ptr().cast::<u8>(), std::mem::size_of_val(values))
-    }
 }
 
 fn text(s: &str) -> Result<VarLenUnicode> {

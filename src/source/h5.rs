@@ -211,6 +211,12 @@ pub fn direct(ds: &Dataset) -> Option<Direct> {
 /// `uint8` as bytes, floats converted to `f32` as [`read`] does.
 pub fn read_direct(file: &std::fs::File, d: &Direct) -> std::io::Result<Raw> {
     use std::os::unix::fs::FileExt;
+    if let (DirectType::F32, Place::Contiguous(offset)) = (&d.dtype, &d.place) {
+        // Straight into the values: no byte buffer, no second copy.
+        let mut values = vec![0f32; d.elements];
+        crate::bytes::read_f32_at(file, &mut values, *offset)?;
+        return Ok(Raw::F32(values));
+    }
     let mut bytes = vec![0u8; d.elements * d.dtype.size()];
     match &d.place {
         Place::Contiguous(offset) => file.read_exact_at(&mut bytes, *offset)?,

@@ -303,6 +303,29 @@ pub fn assemble(
             }
             ChannelKind::Lowdim => {
                 let width = ch.width();
+                if let [part] = recipe.parts.as_slice() {
+                    if part.columns == (0..part.width) {
+                        // The whole key, as it is: moved out (or copied once if another channel
+                        // reads it too), not rebuilt value by value.
+                        let used_later = mapped.recipes[out.len() + 1..]
+                            .iter()
+                            .any(|r| r.parts.iter().any(|p| p.key == part.key));
+                        let values = match cache.remove(&part.key) {
+                            Some(Raw::F32(v)) if !used_later => v,
+                            Some(raw) => {
+                                let copy = match &raw {
+                                    Raw::F32(v) => v.clone(),
+                                    Raw::U8(v) => v.iter().map(|&b| f32::from(b)).collect(),
+                                };
+                                cache.insert(part.key.clone(), raw);
+                                copy
+                            }
+                            None => unreachable!("every key read above"),
+                        };
+                        out.push(ChannelData::Lowdim(values));
+                        continue;
+                    }
+                }
                 let mut values = Vec::with_capacity(len * width);
                 for t in 0..len {
                     for part in &recipe.parts {

@@ -13,7 +13,10 @@ pub mod normalize;
 mod percentile;
 
 pub use moments::Moments;
-pub use percentile::{percentile, percentile_of_histogram, percentiles, percentiles_streamed};
+pub use percentile::{
+    percentile, percentile_of_histogram, percentiles, percentiles_counted, percentiles_streamed,
+    HighCounts,
+};
 
 use rayon::prelude::*;
 
@@ -62,7 +65,7 @@ pub fn lowdim<'a>(
         f(&column);
         Ok(())
     };
-    match lowdim_from(m, dims, each) {
+    match lowdim_from(m, dims, None, each) {
         Ok(s) => s,
         Err(never) => match never {},
     }
@@ -72,10 +75,13 @@ pub fn lowdim<'a>(
 /// a time: `each(d, f)` calls `f` with blocks that together hold dimension `d` of every value the
 /// moments cover. Exact percentiles come from two reads of each column
 /// ([`percentiles_streamed`]), one column per task: the values are never all in memory, which is
-/// what keeps a build's memory flat in the number of episodes.
+/// what keeps a build's memory flat in the number of episodes. `high`, when given, is each
+/// column's first pass already counted (by whoever saw the values first), and each column is
+/// read once ([`percentiles_counted`]).
 pub fn lowdim_from<E: Send>(
     m: Moments,
     dims: usize,
+    high: Option<&[HighCounts]>,
     each: impl Fn(usize, &mut dyn FnMut(&[f32])) -> Result<(), E> + Sync,
 ) -> Result<ChannelStats, E> {
     let rows = m.count;
@@ -84,6 +90,8 @@ pub fn lowdim_from<E: Send>(
         .map(|d| {
             if rows == 0 {
                 Ok(vec![f64::NAN; PERCENTILES.len()])
+            } else if let Some(high) = high {
+                percentiles_counted(&high[d], rows, &PERCENTILES, |f| each(d, f))
             } else {
                 percentiles_streamed(rows, &PERCENTILES, |f| each(d, f))
             }

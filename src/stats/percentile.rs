@@ -61,14 +61,108 @@ pub fn percentiles_streamed<E>(
     qs: &[f64],
     mut pass: impl FnMut(&mut dyn FnMut(&[f32])) -> Result<(), E>,
 ) -> Result<Vec<f64>, E> {
-    assert!(n > 0, "percentile of no values");
-    let mut high = vec![0u64; 1 << 16];
-    pass(&mut |block| {
-        for &v in block {
-            high[(key(v) >> 16) as usize] += 1;
+    let mut high = HighCounts::new();
+    pass(&mut |block| high.add(block))?;
+    percentiles_counted(&high, n, qs, pass)
+}
+
+/// The first pass of [`percentiles_streamed`], kept by whoever sees the values first (a build's
+/// low-dim stores count them as they are pushed), so that [`percentiles_counted`] needs only
+/// the second. Counts are `u32` (256 KiB a table), folded into a `u64` table before any could
+/// overflow, so any number of values can be counted.
+#[derive(Debug, Clone)]
+pub struct HighCounts {
+    counts: Vec<u32>,
+    /// Counts folded out of `counts` (empty until `u32::MAX` values were counted).
+    wide: Vec<u64>,
+    /// Values counted in `counts` since the last fold.
+    pending: u64,
+    /// Values `counts` may take before a fold (`u32::MAX`; the tests lower it).
+    limit: u64,
+    total: u64,
+}
+
+impl Default for HighCounts {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl HighCounts {
+    pub fn new() -> Self {
+        HighCounts {
+            counts: vec![0; 1 << 16],
+            wide: Vec::new(),
+            pending: 0,
+            limit: u64::from(u32::MAX),
+            total: 0,
         }
-    })?;
-    debug_assert_eq!(high.iter().sum::<u64>(), n);
+    }
+
+    /// Counts `values`.
+    pub fn add(&mut self, mut values: &[f32]) {
+        while !values.is_empty() {
+            let room = self.limit - self.pending;
+            if room == 0 {
+                self.fold();
+                continue;
+            }
+            let (now, rest) = values.split_at(values.len().min(room as usize));
+            for &v in now {
+                self.counts[(key(v) >> 16) as usize] += 1;
+            }
+            self.pending += now.len() as u64;
+            self.total += now.len() as u64;
+            values = rest;
+        }
+    }
+
+    /// Counts every `stride`-th value of `values` from `first` (one column of row-major rows).
+    pub fn add_strided(&mut self, values: &[f32], first: usize, stride: usize) {
+        let n = values.len().saturating_sub(first).div_ceil(stride.max(1));
+        if self.pending + n as u64 > self.limit {
+            let column: Vec<f32> = values.iter().skip(first).step_by(stride).copied().collect();
+            return self.add(&column);
+        }
+        for &v in values.iter().skip(first).step_by(stride) {
+            self.counts[(key(v) >> 16) as usize] += 1;
+        }
+        self.pending += n as u64;
+        self.total += n as u64;
+    }
+
+    fn fold(&mut self) {
+        if self.wide.is_empty() {
+            self.wide = vec![0; 1 << 16];
+        }
+        for (w, c) in self.wide.iter_mut().zip(self.counts.iter_mut()) {
+            *w += u64::from(*c);
+            *c = 0;
+        }
+        self.pending = 0;
+    }
+
+    /// Values in bucket `b`.
+    fn bucket(&self, b: usize) -> u64 {
+        u64::from(self.counts[b]) + self.wide.get(b).copied().unwrap_or(0)
+    }
+
+    /// How many values were counted.
+    pub fn total(&self) -> u64 {
+        self.total
+    }
+}
+
+/// [`percentiles_streamed`] with its first pass already done: `high` counted the `n` values that
+/// `pass` (called once) passes again.
+pub fn percentiles_counted<E>(
+    high: &HighCounts,
+    n: u64,
+    qs: &[f64],
+    mut pass: impl FnMut(&mut dyn FnMut(&[f32])) -> Result<(), E>,
+) -> Result<Vec<f64>, E> {
+    assert!(n > 0, "percentile of no values");
+    assert_eq!(high.total, n, "the first pass counted every value");
     // Each rank's bucket and its rank among the bucket's values.
     let mut ranks: Vec<u64> = Vec::with_capacity(2 * qs.len());
     for &q in qs {
@@ -83,8 +177,8 @@ pub fn percentiles_streamed<E>(
     let mut located: Vec<(u64, usize, u64)> = Vec::with_capacity(ranks.len());
     let (mut bucket, mut below) = (0usize, 0u64);
     for &r in &ranks {
-        while below + high[bucket] <= r {
-            below += high[bucket];
+        while below + high.bucket(bucket) <= r {
+            below += high.bucket(bucket);
             bucket += 1;
         }
         located.push((r, bucket, r - below));
@@ -98,13 +192,12 @@ pub fn percentiles_streamed<E>(
     let mut low: Vec<Low> = Vec::with_capacity(buckets.len());
     for (i, &b) in buckets.iter().enumerate() {
         slot[b] = i as u8;
-        low.push(if high[b] <= SMALL_BUCKET {
-            Low::Keys(Vec::with_capacity(high[b] as usize))
+        low.push(if high.bucket(b) <= SMALL_BUCKET {
+            Low::Keys(Vec::with_capacity(high.bucket(b) as usize))
         } else {
             Low::Counts(vec![0u64; 1 << 16])
         });
     }
-    drop(high);
     pass(&mut |block| {
         for &v in block {
             let k = key(v);
@@ -308,6 +401,31 @@ mod tests {
     fn check(values: &[f32], qs: &[f64]) {
         let n = values.len();
         let want = percentiles(&mut values.to_vec(), qs);
+        // The first pass counted ahead: whole blocks, and as the second column of two-wide
+        // rows; a low fold limit makes the u32 counts fold into the u64 table many times.
+        for limit in [u64::from(u32::MAX), 5] {
+            let mut whole = HighCounts::new();
+            whole.limit = limit;
+            values.chunks(13).for_each(|b| whole.add(b));
+            let rows: Vec<f32> = values.iter().flat_map(|&v| [f32::NAN, v]).collect();
+            let mut strided = HighCounts::new();
+            strided.limit = limit;
+            rows.chunks(2 * 11)
+                .for_each(|b| strided.add_strided(b, 1, 2));
+            for high in [&whole, &strided] {
+                assert_eq!(high.total(), n as u64);
+                let got = percentiles_counted::<()>(high, n as u64, qs, |f| {
+                    values.chunks(64).for_each(&mut *f);
+                    Ok(())
+                })
+                .unwrap();
+                let same = want
+                    .iter()
+                    .zip(&got)
+                    .all(|(w, g)| w.to_bits() == g.to_bits());
+                assert!(same, "n={n} limit={limit}: {want:?} vs {got:?}");
+            }
+        }
         for block in [1usize, 7, 4096] {
             let got = percentiles_streamed::<()>(n as u64, qs, |f| {
                 values.chunks(block).for_each(&mut *f);
