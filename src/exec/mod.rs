@@ -608,7 +608,8 @@ fn run(
 
         // Low-dim values wait here, per (rate, channel), for one task per store below, each
         // with whether it is a training episode's.
-        let mut pending: Vec<Vec<Vec<(Vec<f32>, bool)>>> = rates
+        type Rows = (Vec<f32>, bool);
+        let mut pending: Vec<Vec<Vec<Rows>>> = rates
             .iter()
             .map(|r| vec![Vec::new(); r.lowdim.len()])
             .collect();
