@@ -195,8 +195,10 @@ fn writers(c: &mut Criterion) {
             } else {
                 0
             };
-            let mut store = chunkc::exec::LowdimStore::new(width, usize::MAX, Default::default());
-            store.push(v).expect("in memory");
+            let rows = v.len() / width.max(1);
+            let mut store =
+                chunkc::exec::LowdimStore::new(width, usize::MAX, Default::default(), rows);
+            store.push(v, true).expect("in memory");
             std::sync::Arc::new(store)
         })
         .collect();
