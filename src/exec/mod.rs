@@ -335,12 +335,11 @@ fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
     if factor == 1 || width == 0 {
         return values.to_vec();
     }
-    values
-        .chunks_exact(width)
-        .step_by(factor)
-        .flatten()
-        .copied()
-        .collect()
+    let mut out = Vec::with_capacity((values.len() / width).div_ceil(factor) * width);
+    for row in values.chunks_exact(width).step_by(factor) {
+        out.extend_from_slice(row);
+    }
+    out
 }
 
 /// Decimates an episode to every rate, encodes its frames for every sink, and computes the

@@ -117,10 +117,7 @@ impl LowdimStore {
         }
         debug_assert_eq!(values.len() % self.width, 0);
         if train {
-            // One column at a time: the rows are in cache, and each pass touches one table.
-            for (d, high) in self.high.iter_mut().enumerate() {
-                high.add_strided(values, d, self.width);
-            }
+            HighCounts::add_rows(&mut self.high, values);
         }
         self.mem.extend_from_slice(values);
         if self.mem.len() * 4 > self.flush_at {

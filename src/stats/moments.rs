@@ -32,21 +32,25 @@ impl Moments {
         }
         let rows = values.len() / dims;
         m.count = rows as u64;
+        // Zipped slices rather than indices: no bounds checks, and the per-dimension updates
+        // of a row vectorize. Each dimension's sums are still taken in row order.
+        let (mean, min, max) = (&mut m.mean[..dims], &mut m.min[..dims], &mut m.max[..dims]);
         for row in values.chunks_exact(dims) {
-            for (d, &v) in row.iter().enumerate() {
-                let v = f64::from(v);
-                m.mean[d] += v;
-                m.min[d] = m.min[d].min(v);
-                m.max[d] = m.max[d].max(v);
+            for (((v, s), lo), hi) in row.iter().zip(&mut *mean).zip(&mut *min).zip(&mut *max) {
+                let v = f64::from(*v);
+                *s += v;
+                *lo = lo.min(v);
+                *hi = hi.max(v);
             }
         }
         for mean in &mut m.mean {
             *mean /= rows as f64;
         }
+        let (mean, m2) = (&m.mean[..dims], &mut m.m2[..dims]);
         for row in values.chunks_exact(dims) {
-            for (d, &v) in row.iter().enumerate() {
-                let dv = f64::from(v) - m.mean[d];
-                m.m2[d] += dv * dv;
+            for ((v, mu), acc) in row.iter().zip(mean).zip(&mut *m2) {
+                let dv = f64::from(*v) - mu;
+                *acc += dv * dv;
             }
         }
         m

@@ -117,18 +117,31 @@ impl HighCounts {
         }
     }
 
-    /// Counts every `stride`-th value of `values` from `first` (one column of row-major rows).
-    pub fn add_strided(&mut self, values: &[f32], first: usize, stride: usize) {
-        let n = values.len().saturating_sub(first).div_ceil(stride.max(1));
-        if self.pending + n as u64 > self.limit {
-            let column: Vec<f32> = values.iter().skip(first).step_by(stride).copied().collect();
-            return self.add(&column);
+    /// Counts row-major rows: `highs[d]` counts column `d` of each row of `values`. One pass
+    /// over the rows; consecutive increments go to different tables, so none waits for the
+    /// previous one's store.
+    pub fn add_rows(highs: &mut [HighCounts], values: &[f32]) {
+        let width = highs.len();
+        if width == 0 {
+            return;
         }
-        for &v in values.iter().skip(first).step_by(stride) {
-            self.counts[(key(v) >> 16) as usize] += 1;
+        let rows = values.len() / width;
+        if highs.iter().any(|h| h.pending + rows as u64 > h.limit) {
+            for (d, high) in highs.iter_mut().enumerate() {
+                let column: Vec<f32> = values.iter().skip(d).step_by(width).copied().collect();
+                high.add(&column);
+            }
+            return;
         }
-        self.pending += n as u64;
-        self.total += n as u64;
+        for row in values.chunks_exact(width) {
+            for (high, &v) in highs.iter_mut().zip(row) {
+                high.counts[(key(v) >> 16) as usize] += 1;
+            }
+        }
+        for high in highs {
+            high.pending += rows as u64;
+            high.total += rows as u64;
+        }
     }
 
     fn fold(&mut self) {
@@ -408,10 +421,11 @@ mod tests {
             whole.limit = limit;
             values.chunks(13).for_each(|b| whole.add(b));
             let rows: Vec<f32> = values.iter().flat_map(|&v| [f32::NAN, v]).collect();
-            let mut strided = HighCounts::new();
-            strided.limit = limit;
+            let mut pair = [HighCounts::new(), HighCounts::new()];
+            pair[1].limit = limit;
             rows.chunks(2 * 11)
-                .for_each(|b| strided.add_strided(b, 1, 2));
+                .for_each(|b| HighCounts::add_rows(&mut pair, b));
+            let [_, strided] = pair;
             for high in [&whole, &strided] {
                 assert_eq!(high.total(), n as u64);
                 let got = percentiles_counted::<()>(high, n as u64, qs, |f| {
