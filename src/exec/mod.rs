@@ -351,16 +351,24 @@ fn process(
     train: bool,
 ) -> Processed {
     let channels = &source.manifest().channels;
-    let mut data = Vec::with_capacity(rates.len());
-    let mut partials = Vec::with_capacity(rates.len());
-    for (r, (conversion, encodings)) in rates.iter().enumerate() {
-        let last = r + 1 == rates.len();
+    let mut data: Vec<Vec<Prepared>> = rates.iter().map(|_| Vec::new()).collect();
+    let mut partials: Vec<Vec<Option<Partial>>> = rates.iter().map(|_| Vec::new()).collect();
+    // The source's own rate goes last, so that it can take the values once every other rate
+    // has been derived from them (no copy of the episode).
+    let identity = |r: &usize| rates[*r].0 == Conversion::Decimate { factor: 1 };
+    let order: Vec<usize> = (0..rates.len())
+        .filter(|r| !identity(r))
+        .chain((0..rates.len()).filter(identity))
+        .collect();
+    for (k, &r) in order.iter().enumerate() {
+        let (conversion, encodings) = &rates[r];
+        let last = k + 1 == order.len();
         let mut per_channel = Vec::with_capacity(channels.len());
         let mut per_partial = Vec::with_capacity(channels.len());
         for (ch, values) in channels.iter().zip(episode.channels.iter_mut()) {
             let width = ch.width();
             let converted = match *conversion {
-                // The last rate at the source's own rate takes the values (no copy).
+                // The source's own rate, last, takes the values (no copy).
                 Conversion::Decimate { factor: 1 } if last => match values {
                     ChannelData::Lowdim(v) => ChannelData::Lowdim(std::mem::take(v)),
                     ChannelData::Image(v) => ChannelData::Image(std::mem::take(v)),
@@ -398,8 +406,8 @@ fn process(
                 }
             }
         }
-        data.push(per_channel);
-        partials.push(per_partial);
+        data[r] = per_channel;
+        partials[r] = per_partial;
     }
     Processed { data, partials }
 }
