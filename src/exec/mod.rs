@@ -742,10 +742,10 @@ fn rate_stats(
                         (start, ends[e] as usize)
                     })
                     .collect();
-                // The store counted the first percentile pass as the rows arrived.
-                let high = Some(values.high_counts());
-                stats::lowdim_from(m.clone(), ch.width(), high, |d, f| {
-                    values.for_column(d, &train, f)
+                // The store counted the first percentile pass as the rows arrived; the second
+                // reads the training rows once, for every column.
+                stats::lowdim_from_rows(m.clone(), ch.width(), values.high_counts(), |f| {
+                    values.for_rows(&train, f)
                 })?
             }
             (Partial::Image(p), ChannelKind::Image) => p.clone().finish(),

@@ -3,15 +3,16 @@
 //! Exact percentiles need every value of a column, and normalized values can only be written once
 //! the statistics are known, so exec keeps every low-dim value until the end of the build. A
 //! [`LowdimStore`] knows how many rows it will hold: when they fit in a byte budget it keeps them
-//! in memory (row-major, as read, one allocation); otherwise it spills from the start to one file
-//! per column in the build's staging directory, a quarter budget of rows at a time, and keeps at
-//! most that many rows in memory. As training rows are pushed it counts each column's first
-//! percentile pass ([`LowdimStore::high_counts`]), so statistics read a column once. Reading is then
-//! (a) one column at a time, for statistics ([`LowdimStore::for_column`]), and (b) a block of rows at
-//! a time, for moments, the writers and per-episode exports ([`LowdimStore::rows`]), read back
-//! from the column files and interleaved. Small builds never touch the disk.
+//! in memory (row-major, as read, one allocation); otherwise it spills from the start, appending
+//! a quarter budget of rows at a time to one file in the build's staging directory, row-major as
+//! they are, and keeps at most that many rows in memory. As training rows are pushed it counts
+//! each column's first percentile pass ([`LowdimStore::high_counts`]). Reading is then (a) the
+//! training rows a block at a time, every column at once, for the percentiles' second pass
+//! ([`LowdimStore::for_rows`]), and (b) a range of rows, for the writers and per-episode exports
+//! ([`LowdimStore::rows`], [`LowdimStore::rows_into`]): one read each, nothing to reorder.
+//! Small builds never touch the disk.
 //!
-//! The files live under the staging directory, which is removed whether the build succeeds or
+//! The file lives under the staging directory, which is removed whether the build succeeds or
 //! fails. `CHUNKC_SPILL_BYTES` overrides the budget (the tests force spilling with it).
 
 use std::borrow::Cow;
@@ -26,6 +27,9 @@ use crate::stats::HighCounts;
 /// Bytes of values one store keeps in memory before it spills.
 pub const DEFAULT_BUDGET: usize = 32 << 20;
 
+/// Rows [`LowdimStore::for_rows`] hands over at once.
+const BLOCK_ROWS: usize = 1 << 14;
+
 /// The budget: `CHUNKC_SPILL_BYTES` if set, else [`DEFAULT_BUDGET`].
 pub fn budget_from_env() -> usize {
     std::env::var("CHUNKC_SPILL_BYTES")
@@ -38,7 +42,7 @@ pub fn budget_from_env() -> usize {
 #[derive(Debug)]
 pub struct LowdimStore {
     width: usize,
-    /// Where the column files go, created when the store first spills.
+    /// Where the spill file goes, created when the store first spills.
     dir: PathBuf,
     /// Rows not on disk (all of them until the store spills), row-major. Its capacity is set
     /// once: every row when they fit in the budget, else a quarter of it (the store flushes a
@@ -46,13 +50,10 @@ pub struct LowdimStore {
     mem: Vec<f32>,
     /// Bytes of `mem` that make the store flush.
     flush_at: usize,
-    /// One file per column once spilled, and how many rows they hold.
-    spilled: Option<(Vec<File>, usize)>,
-    /// Column-major scratch of one flush (kept: flushing allocates nothing after the first).
-    columns: Vec<f32>,
+    /// The spill file (row-major rows, little-endian) once spilled, and how many rows it holds.
+    spilled: Option<(File, usize)>,
     /// Per column, the first pass of the exact percentiles over the training rows, counted as
-    /// they are pushed (see [`crate::stats::percentiles_counted`]): statistics then read each column
-    /// once instead of twice.
+    /// they are pushed (see [`crate::stats::SecondPass`] for the second).
     high: Vec<HighCounts>,
 }
 
@@ -78,7 +79,6 @@ impl LowdimStore {
             mem: Vec::with_capacity(capacity),
             flush_at,
             spilled: None,
-            columns: Vec::new(),
             high: (0..width).map(|_| HighCounts::new()).collect(),
         }
     }
@@ -126,39 +126,31 @@ impl LowdimStore {
         Ok(())
     }
 
-    /// Appends the rows held in memory to the column files (created on first use).
+    /// Appends the rows held in memory to the spill file (created on first use).
     fn flush(&mut self) -> Result<()> {
-        let width = self.width;
         if self.spilled.is_none() {
             std::fs::create_dir_all(&self.dir).at("create", &self.dir)?;
-            let files = (0..width)
-                .map(|d| {
-                    let path = self.column_path(d);
-                    File::options()
-                        .create_new(true)
-                        .read(true)
-                        .write(true)
-                        .open(&path)
-                        .at("create", &path)
-                })
-                .collect::<Result<Vec<_>>>()?;
-            self.spilled = Some((files, 0));
+            let path = self.path();
+            let file = File::options()
+                .create_new(true)
+                .read(true)
+                .write(true)
+                .open(&path)
+                .at("create", &path)?;
+            self.spilled = Some((file, 0));
         }
-        let rows = self.mem.len() / width;
-        let (files, on_disk) = self.spilled.as_mut().expect("created above");
-        transpose(&self.mem, width, &mut self.columns);
-        for (d, (file, column)) in files.iter_mut().zip(self.columns.chunks(rows)).enumerate() {
-            let path = self.dir.join(format!("{d}.f32"));
-            file.write_all(bytes::f32_bytes(column))
-                .at("write", &path)?;
-        }
+        let rows = self.mem.len() / self.width;
+        let path = self.path();
+        let (file, on_disk) = self.spilled.as_mut().expect("created above");
+        file.write_all(bytes::f32_bytes(&self.mem))
+            .at("write", &path)?;
         *on_disk += rows;
         self.mem.clear();
         Ok(())
     }
 
-    fn column_path(&self, d: usize) -> PathBuf {
-        self.dir.join(format!("{d}.f32"))
+    fn path(&self) -> PathBuf {
+        self.dir.join("rows.f32")
     }
 
     /// Rows `lo..hi`, row-major: borrowed when they are in memory, read back otherwise.
@@ -188,16 +180,9 @@ impl LowdimStore {
         let disk = self.disk_rows();
         let disk_hi = hi.min(disk);
         if lo < disk_hi {
-            let (files, _) = self.spilled.as_ref().expect("rows on disk");
-            // One column at a time, scattered into the rows straight from the buffer.
-            let mut column = vec![0f32; disk_hi - lo];
-            for (d, file) in files.iter().enumerate() {
-                bytes::read_f32_at(file, &mut column, lo as u64 * 4)
-                    .at("read", self.column_path(d))?;
-                for (row, &v) in out.chunks_exact_mut(width).zip(&column) {
-                    row[d] = v;
-                }
-            }
+            let (file, _) = self.spilled.as_ref().expect("rows on disk");
+            let part = &mut out[..(disk_hi - lo) * width];
+            bytes::read_f32_at(file, part, (lo * width * 4) as u64).at("read", self.path())?;
         }
         if hi > disk {
             let from = lo.max(disk);
@@ -217,85 +202,43 @@ impl LowdimStore {
         Ok(())
     }
 
-    /// Calls `f` with column `d` of each range of rows in `ranges` (each `lo..hi`, in order), one
-    /// call per range. Rows on disk are read a large block at a time, whatever the ranges'
-    /// lengths, so memory stays at one block.
-    pub fn for_column(
+    /// Calls `f` with the rows of `ranges` (each `lo..hi`, in order), row-major, gathered into
+    /// blocks of up to [`BLOCK_ROWS`] whole rows (ranges are not kept apart: a block may end
+    /// inside one and hold several). Memory stays at one block.
+    pub fn for_rows(
         &self,
-        d: usize,
         ranges: &[(usize, usize)],
         f: &mut dyn FnMut(&[f32]),
     ) -> Result<()> {
-        const BLOCK_ROWS: usize = 1 << 18;
         let width = self.width;
-        let disk = self.disk_rows();
-        let (mut buf, mut buf_lo) = (Vec::new(), 0usize);
-        let mut part = Vec::new();
+        if width == 0 {
+            return Ok(());
+        }
+        let mut block = vec![0f32; BLOCK_ROWS.min(self.len()) * width];
+        let mut filled = 0usize;
         for &(lo, hi) in ranges {
-            if hi <= disk {
-                if lo < buf_lo || hi > buf_lo + buf.len() {
-                    let end = disk.min(lo + BLOCK_ROWS).max(hi);
-                    self.read_column(d, lo, end, &mut buf)?;
-                    buf_lo = lo;
+            self.check_range(lo, hi)?;
+            let mut at = lo;
+            while at < hi {
+                let take = (hi - at).min(BLOCK_ROWS - filled);
+                self.rows_into(at, &mut block[filled * width..(filled + take) * width])?;
+                (at, filled) = (at + take, filled + take);
+                if filled == BLOCK_ROWS {
+                    f(&block);
+                    filled = 0;
                 }
-                f(&buf[lo - buf_lo..hi - buf_lo]);
-                continue;
             }
-            part.clear();
-            if lo < disk {
-                self.read_column(d, lo, disk, &mut part)?;
-            }
-            let from = lo.max(disk) - disk;
-            let mem = &self.mem[from * width..(hi - disk) * width];
-            part.extend(mem.iter().skip(d).step_by(width));
-            f(&part);
+        }
+        if filled > 0 {
+            f(&block[..filled * width]);
         }
         Ok(())
     }
 
-    /// Rows `lo..hi` (all on disk) of column `d` into `out`.
-    fn read_column(&self, d: usize, lo: usize, hi: usize, out: &mut Vec<f32>) -> Result<()> {
-        let (files, _) = self.spilled.as_ref().expect("rows on disk");
-        out.clear();
-        out.resize(hi - lo, 0.0);
-        bytes::read_f32_at(&files[d], out, lo as u64 * 4).at("read", self.column_path(d))
-    }
-
-    /// The directory of the column files, for messages.
+    /// The directory of the spill file, for messages.
     pub fn dir(&self) -> &Path {
         &self.dir
     }
-}
-
-/// Row-major `f32` rows of `width` values → `columns`, column-major (one column after another),
-/// reusing its allocation. Blocks of rows are transposed in parallel (each block fits in
-/// cache); the result does not depend on the thread count.
-fn transpose(values: &[f32], width: usize, columns: &mut Vec<f32>) {
-    use rayon::prelude::*;
-    const BLOCK_ROWS: usize = 4096;
-    let rows = values.len() / width;
-    columns.clear();
-    columns.resize(rows * width, 0.0);
-    let mut blocks: Vec<Vec<&mut [f32]>> = (0..rows.div_ceil(BLOCK_ROWS))
-        .map(|_| Vec::with_capacity(width))
-        .collect();
-    for column in columns.chunks_mut(rows.max(1)) {
-        for (b, part) in column.chunks_mut(BLOCK_ROWS).enumerate() {
-            blocks[b].push(part);
-        }
-    }
-    blocks
-        .into_par_iter()
-        .enumerate()
-        .for_each(|(b, mut parts)| {
-            let block = &values[b * BLOCK_ROWS * width..];
-            let n = parts[0].len();
-            for (r, row) in block.chunks_exact(width).take(n).enumerate() {
-                for (part, &v) in parts.iter_mut().zip(row) {
-                    part[r] = v;
-                }
-            }
-        });
 }
 
 #[cfg(test)]
@@ -334,6 +277,9 @@ mod tests {
         );
         assert!(spilled.is_spilled());
         let n: usize = batches.iter().sum();
+        for store in [&memory, &spilled] {
+            assert!(store.high_counts().iter().all(|h| h.total() == n as u64));
+        }
         assert_eq!(memory.len(), n);
         assert_eq!(spilled.len(), n);
         let all = memory.rows(0, n).unwrap().into_owned();
@@ -348,25 +294,41 @@ mod tests {
             );
         }
         let ranges = [(0, 2), (2, 10), (30, 31), (50, n)];
-        for d in 0..width {
-            let expected: Vec<f32> = ranges
-                .iter()
-                .flat_map(|&(lo, hi)| (lo..hi).map(move |r| r * width + d))
-                .map(|i| all[i])
-                .collect();
-            for store in [&memory, &spilled] {
-                let (mut got, mut calls) = (Vec::new(), Vec::new());
-                store
-                    .for_column(d, &ranges, &mut |part| {
-                        calls.push(part.len());
-                        got.extend_from_slice(part);
-                    })
-                    .unwrap();
-                assert_eq!(got, expected);
-                let lengths: Vec<usize> = ranges.iter().map(|(lo, hi)| hi - lo).collect();
-                assert_eq!(calls, lengths, "one call per range");
-            }
+        let expected: Vec<f32> = ranges
+            .iter()
+            .flat_map(|&(lo, hi)| all[lo * width..hi * width].iter().copied())
+            .collect();
+        for store in [&memory, &spilled] {
+            let (mut got, mut calls) = (Vec::new(), 0);
+            store
+                .for_rows(&ranges, &mut |rows| {
+                    assert_eq!(rows.len() % width, 0, "whole rows");
+                    calls += 1;
+                    got.extend_from_slice(rows);
+                })
+                .unwrap();
+            assert_eq!(got, expected);
+            assert_eq!(calls, 1, "ranges gathered into one block");
         }
+        // Many blocks, ending inside ranges, over rows both on disk and in memory.
+        let big: usize = 3 * BLOCK_ROWS + 123;
+        let mut store = LowdimStore::new(2, 4096, tmp.path().join("b"), big);
+        let values: Vec<f32> = (0..2 * big).map(|i| i as f32).collect();
+        for part in values.chunks(2 * 1000) {
+            store.push(part, false).unwrap();
+        }
+        assert!(store.is_spilled() && store.disk_rows() < big);
+        let ranges = [(5, BLOCK_ROWS + 7), (BLOCK_ROWS + 9, big - 1)];
+        let expected: Vec<f32> = ranges
+            .iter()
+            .flat_map(|&(lo, hi)| values[2 * lo..2 * hi].iter().copied())
+            .collect();
+        let mut got = Vec::new();
+        store
+            .for_rows(&ranges, &mut |rows| got.extend_from_slice(rows))
+            .unwrap();
+        assert_eq!(got, expected);
+        assert!(store.for_rows(&[(0, big + 1)], &mut |_| {}).is_err());
         assert!(spilled.rows(0, n + 1).is_err());
         // Every range, including those straddling the rows on disk and those in memory, read
         // into a caller's buffer.

@@ -15,7 +15,7 @@ mod percentile;
 pub use moments::Moments;
 pub use percentile::{
     percentile, percentile_of_histogram, percentiles, percentiles_counted, percentiles_streamed,
-    HighCounts,
+    HighCounts, SecondPass,
 };
 
 use rayon::prelude::*;
@@ -97,6 +97,39 @@ pub fn lowdim_from<E: Send>(
             }
         })
         .collect::<Result<_, E>>()?;
+    let pct: Vec<Vec<f64>> = (0..PERCENTILES.len())
+        .map(|k| pct.iter().map(|p| p[k]).collect())
+        .collect();
+    Ok(finish(m, pct, rows))
+}
+
+/// [`lowdim_from`] for values read as row-major rows: `high` is each column's first percentile
+/// pass, counted ahead, and `pass(f)` must call `f` with blocks of whole rows that together
+/// hold every value the moments cover, once. Each block feeds every column's second pass
+/// ([`SecondPass`]), columns side by side: the rows are read once for all columns, and never
+/// all in memory.
+pub fn lowdim_from_rows<E>(
+    m: Moments,
+    dims: usize,
+    high: &[HighCounts],
+    pass: impl FnOnce(&mut dyn FnMut(&[f32])) -> Result<(), E>,
+) -> Result<ChannelStats, E> {
+    let rows = m.count;
+    let pct: Vec<Vec<f64>> = if rows == 0 || dims == 0 {
+        vec![vec![f64::NAN; PERCENTILES.len()]; dims]
+    } else {
+        let mut second: Vec<SecondPass> = high
+            .iter()
+            .map(|h| SecondPass::new(h, rows, &PERCENTILES))
+            .collect();
+        pass(&mut |block| {
+            second
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(d, s)| s.add_strided(block, d, dims));
+        })?;
+        second.into_par_iter().map(SecondPass::finish).collect()
+    };
     let pct: Vec<Vec<f64>> = (0..PERCENTILES.len())
         .map(|k| pct.iter().map(|p| p[k]).collect())
         .collect();

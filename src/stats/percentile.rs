@@ -174,90 +174,144 @@ pub fn percentiles_counted<E>(
     qs: &[f64],
     mut pass: impl FnMut(&mut dyn FnMut(&[f32])) -> Result<(), E>,
 ) -> Result<Vec<f64>, E> {
-    assert!(n > 0, "percentile of no values");
-    assert_eq!(high.total, n, "the first pass counted every value");
-    // Each rank's bucket and its rank among the bucket's values.
-    let mut ranks: Vec<u64> = Vec::with_capacity(2 * qs.len());
-    for &q in qs {
-        let (lo, frac) = position(n, q);
-        ranks.push(lo);
-        if frac != 0.0 && lo + 1 < n {
-            ranks.push(lo + 1);
-        }
-    }
-    ranks.sort_unstable();
-    ranks.dedup();
-    let mut located: Vec<(u64, usize, u64)> = Vec::with_capacity(ranks.len());
-    let (mut bucket, mut below) = (0usize, 0u64);
-    for &r in &ranks {
-        while below + high.bucket(bucket) <= r {
-            below += high.bucket(bucket);
-            bucket += 1;
-        }
-        located.push((r, bucket, r - below));
-    }
-    // The second read keeps, per needed bucket, its values' low 16 bits: as a list when the
-    // bucket is small (the usual case: a few values around each percentile), as a table of
-    // counts when it is large (values concentrated on a few keys).
-    let mut buckets: Vec<usize> = located.iter().map(|&(_, b, _)| b).collect();
-    buckets.dedup();
-    let mut slot = vec![u8::MAX; 1 << 16];
-    let mut low: Vec<Low> = Vec::with_capacity(buckets.len());
-    for (i, &b) in buckets.iter().enumerate() {
-        slot[b] = i as u8;
-        low.push(if high.bucket(b) <= SMALL_BUCKET {
-            Low::Keys(Vec::with_capacity(high.bucket(b) as usize))
-        } else {
-            Low::Counts(vec![0u64; 1 << 16])
-        });
-    }
-    pass(&mut |block| {
-        for &v in block {
-            let k = key(v);
-            let s = slot[(k >> 16) as usize];
-            if s != u8::MAX {
-                match &mut low[s as usize] {
-                    Low::Keys(keys) => keys.push(k as u16),
-                    Low::Counts(counts) => counts[(k & 0xFFFF) as usize] += 1,
-                }
-            }
-        }
-    })?;
-    for l in &mut low {
-        if let Low::Keys(keys) = l {
-            keys.sort_unstable();
-        }
-    }
-    let value_at = |rank: u64| -> f64 {
-        let &(_, b, within) = located
-            .iter()
-            .find(|&&(r, _, _)| r == rank)
-            .expect("located");
-        let l = match &low[buckets.iter().position(|&x| x == b).expect("bucket")] {
-            Low::Keys(keys) => keys[within as usize],
-            Low::Counts(counts) => {
-                let (mut l, mut within) = (0usize, within);
-                while counts[l] <= within {
-                    within -= counts[l];
-                    l += 1;
-                }
-                l as u16
-            }
-        };
-        f64::from(from_key(((b as u32) << 16) | u32::from(l)))
-    };
-    Ok(qs
-        .iter()
-        .map(|&q| {
+    let mut second = SecondPass::new(high, n, qs);
+    pass(&mut |block| second.add(block))?;
+    Ok(second.finish())
+}
+
+/// The second pass of [`percentiles_streamed`] as a value: fed every value again (in any order
+/// and blocks, [`SecondPass::add`] or [`SecondPass::add_strided`]), then [`SecondPass::finish`]
+/// gives the percentiles. Lets one read of row-major rows feed every column's second pass.
+#[derive(Debug)]
+pub struct SecondPass {
+    n: u64,
+    qs: Vec<f64>,
+    /// Each needed rank: (rank, its bucket, its rank within the bucket).
+    located: Vec<(u64, usize, u64)>,
+    /// The needed buckets, in order.
+    buckets: Vec<usize>,
+    /// Per bucket (high 16 bits), its position in `buckets`, or `u8::MAX`.
+    slot: Vec<u8>,
+    low: Vec<Low>,
+}
+
+impl SecondPass {
+    /// `high` counted the `n` values the pass will be fed.
+    pub fn new(high: &HighCounts, n: u64, qs: &[f64]) -> Self {
+        assert!(n > 0, "percentile of no values");
+        assert_eq!(high.total, n, "the first pass counted every value");
+        // Each rank's bucket and its rank among the bucket's values.
+        let mut ranks: Vec<u64> = Vec::with_capacity(2 * qs.len());
+        for &q in qs {
             let (lo, frac) = position(n, q);
-            let a = value_at(lo);
-            if frac == 0.0 || lo + 1 >= n {
-                a
-            } else {
-                lerp(a, value_at(lo + 1), frac)
+            ranks.push(lo);
+            if frac != 0.0 && lo + 1 < n {
+                ranks.push(lo + 1);
             }
-        })
-        .collect())
+        }
+        ranks.sort_unstable();
+        ranks.dedup();
+        let mut located: Vec<(u64, usize, u64)> = Vec::with_capacity(ranks.len());
+        let (mut bucket, mut below) = (0usize, 0u64);
+        for &r in &ranks {
+            while below + high.bucket(bucket) <= r {
+                below += high.bucket(bucket);
+                bucket += 1;
+            }
+            located.push((r, bucket, r - below));
+        }
+        // The second read keeps, per needed bucket, its values' low 16 bits: as a list when the
+        // bucket is small (the usual case: a few values around each percentile), as a table of
+        // counts when it is large (values concentrated on a few keys).
+        let mut buckets: Vec<usize> = located.iter().map(|&(_, b, _)| b).collect();
+        buckets.dedup();
+        let mut slot = vec![u8::MAX; 1 << 16];
+        let mut low: Vec<Low> = Vec::with_capacity(buckets.len());
+        for (i, &b) in buckets.iter().enumerate() {
+            slot[b] = i as u8;
+            low.push(if high.bucket(b) <= SMALL_BUCKET {
+                Low::Keys(Vec::with_capacity(high.bucket(b) as usize))
+            } else {
+                Low::Counts(vec![0u64; 1 << 16])
+            });
+        }
+        SecondPass {
+            n,
+            qs: qs.to_vec(),
+            located,
+            buckets,
+            slot,
+            low,
+        }
+    }
+
+    #[inline]
+    fn add_one(&mut self, v: f32) {
+        let k = key(v);
+        let s = self.slot[(k >> 16) as usize];
+        if s != u8::MAX {
+            match &mut self.low[s as usize] {
+                Low::Keys(keys) => keys.push(k as u16),
+                Low::Counts(counts) => counts[(k & 0xFFFF) as usize] += 1,
+            }
+        }
+    }
+
+    /// Feeds `values`.
+    pub fn add(&mut self, values: &[f32]) {
+        for &v in values {
+            self.add_one(v);
+        }
+    }
+
+    /// Feeds every `stride`-th value of `values` from `first` (one column of row-major rows).
+    pub fn add_strided(&mut self, values: &[f32], first: usize, stride: usize) {
+        for &v in values.iter().skip(first).step_by(stride.max(1)) {
+            self.add_one(v);
+        }
+    }
+
+    /// The percentiles of `qs`, in order.
+    pub fn finish(mut self) -> Vec<f64> {
+        for l in &mut self.low {
+            if let Low::Keys(keys) = l {
+                keys.sort_unstable();
+            }
+        }
+        let value_at = |rank: u64| -> f64 {
+            let &(_, b, within) = self
+                .located
+                .iter()
+                .find(|&&(r, _, _)| r == rank)
+                .expect("located");
+            let position = self.buckets.iter().position(|&x| x == b).expect("bucket");
+            let l = match &self.low[position] {
+                Low::Keys(keys) => keys[within as usize],
+                Low::Counts(counts) => {
+                    let (mut l, mut within) = (0usize, within);
+                    while counts[l] <= within {
+                        within -= counts[l];
+                        l += 1;
+                    }
+                    l as u16
+                }
+            };
+            f64::from(from_key(((b as u32) << 16) | u32::from(l)))
+        };
+        let n = self.n;
+        self.qs
+            .iter()
+            .map(|&q| {
+                let (lo, frac) = position(n, q);
+                let a = value_at(lo);
+                if frac == 0.0 || lo + 1 >= n {
+                    a
+                } else {
+                    lerp(a, value_at(lo + 1), frac)
+                }
+            })
+            .collect()
+    }
 }
 
 /// Buckets of at most this many values keep their values' low bits as a list (sorted at the
@@ -265,6 +319,7 @@ pub fn percentiles_counted<E>(
 const SMALL_BUCKET: u64 = 1 << 15;
 
 /// The low 16 bits of the keys of one needed bucket.
+#[derive(Debug)]
 enum Low {
     Keys(Vec<u16>),
     Counts(Vec<u64>),
