@@ -205,11 +205,7 @@ impl LowdimStore {
     /// Calls `f` with the rows of `ranges` (each `lo..hi`, in order), row-major, gathered into
     /// blocks of up to [`BLOCK_ROWS`] whole rows (ranges are not kept apart: a block may end
     /// inside one and hold several). Memory stays at one block.
-    pub fn for_rows(
-        &self,
-        ranges: &[(usize, usize)],
-        f: &mut dyn FnMut(&[f32]),
-    ) -> Result<()> {
+    pub fn for_rows(&self, ranges: &[(usize, usize)], f: &mut dyn FnMut(&[f32])) -> Result<()> {
         let width = self.width;
         if width == 0 {
             return Ok(());
@@ -312,7 +308,7 @@ mod tests {
         }
         // Many blocks, ending inside ranges, over rows both on disk and in memory.
         let big: usize = 3 * BLOCK_ROWS + 123;
-        let mut store = LowdimStore::new(2, 4096, tmp.path().join("b"), big);
+        let mut store = LowdimStore::new(2, 80_000, tmp.path().join("b"), big);
         let values: Vec<f32> = (0..2 * big).map(|i| i as f32).collect();
         for part in values.chunks(2 * 1000) {
             store.push(part, false).unwrap();
