@@ -27,6 +27,11 @@ use crate::stats::HighCounts;
 /// Bytes of values one store keeps in memory before it spills.
 pub const DEFAULT_BUDGET: usize = 32 << 20;
 
+/// Channels up to this wide count their first percentile pass as rows are pushed (a 256 KiB
+/// table per column, 16 MiB at most a store); wider ones (point clouds) leave both passes to
+/// the statistics, a group of columns at a time.
+pub const COUNT_AHEAD_COLUMNS: usize = 64;
+
 /// Rows [`LowdimStore::for_rows`] hands over at once.
 const BLOCK_ROWS: usize = 1 << 14;
 
@@ -53,7 +58,8 @@ pub struct LowdimStore {
     /// The spill file (row-major rows, little-endian) once spilled, and how many rows it holds.
     spilled: Option<(File, usize)>,
     /// Per column, the first pass of the exact percentiles over the training rows, counted as
-    /// they are pushed (see [`crate::stats::SecondPass`] for the second).
+    /// they are pushed (see [`crate::stats::SecondPass`] for the second); empty for channels
+    /// wider than [`COUNT_AHEAD_COLUMNS`].
     high: Vec<HighCounts>,
 }
 
@@ -79,13 +85,17 @@ impl LowdimStore {
             mem: Vec::with_capacity(capacity),
             flush_at,
             spilled: None,
-            high: (0..width).map(|_| HighCounts::new()).collect(),
+            high: (0..width)
+                .filter(|_| width <= COUNT_AHEAD_COLUMNS)
+                .map(|_| HighCounts::new())
+                .collect(),
         }
     }
 
-    /// Per column, the first pass of the percentiles over the training rows pushed so far.
-    pub fn high_counts(&self) -> &[HighCounts] {
-        &self.high
+    /// Per column, the first pass of the percentiles over the training rows pushed so far;
+    /// `None` for channels wider than [`COUNT_AHEAD_COLUMNS`].
+    pub fn high_counts(&self) -> Option<&[HighCounts]> {
+        (self.width <= COUNT_AHEAD_COLUMNS).then_some(self.high.as_slice())
     }
 
     pub fn width(&self) -> usize {
@@ -116,7 +126,7 @@ impl LowdimStore {
             return Ok(());
         }
         debug_assert_eq!(values.len() % self.width, 0);
-        if train {
+        if train && !self.high.is_empty() {
             HighCounts::add_rows(&mut self.high, values);
         }
         self.mem.extend_from_slice(values);
@@ -274,7 +284,8 @@ mod tests {
         assert!(spilled.is_spilled());
         let n: usize = batches.iter().sum();
         for store in [&memory, &spilled] {
-            assert!(store.high_counts().iter().all(|h| h.total() == n as u64));
+            let high = store.high_counts().expect("narrow channels count ahead");
+            assert!(high.iter().all(|h| h.total() == n as u64));
         }
         assert_eq!(memory.len(), n);
         assert_eq!(spilled.len(), n);
@@ -325,6 +336,9 @@ mod tests {
             .unwrap();
         assert_eq!(got, expected);
         assert!(store.for_rows(&[(0, big + 1)], &mut |_| {}).is_err());
+        // Wide channels (point clouds) leave the first pass to the statistics.
+        let wide = LowdimStore::new(COUNT_AHEAD_COLUMNS + 1, 1 << 20, tmp.path().join("w"), 4);
+        assert!(wide.high_counts().is_none());
         assert!(spilled.rows(0, n + 1).is_err());
         // Every range, including those straddling the rows on disk and those in memory, read
         // into a caller's buffer.

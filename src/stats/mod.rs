@@ -103,21 +103,46 @@ pub fn lowdim_from<E: Send>(
     Ok(finish(m, pct, rows))
 }
 
-/// [`lowdim_from`] for values read as row-major rows: `high` is each column's first percentile
-/// pass, counted ahead, and `pass(f)` must call `f` with blocks of whole rows that together
-/// hold every value the moments cover, once. Each block feeds every column's second pass
-/// ([`SecondPass`]), columns side by side: the rows are read once for all columns, and never
-/// all in memory.
+/// Columns whose percentile passes [`lowdim_from_rows`] runs side by side: memory is a few
+/// 65,536-entry tables per column (more for columns whose values crowd into a few buckets), so
+/// wide channels (point clouds) go a group of columns at a time.
+pub const COLUMN_GROUP: usize = 16;
+
+/// [`lowdim_from`] for values read as row-major rows: `pass(f)` must call `f` with blocks of
+/// whole rows that together hold every value the moments cover, each time it is called.
+/// `high`, when given, is every column's first percentile pass, counted ahead. Each block
+/// feeds the passes of a group of [`COLUMN_GROUP`] columns side by side, so a channel of up to
+/// that many columns is read once (twice without `high`), a wider one once or twice per group;
+/// the rows are never all in memory.
 pub fn lowdim_from_rows<E>(
     m: Moments,
     dims: usize,
-    high: &[HighCounts],
-    pass: impl FnOnce(&mut dyn FnMut(&[f32])) -> Result<(), E>,
+    high: Option<&[HighCounts]>,
+    mut pass: impl FnMut(&mut dyn FnMut(&[f32])) -> Result<(), E>,
 ) -> Result<ChannelStats, E> {
     let rows = m.count;
-    let pct: Vec<Vec<f64>> = if rows == 0 || dims == 0 {
-        vec![vec![f64::NAN; PERCENTILES.len()]; dims]
-    } else {
+    let mut pct: Vec<Vec<f64>> = Vec::with_capacity(dims);
+    if rows == 0 {
+        pct.resize(dims, vec![f64::NAN; PERCENTILES.len()]);
+    }
+    for first in (0..dims).step_by(COLUMN_GROUP).filter(|_| rows > 0) {
+        let columns = first..dims.min(first + COLUMN_GROUP);
+        let counted: Vec<HighCounts>;
+        let high: &[HighCounts] = match high {
+            Some(high) => &high[columns.clone()],
+            None => {
+                let mut group: Vec<HighCounts> =
+                    columns.clone().map(|_| HighCounts::new()).collect();
+                pass(&mut |block| {
+                    group
+                        .par_iter_mut()
+                        .zip(columns.clone())
+                        .for_each(|(h, d)| h.add_strided(block, d, dims));
+                })?;
+                counted = group;
+                &counted
+            }
+        };
         let mut second: Vec<SecondPass> = high
             .iter()
             .map(|h| SecondPass::new(h, rows, &PERCENTILES))
@@ -125,11 +150,16 @@ pub fn lowdim_from_rows<E>(
         pass(&mut |block| {
             second
                 .par_iter_mut()
-                .enumerate()
-                .for_each(|(d, s)| s.add_strided(block, d, dims));
+                .zip(columns.clone())
+                .for_each(|(s, d)| s.add_strided(block, d, dims));
         })?;
-        second.into_par_iter().map(SecondPass::finish).collect()
-    };
+        pct.extend(
+            second
+                .into_par_iter()
+                .map(SecondPass::finish)
+                .collect::<Vec<_>>(),
+        );
+    }
     let pct: Vec<Vec<f64>> = (0..PERCENTILES.len())
         .map(|k| pct.iter().map(|p| p[k]).collect())
         .collect();
@@ -322,6 +352,53 @@ mod tests {
                 naive[i % colors][v as usize] += 1;
             }
             assert_eq!(p.hist, naive, "{colors} colours");
+        }
+    }
+
+    #[test]
+    fn rows_read_in_blocks_equal_the_whole_columns() {
+        // A narrow channel counted ahead, and one wider than a column group counted by the
+        // statistics themselves, group by group; blocks of 7 rows, so they end inside rows'
+        // natural groupings.
+        for (dims, ahead) in [(3usize, true), (COLUMN_GROUP + 5, false), (5, false)] {
+            let rows = 300;
+            let values: Vec<f32> = (0..rows * dims)
+                .map(|i| ((i * 7919 + i / dims * 31) % 1009) as f32 * 0.25 - 40.0)
+                .collect();
+            let want = lowdim(std::iter::once(&values[..]), dims);
+            let mut high: Vec<HighCounts> = (0..dims).map(|_| HighCounts::new()).collect();
+            HighCounts::add_rows(&mut high, &values);
+            let mut passes = 0;
+            let got = lowdim_from_rows::<()>(
+                Moments::of_rows(&values, dims),
+                dims,
+                ahead.then_some(high.as_slice()),
+                |f| {
+                    passes += 1;
+                    values.chunks(7 * dims).for_each(&mut *f);
+                    Ok(())
+                },
+            )
+            .unwrap();
+            let groups = dims.div_ceil(COLUMN_GROUP);
+            assert_eq!(passes, if ahead { groups } else { 2 * groups });
+            let pairs = [
+                (&want.p001, &got.p001),
+                (&want.q01, &got.q01),
+                (&want.q10, &got.q10),
+                (&want.q50, &got.q50),
+                (&want.q90, &got.q90),
+                (&want.q99, &got.q99),
+                (&want.p999, &got.p999),
+            ];
+            for (w, g) in pairs {
+                assert_eq!(w.len(), dims);
+                let same = w
+                    .iter()
+                    .zip(g.iter())
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(same, "dims {dims}: {w:?} vs {g:?}");
+            }
         }
     }
 

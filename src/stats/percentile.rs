@@ -117,6 +117,20 @@ impl HighCounts {
         }
     }
 
+    /// Counts every `stride`-th value of `values` from `first` (one column of row-major rows).
+    pub fn add_strided(&mut self, values: &[f32], first: usize, stride: usize) {
+        let n = values.len().saturating_sub(first).div_ceil(stride.max(1));
+        if self.pending + n as u64 > self.limit {
+            let column: Vec<f32> = values.iter().skip(first).step_by(stride).copied().collect();
+            return self.add(&column);
+        }
+        for &v in values.iter().skip(first).step_by(stride.max(1)) {
+            self.counts[(key(v) >> 16) as usize] += 1;
+        }
+        self.pending += n as u64;
+        self.total += n as u64;
+    }
+
     /// Counts row-major rows: `highs[d]` counts column `d` of each row of `values`. One pass
     /// over the rows; consecutive increments go to different tables, so none waits for the
     /// previous one's store.
