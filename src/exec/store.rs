@@ -4,8 +4,8 @@
 //! the statistics are known, so exec keeps every low-dim value until the end of the build. A
 //! [`LowdimStore`] knows how many rows it will hold: when they fit in a byte budget it keeps them
 //! in memory (row-major, as read, one allocation); otherwise it spills from the start, appending
-//! a quarter budget of rows at a time to one file in the build's staging directory, row-major as
-//! they are, and keeps at most that many rows in memory. As training rows are pushed it counts
+//! 8 MiB of rows at a time (a quarter budget if less) to one file in the build's staging
+//! directory, row-major as they are, and keeps at most that many rows in memory. As training rows are pushed it counts
 //! each column's first percentile pass ([`LowdimStore::high_counts`]). Reading is then (a) the
 //! training rows a block at a time, every column at once, for the percentiles' second pass
 //! ([`LowdimStore::for_rows`]), and (b) a range of rows, for the writers and per-episode exports
@@ -24,8 +24,15 @@ use crate::bytes;
 use crate::error::{Error, IoContext, Result};
 use crate::stats::HighCounts;
 
-/// Bytes of values one store keeps in memory before it spills.
-pub const DEFAULT_BUDGET: usize = 32 << 20;
+/// Bytes of values one store keeps in memory rather than spill: a channel of up to about 1.2
+/// million rows of 14 values. A spec's lower rates mostly fit (the 25, 10 and 5 Hz stores of
+/// 5,000 episodes of 400 steps at 50 Hz do), so a spec with several rates spills only its
+/// largest stores; memory stays bounded by the budget times the number of stores.
+pub const DEFAULT_BUDGET: usize = 64 << 20;
+
+/// Bytes of rows a spilling store keeps in memory before it appends them to its file (a
+/// quarter of the budget when that is smaller).
+const SPILL_BLOCK: usize = 8 << 20;
 
 /// Channels up to this wide count their first percentile pass as rows are pushed (a 256 KiB
 /// table per column, 16 MiB at most a store); wider ones (point clouds) leave both passes to
@@ -50,8 +57,8 @@ pub struct LowdimStore {
     /// Where the spill file goes, created when the store first spills.
     dir: PathBuf,
     /// Rows not on disk (all of them until the store spills), row-major. Its capacity is set
-    /// once: every row when they fit in the budget, else a quarter of it (the store flushes a
-    /// quarter budget at a time), so pushing never reallocates and copies it.
+    /// once: every row when they fit in the budget, else one spill block (the store flushes a
+    /// block at a time), so pushing never reallocates and copies it.
     mem: Vec<f32>,
     /// Bytes of `mem` that make the store flush.
     flush_at: usize,
@@ -67,12 +74,12 @@ impl LowdimStore {
     /// A store for `rows` rows (a capacity hint: more may be pushed) of `width` values.
     pub fn new(width: usize, budget: usize, dir: PathBuf, rows: usize) -> Self {
         let bytes = rows.saturating_mul(width).saturating_mul(4);
-        // Rows that will spill go a quarter budget at a time (at least a row); rows that fit
-        // stay, in one allocation of their exact size.
+        // Rows that will spill go a block at a time (at least a row); rows that fit stay, in
+        // one allocation of their exact size.
         let flush_at = if bytes <= budget {
             budget
         } else {
-            (budget / 4).max(4 * width)
+            SPILL_BLOCK.min(budget / 4).max(4 * width)
         };
         let capacity = if bytes <= budget {
             rows * width
