@@ -125,6 +125,21 @@ pub fn lowdim_from_rows<E>(
     if rows == 0 {
         pct.resize(dims, vec![f64::NAN; PERCENTILES.len()]);
     }
+    // One read of the rows feeds `passes[i]` with column `columns.start + i` of every block.
+    fn feed<P: Send, E>(
+        pass: &mut impl FnMut(&mut dyn FnMut(&[f32])) -> Result<(), E>,
+        passes: &mut [P],
+        columns: &std::ops::Range<usize>,
+        dims: usize,
+        add: impl Fn(&mut P, &[f32], usize, usize) + Sync,
+    ) -> Result<(), E> {
+        pass(&mut |block| {
+            passes
+                .par_iter_mut()
+                .zip(columns.clone())
+                .for_each(|(p, d)| add(p, block, d, dims));
+        })
+    }
     for first in (0..dims).step_by(COLUMN_GROUP).filter(|_| rows > 0) {
         let columns = first..dims.min(first + COLUMN_GROUP);
         let counted: Vec<HighCounts>;
@@ -133,12 +148,13 @@ pub fn lowdim_from_rows<E>(
             None => {
                 let mut group: Vec<HighCounts> =
                     columns.clone().map(|_| HighCounts::new()).collect();
-                pass(&mut |block| {
-                    group
-                        .par_iter_mut()
-                        .zip(columns.clone())
-                        .for_each(|(h, d)| h.add_strided(block, d, dims));
-                })?;
+                feed(
+                    &mut pass,
+                    &mut group,
+                    &columns,
+                    dims,
+                    HighCounts::add_strided,
+                )?;
                 counted = group;
                 &counted
             }
@@ -147,12 +163,13 @@ pub fn lowdim_from_rows<E>(
             .iter()
             .map(|h| SecondPass::new(h, rows, &PERCENTILES))
             .collect();
-        pass(&mut |block| {
-            second
-                .par_iter_mut()
-                .zip(columns.clone())
-                .for_each(|(s, d)| s.add_strided(block, d, dims));
-        })?;
+        feed(
+            &mut pass,
+            &mut second,
+            &columns,
+            dims,
+            SecondPass::add_strided,
+        )?;
         pct.extend(
             second
                 .into_par_iter()
