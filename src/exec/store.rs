@@ -227,16 +227,17 @@ impl LowdimStore {
         if width == 0 {
             return Ok(());
         }
-        let mut block = vec![0f32; BLOCK_ROWS.min(self.len()) * width];
+        let capacity = BLOCK_ROWS.min(self.len()).max(1);
+        let mut block = vec![0f32; capacity * width];
         let mut filled = 0usize;
         for &(lo, hi) in ranges {
             self.check_range(lo, hi)?;
             let mut at = lo;
             while at < hi {
-                let take = (hi - at).min(BLOCK_ROWS - filled);
+                let take = (hi - at).min(capacity - filled);
                 self.rows_into(at, &mut block[filled * width..(filled + take) * width])?;
                 (at, filled) = (at + take, filled + take);
-                if filled == BLOCK_ROWS {
+                if filled == capacity {
                     f(&block);
                     filled = 0;
                 }
