@@ -65,7 +65,7 @@ pub fn lowdim<'a>(
         f(&column);
         Ok(())
     };
-    match lowdim_from(m, dims, None, each) {
+    match lowdim_from(m, dims, each) {
         Ok(s) => s,
         Err(never) => match never {},
     }
@@ -75,13 +75,11 @@ pub fn lowdim<'a>(
 /// a time: `each(d, f)` calls `f` with blocks that together hold dimension `d` of every value the
 /// moments cover. Exact percentiles come from two reads of each column
 /// ([`percentiles_streamed`]), one column per task: the values are never all in memory, which is
-/// what keeps a build's memory flat in the number of episodes. `high`, when given, is each
-/// column's first pass already counted (by whoever saw the values first), and each column is
-/// read once ([`percentiles_counted`]).
+/// what keeps memory flat in the number of values. A build reads its stores' rows with
+/// [`lowdim_from_rows`] instead: every column from one read.
 pub fn lowdim_from<E: Send>(
     m: Moments,
     dims: usize,
-    high: Option<&[HighCounts]>,
     each: impl Fn(usize, &mut dyn FnMut(&[f32])) -> Result<(), E> + Sync,
 ) -> Result<ChannelStats, E> {
     let rows = m.count;
@@ -90,8 +88,6 @@ pub fn lowdim_from<E: Send>(
         .map(|d| {
             if rows == 0 {
                 Ok(vec![f64::NAN; PERCENTILES.len()])
-            } else if let Some(high) = high {
-                percentiles_counted(&high[d], rows, &PERCENTILES, |f| each(d, f))
             } else {
                 percentiles_streamed(rows, &PERCENTILES, |f| each(d, f))
             }
