@@ -18,7 +18,7 @@
 use std::borrow::Cow;
 use std::fs::File;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use crate::bytes;
 use crate::error::{Error, IoContext, Result};
@@ -248,16 +248,12 @@ impl LowdimStore {
         }
         Ok(())
     }
-
-    /// The directory of the spill file, for messages.
-    pub fn dir(&self) -> &Path {
-        &self.dir
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::Path;
 
     fn filled(budget: usize, dir: &Path, width: usize, batches: &[usize]) -> LowdimStore {
         let rows: usize = batches.iter().sum();

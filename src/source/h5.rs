@@ -211,32 +211,37 @@ pub fn direct(ds: &Dataset) -> Option<Direct> {
 /// `uint8` as bytes, floats converted to `f32` as [`read`] does.
 pub fn read_direct(file: &std::fs::File, d: &Direct) -> std::io::Result<Raw> {
     use std::os::unix::fs::FileExt;
-    if let (DirectType::F32, Place::Contiguous(offset)) = (&d.dtype, &d.place) {
-        // Straight into the values: no byte buffer, no second copy.
-        let mut values = vec![0f32; d.elements];
-        crate::bytes::read_f32_at(file, &mut values, *offset)?;
-        return Ok(Raw::F32(values));
-    }
-    let mut bytes = vec![0u8; d.elements * d.dtype.size()];
-    match &d.place {
-        Place::Contiguous(offset) => file.read_exact_at(&mut bytes, *offset)?,
-        Place::Chunked(map) => chunk_map::read_rows(file, map, 0, &mut bytes)?,
-        Place::Deflated(map) => chunk_map::read_deflated(file, map, &mut bytes)?,
-    }
+    // Wherever the bytes lie, they are read into `out`.
+    let fill = |out: &mut [u8]| -> std::io::Result<()> {
+        match &d.place {
+            Place::Contiguous(offset) => file.read_exact_at(out, *offset),
+            Place::Chunked(map) => chunk_map::read_rows(file, map, 0, out),
+            Place::Deflated(map) => chunk_map::read_deflated(file, map, out),
+        }
+    };
     Ok(match d.dtype {
-        DirectType::U8 => Raw::U8(bytes),
-        DirectType::F32 => Raw::F32(
-            bytes
-                .chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                .collect(),
-        ),
-        DirectType::F64 => Raw::F32(
-            bytes
-                .chunks_exact(8)
-                .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")) as f32)
-                .collect(),
-        ),
+        DirectType::U8 => {
+            let mut bytes = vec![0u8; d.elements];
+            fill(&mut bytes)?;
+            Raw::U8(bytes)
+        }
+        // Straight into the values: no byte buffer, no second copy.
+        DirectType::F32 => {
+            let mut values = vec![0f32; d.elements];
+            fill(crate::bytes::f32_bytes_mut(&mut values))?;
+            crate::bytes::from_le(&mut values);
+            Raw::F32(values)
+        }
+        DirectType::F64 => {
+            let mut bytes = vec![0u8; d.elements * d.dtype.size()];
+            fill(&mut bytes)?;
+            Raw::F32(
+                bytes
+                    .chunks_exact(8)
+                    .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")) as f32)
+                    .collect(),
+            )
+        }
     })
 }
 

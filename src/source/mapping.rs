@@ -269,6 +269,12 @@ pub fn assemble(
         let raw = read(&key)?;
         cache.insert(key, raw);
     }
+    // Whether a channel after the `c`-th reads `key` too (then it cannot be moved out).
+    let used_later = |key: &str, c: usize| {
+        mapped.recipes[c + 1..]
+            .iter()
+            .any(|r| r.parts.iter().any(|p| p.key == key))
+    };
     let mut out = Vec::with_capacity(mapped.channels.len());
     for (ch, recipe) in mapped.channels.iter().zip(&mapped.recipes) {
         for part in &recipe.parts {
@@ -283,15 +289,14 @@ pub fn assemble(
         let data = match ch.kind {
             ChannelKind::Image => {
                 let part = &recipe.parts[0];
-                let used_later = mapped.recipes[out.len() + 1..]
-                    .iter()
-                    .any(|r| r.parts.iter().any(|p| p.key == part.key));
                 match &cache[&part.key] {
                     // Move the frames out unless another channel reads the same key.
-                    Raw::U8(_) if !used_later => match cache.remove(&part.key) {
-                        Some(Raw::U8(v)) => ChannelData::Image(v),
-                        _ => unreachable!("matched above"),
-                    },
+                    Raw::U8(_) if !used_later(&part.key, out.len()) => {
+                        match cache.remove(&part.key) {
+                            Some(Raw::U8(v)) => ChannelData::Image(v),
+                            _ => unreachable!("matched above"),
+                        }
+                    }
                     Raw::U8(v) => ChannelData::Image(v.clone()),
                     Raw::F32(v) => {
                         let per_step = ch.width().max(1);
@@ -307,20 +312,15 @@ pub fn assemble(
                     if part.columns == (0..part.width) {
                         // The whole key, as it is: moved out (or copied once if another channel
                         // reads it too), not rebuilt value by value.
-                        let used_later = mapped.recipes[out.len() + 1..]
-                            .iter()
-                            .any(|r| r.parts.iter().any(|p| p.key == part.key));
-                        let values = match cache.remove(&part.key) {
-                            Some(Raw::F32(v)) if !used_later => v,
-                            Some(raw) => {
-                                let copy = match &raw {
-                                    Raw::F32(v) => v.clone(),
-                                    Raw::U8(v) => v.iter().map(|&b| f32::from(b)).collect(),
-                                };
-                                cache.insert(part.key.clone(), raw);
-                                copy
+                        let values = match &cache[&part.key] {
+                            Raw::F32(_) if !used_later(&part.key, out.len()) => {
+                                match cache.remove(&part.key) {
+                                    Some(Raw::F32(v)) => v,
+                                    _ => unreachable!("matched above"),
+                                }
                             }
-                            None => unreachable!("every key read above"),
+                            Raw::F32(v) => v.clone(),
+                            Raw::U8(v) => v.iter().map(|&b| f32::from(b)).collect(),
                         };
                         out.push(ChannelData::Lowdim(values));
                         continue;

@@ -141,9 +141,9 @@ impl HighCounts {
         }
         let rows = values.len() / width;
         if highs.iter().any(|h| h.pending + rows as u64 > h.limit) {
+            // Near a fold: column by column, each folding where it must.
             for (d, high) in highs.iter_mut().enumerate() {
-                let column: Vec<f32> = values.iter().skip(d).step_by(width).copied().collect();
-                high.add(&column);
+                high.add_strided(values, d, width);
             }
             return;
         }
