@@ -107,7 +107,7 @@ pub(super) fn profile(
             normalized,
         ),
     )?;
-    write(STATS_FILE, documents::stats_json(stats))?;
+    write(STATS_FILE, documents::stats_json(p, stats))?;
     if p.values.format == crate::spec::OutputFormat::Parquet {
         // LeRobot v3.0 reads its statistics from `meta/stats.json`.
         let path = dir.join(sink::lerobot::STATS_PATH);

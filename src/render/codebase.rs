@@ -10,7 +10,7 @@ use crate::plan::{ProfileChannel, ProfilePlan};
 use crate::source::ChannelKind;
 use crate::spec::StatsFormat;
 use crate::stats::normalize::{Normalizer, ZSCORE_STD_FLOOR};
-use crate::stats::ChannelStats;
+use crate::stats::{shaped, ChannelStats};
 
 /// ACT's action_min/action_max margin (act-plus-plus).
 const ACT_MINMAX_EPS: f64 = 1e-4;
@@ -179,9 +179,10 @@ fn diffusion_policy(inputs: &Inputs) -> crate::Result<Vec<File>> {
             let s = &inputs.stats[&ch.name];
             let scale: Vec<f64> = n.scale.iter().map(|s| 1.0 / s).collect();
             let offset: Vec<f64> = n.center.iter().zip(&n.scale).map(|(c, s)| -c / s).collect();
+            // `LinearNormalizer.fit` stores torch's `std`, which is unbiased (ddof = 1).
             json!({
                 "scale": scale, "offset": offset,
-                "input_stats": { "min": s.min, "max": s.max, "mean": s.mean, "std": s.std },
+                "input_stats": { "min": s.min, "max": s.max, "mean": s.mean, "std": s.moments.std(1) },
             })
         };
         params.insert(dp_key(&ch.name).to_string(), entry);
@@ -221,9 +222,13 @@ pub fn lerobot(profile: &ProfilePlan, stats: &BTreeMap<String, ChannelStats>) ->
                 "q90": img(&s.q90, 255.0), "q99": img(&s.q99, 255.0),
             })
         } else {
+            // LeRobot keeps the feature's shape: a (9, 2) feature has (9, 2) statistics.
+            let v = |values: &Vec<f64>| shaped::nested(values, &ch.shape);
             json!({
-                "min": s.min, "max": s.max, "mean": s.mean, "std": s.std, "count": [s.count],
-                "q01": s.q01, "q10": s.q10, "q50": s.q50, "q90": s.q90, "q99": s.q99,
+                "min": v(&s.min), "max": v(&s.max), "mean": v(&s.mean), "std": v(&s.std),
+                "count": [s.count],
+                "q01": v(&s.q01), "q10": v(&s.q10), "q50": v(&s.q50), "q90": v(&s.q90),
+                "q99": v(&s.q99),
             })
         };
         doc.insert(ch.name.clone(), entry);
@@ -247,6 +252,16 @@ fn openpi(inputs: &Inputs) -> Vec<u8> {
 /// mean and population std + 1e-3; actions: min_max to ±0.999999), and the v0.4 `{mean, std}`.
 fn robomimic(inputs: &Inputs) -> Vec<u8> {
     let row = |v: Vec<f64>| json!([v]);
+    // robomimic's `compute_traj_stats` keeps the observation's shape behind a leading 1.
+    let obs_row = |v: Vec<f64>, shape: &[usize]| {
+        let mut full = vec![1];
+        full.extend_from_slice(shape);
+        if shape.len() < 2 {
+            row(v)
+        } else {
+            shaped::nested(&v, &full)
+        }
+    };
     let mut obs_v05 = serde_json::Map::new();
     let mut obs_v04 = serde_json::Map::new();
     for ch in &inputs.profile.channels {
@@ -256,11 +271,15 @@ fn robomimic(inputs: &Inputs) -> Vec<u8> {
         let s = &inputs.stats[&ch.name];
         let std: Vec<f64> = s.std.iter().map(|x| x + ROBOMIMIC_STD_EPS).collect();
         let key = dp_key(&ch.name).to_string();
+        let shape = &ch.shape;
         obs_v05.insert(
             key.clone(),
-            json!({ "offset": row(s.mean.clone()), "scale": row(std.clone()) }),
+            json!({ "offset": obs_row(s.mean.clone(), shape), "scale": obs_row(std.clone(), shape) }),
         );
-        obs_v04.insert(key, json!({ "mean": row(s.mean.clone()), "std": row(std) }));
+        obs_v04.insert(
+            key,
+            json!({ "mean": obs_row(s.mean.clone(), shape), "std": obs_row(std, shape) }),
+        );
     }
     let a = &inputs.stats["action"];
     let (mut offset, mut scale) = (Vec::new(), Vec::new());

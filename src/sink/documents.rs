@@ -13,7 +13,7 @@ use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
 use crate::source::ChannelKind;
 use crate::spec::OutputFormat;
 use crate::stats::normalize::Normalizer;
-use crate::stats::ChannelStats;
+use crate::stats::{shaped, ChannelStats};
 
 pub const META_FORMAT_VERSION: u32 = 1;
 
@@ -81,9 +81,15 @@ pub fn meta_json(
     }
     let mut normalization = serde_json::Map::new();
     for (name, n) in built.normalizers {
+        let shape = shape_of(profile, name);
         normalization.insert(
             name.clone(),
-            json!({ "mode": n.mode, "center": n.center, "scale": n.scale, "clip": n.clip }),
+            json!({
+                "mode": n.mode,
+                "center": shaped::nested(&n.center, shape),
+                "scale": shaped::nested(&n.scale, shape),
+                "clip": n.clip,
+            }),
         );
     }
     let ids: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();
@@ -133,7 +139,24 @@ pub fn meta_json(
     pretty(&doc)
 }
 
-/// `stats.json`: per channel, per dimension statistics of the training split in raw units.
-pub fn stats_json(stats: &BTreeMap<String, ChannelStats>) -> String {
-    pretty(&serde_json::to_value(stats).expect("stats serialize"))
+/// The per-step shape of a low-dim channel of the profile (empty for images, whose statistics
+/// are per colour channel).
+fn shape_of<'p>(profile: &'p ProfilePlan, name: &str) -> &'p [usize] {
+    profile
+        .channels
+        .iter()
+        .find(|c| c.name == name && c.kind == ChannelKind::Lowdim)
+        .map_or(&[], |c| c.shape.as_slice())
+}
+
+/// `stats.json`: per channel, per dimension statistics of the training split in raw units, laid
+/// out in the channel's per-step shape (`(a, b)` channels as `a` lists of `b`).
+pub fn stats_json(profile: &ProfilePlan, stats: &BTreeMap<String, ChannelStats>) -> String {
+    let mut doc = serde_json::to_value(stats).expect("stats serialize");
+    if let Value::Object(channels) = &mut doc {
+        for (name, entry) in channels.iter_mut() {
+            shaped::nest_members(entry, shape_of(profile, name));
+        }
+    }
+    pretty(&doc)
 }

@@ -27,7 +27,8 @@ use std::sync::Arc;
 
 use arrow_array::builder::{BinaryBuilder, ListBuilder, StringBuilder};
 use arrow_array::{
-    ArrayRef, FixedSizeListArray, Float32Array, Int64Array, RecordBatch, StringArray, StructArray,
+    Array, ArrayRef, FixedSizeListArray, Float32Array, Int64Array, RecordBatch, StringArray,
+    StructArray,
 };
 use arrow_schema::{DataType, Field, Fields, Schema};
 use parquet::arrow::ArrowWriter;
@@ -177,6 +178,39 @@ fn item() -> Arc<Field> {
     Arc::new(Field::new("item", DataType::Float32, true))
 }
 
+/// The per-step shape's axes (a scalar is one value): LeRobot stores a `(a, b)` feature as a list
+/// of `a` lists of `b` values, so each axis is one level of fixed-size list.
+fn axes(shape: &[usize]) -> Vec<i32> {
+    if shape.is_empty() {
+        vec![1]
+    } else {
+        shape.iter().map(|&d| d as i32).collect()
+    }
+}
+
+/// The arrow type of a low-dim feature of `shape`: fixed-size lists nested once per axis.
+fn lowdim_type(shape: &[usize]) -> DataType {
+    let mut field = item();
+    let mut dt = DataType::Float32;
+    for &d in axes(shape).iter().rev() {
+        dt = DataType::FixedSizeList(field, d);
+        field = Arc::new(Field::new("item", dt.clone(), true));
+    }
+    dt
+}
+
+/// Rows of `shape` (row-major `values`) as the nested fixed-size lists of [`lowdim_type`].
+fn lowdim_column(values: Vec<f32>, shape: &[usize]) -> Result<ArrayRef> {
+    let mut array: ArrayRef = Arc::new(Float32Array::from(values));
+    let mut field = item();
+    for &d in axes(shape).iter().rev() {
+        let list = FixedSizeListArray::try_new(field, d, array, None).map_err(err)?;
+        field = Arc::new(Field::new("item", list.data_type().clone(), true));
+        array = Arc::new(list);
+    }
+    Ok(array)
+}
+
 fn i64_col(values: impl IntoIterator<Item = i64>) -> ArrayRef {
     Arc::new(Int64Array::from_iter_values(values))
 }
@@ -264,12 +298,9 @@ impl LerobotWriter {
 
     fn data(&mut self) -> Result<()> {
         let mut fields = Vec::new();
-        for (name, _, kind) in &self.channels {
+        for (name, shape, kind) in &self.channels {
             let dt = match kind {
-                ChannelKind::Lowdim => {
-                    let width = self.width(name);
-                    DataType::FixedSizeList(item(), width as i32)
-                }
+                ChannelKind::Lowdim => lowdim_type(shape),
                 ChannelKind::Image => DataType::Struct(image_fields()),
             };
             fields.push(Field::new(name, dt, false));
@@ -294,26 +325,17 @@ impl LerobotWriter {
             let (lo, hi) = (start, end as usize);
             start = hi;
             let mut cols: Vec<ArrayRef> = Vec::new();
-            for ((name, _, kind), (raw, frames)) in this
+            for ((name, shape, kind), (raw, frames)) in this
                 .channels
                 .iter()
                 .zip(this.raw.iter().zip(frames.iter_mut()))
             {
                 match (kind, frames) {
                     (ChannelKind::Lowdim, _) => {
-                        let width = this.width(name);
                         let raw = raw
                             .as_ref()
                             .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
-                        let values = Float32Array::from(raw.rows(lo, hi)?.into_owned());
-                        let list = FixedSizeListArray::try_new(
-                            item(),
-                            width as i32,
-                            Arc::new(values),
-                            None,
-                        )
-                        .map_err(err)?;
-                        cols.push(Arc::new(list));
+                        cols.push(lowdim_column(raw.rows(lo, hi)?.into_owned(), shape)?);
                     }
                     (ChannelKind::Image, Some(frames)) => {
                         cols.push(Arc::new(frames.next(hi - lo, name)?));
@@ -334,15 +356,6 @@ impl LerobotWriter {
             RecordBatch::try_new(schema.clone(), cols).map_err(err)
         });
         this.write_parquet(DATA_PATH, schema.clone(), batches)
-    }
-
-    fn width(&self, name: &str) -> usize {
-        let (_, shape, _) = self
-            .channels
-            .iter()
-            .find(|(n, _, _)| n == name)
-            .expect("a known channel");
-        shape.iter().product::<usize>().max(1)
     }
 
     fn episodes(&self) -> Result<()> {

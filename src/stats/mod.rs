@@ -3,6 +3,7 @@
 //! - `moments`: mergeable count/mean/M2/min/max partials.
 //! - `percentile`: exact percentiles (numpy's linear definition).
 //! - `normalize`: per-channel normalization parameters derived from the statistics.
+//! - `shaped`: per-dimension numbers laid out in a channel's per-step shape (for the files).
 //!
 //! Low-dimensional channels are reduced from the in-memory per-step buffers; image channels are
 //! reduced per colour channel from per-episode partials (moments + a 256-bin histogram) built
@@ -11,6 +12,7 @@
 mod moments;
 pub mod normalize;
 mod percentile;
+pub mod shaped;
 
 pub use moments::Moments;
 pub use percentile::{

@@ -76,6 +76,42 @@ def test_dp_state_dict_maps_training_actions_into_unit_range(built, raw):
     assert state["normalizer.params_dict.image.offset"].tolist() == [-1.0]
 
 
+def linear_normalizer_fit(torch, data, range_eps=1e-4, output_min=-1.0, output_max=1.0):
+    """What Diffusion Policy's `LinearNormalizer.fit(data, mode="limits")` stores for one key
+    (`diffusion_policy/model/common/normalizer.py::_fit`, default arguments: float32,
+    last_n_dims=1, fit_offset=True), written out here from its published definition."""
+    x = torch.from_numpy(np.ascontiguousarray(data)).type(torch.float32)
+    x = x.reshape(-1, x.shape[-1])
+    lo, hi = x.min(axis=0).values, x.max(axis=0).values
+    mean, std = x.mean(axis=0), x.std(axis=0)  # torch's std: unbiased
+    span = hi - lo
+    ignore = span < range_eps
+    span[ignore] = output_max - output_min
+    scale = (output_max - output_min) / span
+    offset = output_min - scale * lo
+    offset[ignore] = (output_max + output_min) / 2 - lo[ignore]
+    return {"scale": scale, "offset": offset, "input_stats": {"min": lo, "max": hi, "mean": mean, "std": std}}
+
+
+def test_dp_normalizer_json_is_what_linear_normalizer_fit_stores(built, raw):
+    torch = pytest.importorskip("torch")
+    params = json.loads((built / "dp" / "dp_normalizer.json").read_text())
+    for key, source_key in (("action", "action"), ("state", "state")):
+        x, _ = train_values(raw, built, "dp", source_key)
+        want = linear_normalizer_fit(torch, x)
+        got = params[key]
+        # float32 in `fit` against chunkc's float64: equal to float32 precision.
+        for name in ("scale", "offset"):
+            np.testing.assert_allclose(got[name], want[name].numpy(), rtol=2e-6, atol=1e-6, err_msg=f"{key}.{name}")
+        for stat in ("min", "max", "mean", "std"):
+            np.testing.assert_allclose(got["input_stats"][stat], want["input_stats"][stat].numpy(), rtol=2e-6,
+                                       err_msg=f"{key}.input_stats.{stat}")
+        # The population std (ddof 0) is measurably different: the check above can fail.
+        n = len(x)
+        assert not np.allclose(got["input_stats"]["std"], x.std(0) * 1.0, rtol=0.1 / n)
+        np.testing.assert_allclose(got["input_stats"]["std"], x.std(0, ddof=1), rtol=1e-12)
+
+
 def test_lerobot_openpi_robomimic_files(built, raw):
     x, meta = train_values(raw, built, "all", "action")
     s = json.loads((built / "all" / "lerobot_stats.json").read_text())
