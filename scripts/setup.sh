@@ -6,6 +6,8 @@
 #                           PATH in the sourcing shell
 #
 # Steps:
+#   0. install the Debian packages the tests need when they are missing (headless `chromium` and
+#      its fonts, for the HTML report tests), with apt-get as root; elsewhere it says what to install;
 #   1. create the project virtualenv `.venv` (python3 -m venv) if there is none;
 #   2. install tests/python/requirements.txt into it, only when that file changed since the last
 #      successful install (its hash is kept in .venv/.chunkc-requirements.sha256);
@@ -47,6 +49,23 @@ command -v cargo >/dev/null \
     || die "cargo not found: install a Rust toolchain (https://rustup.rs)"
 command -v cc >/dev/null || command -v gcc >/dev/null \
     || die "no C compiler found; HDF5 is compiled from source (Debian: apt-get install gcc)"
+
+# 0. Debian packages, each named with the command or file that shows it is installed. apt-get's
+#    lists are refreshed once, only when something is missing.
+debian=()
+command -v chromium >/dev/null || command -v chromium-browser >/dev/null || debian+=(chromium)
+[ -e /usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf ] || debian+=(fonts-liberation)
+if [ "${#debian[@]}" -gt 0 ]; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        say "installing Debian packages: ${debian[*]} (apt-get)"
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get update -qq >&2 \
+            && apt-get install -y -qq --no-install-recommends "${debian[@]}" >&2 \
+            || die "apt-get could not install ${debian[*]}"
+    else
+        say "warning: missing Debian packages ${debian[*]}: install them (apt-get install ${debian[*]}); the report tests need them"
+    fi
+fi
 
 # 1. The virtualenv. A half-created one (no python in it) is replaced.
 if [ ! -x "$venv/bin/python" ]; then

@@ -185,3 +185,20 @@ def test_dp_normalizer_flattens_and_robomimic_stats_keep_the_shape(tmp_path):
     assert np.asarray(obs["state"]["offset"]).shape == (1, 4)
     le = json.loads((root / "lerobot_stats.json").read_text())
     assert np.asarray(le["observation.pose"]["q01"]).shape == (3, 2)
+
+
+@pytest.mark.parametrize("fmt", ["hdf5", "zarr", "parquet"])
+def test_pusht_keypoint_with_the_diffusion_policy_preset(tmp_path, fmt):
+    """Diffusion Policy's own low-dim Push-T observes `keypoint` (T, 9, 2)."""
+    channels = {"action": "action", "observation.state": "state", "observation.keypoint": "keypoint"}
+    profiles = f'[profiles.ref]\npreset = "diffusion_policy"\n[profiles.dp]\npreset = "diffusion_policy"\nformat = "{fmt}"\n'
+    run_chunkc("build", "-q", write_spec(tmp_path, profiles, channels=channels))
+    want, got = load(tmp_path / "out" / "ref"), load(tmp_path / "out" / "dp")
+    assert len(got) == len(want) > 0
+    for i in range(0, len(got), 7):
+        s = got[i]
+        assert s["observation.keypoint"].shape == (2, 9, 2)
+        for key in s:
+            assert np.array_equal(bits(s[key]), bits(want[i][key])), (i, key)
+        raw = got.denormalize("observation.keypoint", s["observation.keypoint"])
+        assert raw.shape == (2, 9, 2) and 0 <= raw.min() and raw.max() <= 512
