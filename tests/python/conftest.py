@@ -98,3 +98,20 @@ def import_loader(root):
         return importlib.reload(loader)
     finally:
         sys.path.pop(0)
+
+
+def load_dataset(root, split="train"):
+    """`ChunkedDataset(root, split)` from the profile's own generated loader, imported under a
+    name of its own (several profiles' loaders live side by side in one test)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(f"loader_{root.name}_{split}", root / "loader.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.ChunkedDataset(str(root), split)
+
+
+def bits(x):
+    """float32 arrays as their bit patterns, for bit-for-bit comparisons (NaN == NaN)."""
+    x = np.asarray(x)
+    return x.view(np.uint32) if x.dtype == np.float32 else x

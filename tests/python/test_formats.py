@@ -1,7 +1,6 @@
 """Every output format read back with the reference readers (h5py, zarr-python, numcodecs) and
 compared with the `index` layout's windows (bit for bit) and with the raw source."""
 
-import importlib.util
 import json
 import pickle
 
@@ -10,7 +9,7 @@ import numpy as np
 import pytest
 import zarr
 
-from conftest import PUSHT, RawSource, run_chunkc, write_spec
+from conftest import bits, load_dataset as load, PUSHT, RawSource, run_chunkc, write_spec
 
 DP = 'preset = "diffusion_policy"\n'
 PROFILES = f"""
@@ -64,18 +63,6 @@ def built(tmp_path_factory):
     # (4 MiB by default: one block for this dataset; the golden test covers that case).
     run_chunkc("build", "-q", write_spec(d, PROFILES), env={"CHUNKC_CHUNKS_BLOCK_BYTES": "4096"})
     return d / "out"
-
-
-def load(root, split):
-    spec = importlib.util.spec_from_file_location(f"loader_{root.name}_{split}", root / "loader.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.ChunkedDataset(str(root), split)
-
-
-def bits(x):
-    x = np.asarray(x)
-    return x.view(np.uint32) if x.dtype == np.float32 else x
 
 
 def same(a, b):

@@ -2,7 +2,6 @@
 normalization mode: every window equals the `hdf5` index layout's, and that layout's windows
 equal numpy's over the source (a replay buffer written here with zarr-python)."""
 
-import importlib.util
 import json
 
 import numpy as np
@@ -10,7 +9,7 @@ import pytest
 import pyarrow.parquet as pq
 
 import reference
-from conftest import make_replay_buffer, run_chunkc, write_spec
+from conftest import bits, load_dataset as load, make_replay_buffer, run_chunkc, write_spec
 
 MODES = ["zscore", "limits", "minmax", "quantile", "lerobot_mean_std", "lerobot_min_max", "none"]
 # format keys of each profile beside the reference (`hdf5`, layout `index`)
@@ -60,18 +59,6 @@ def built(tmp_path_factory):
                       split="val_fraction = 0.34\nseed = 3")
     run_chunkc("build", "-q", spec)
     return d / "out", source
-
-
-def load(root, split="train"):
-    spec = importlib.util.spec_from_file_location(f"loader_{root.name}_{split}", root / "loader.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.ChunkedDataset(str(root), split)
-
-
-def bits(x):
-    x = np.asarray(x)
-    return x.view(np.uint32) if x.dtype == np.float32 else x
 
 
 def raw_arrays(source):
