@@ -2,7 +2,8 @@
 //! resample, exclude) under the thresholds in `[audit]`, and the repairs `build` applies.
 //!
 //! - `report`: the result as data ([`AuditReport`]), written as `audit/audit.json`.
-//! - `timing`: interval statistics, flags, the verdict rules, the histogram and its modes.
+//! - `timing`: interval statistics, flags and the verdict rules, per episode.
+//! - `histogram`: every episode's intervals together: the histogram and its modes.
 //! - `spline`: the not-a-knot cubic spline (as `scipy.interpolate.CubicSpline`).
 //! - `resample`: Fourier (as `scipy.signal.resample`) and linear resampling along time.
 //! - `repair`: a verdict applied to an [`Episode`](crate::source::Episode).
@@ -10,6 +11,7 @@
 //!   lengths, repairs applied as episodes are read.
 
 mod audited;
+pub mod histogram;
 pub mod repair;
 pub mod report;
 pub mod resample;
@@ -37,7 +39,7 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
     let shown = &spec.spec.source.path;
     let mut episodes = Vec::with_capacity(manifest.episodes.len());
     let mut repairs = Vec::with_capacity(manifest.episodes.len());
-    let mut intervals = timing::Intervals::default();
+    let mut intervals = histogram::Intervals::default();
     // Without timestamps every episode of a length is judged alike: judged once per length.
     let mut by_length: std::collections::HashMap<usize, (EpisodeAudit, Repair)> =
         Default::default();
@@ -102,7 +104,7 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
     let excluded_fraction = count(Verdict::Exclude) as f64 / total;
     let mut warnings = Vec::new();
     let intervals = intervals.runs();
-    let modes = timing::modes_of(&intervals, expected, cfg.jitter_threshold);
+    let modes = histogram::modes_of(&intervals, expected, cfg.jitter_threshold);
     if modes.len() >= 2 {
         let shown: Vec<String> = modes
             .iter()
@@ -137,7 +139,7 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
         episodes,
         repaired_fraction,
         excluded_fraction,
-        histogram: timing::histogram_of(&intervals, expected),
+        histogram: histogram::histogram_of(&intervals, expected),
         warnings,
         examples: Vec::new(),
     };
