@@ -230,6 +230,19 @@ pub fn users_per_chunk(
     users
 }
 
+/// Decode counts of datasets read whole, keyed by (name, number of chunks): each read of a
+/// dataset decodes each of its chunks once.
+pub fn whole_datasets(decodes: Vec<((String, u64), u32)>) -> DecodeCounts {
+    let mut out = DecodeCounts::new();
+    for ((name, chunks), n) in decodes {
+        let per = out.entry(name).or_default();
+        for i in 0..chunks.max(1) {
+            *per.entry(vec![i]).or_insert(0) += n;
+        }
+    }
+    out
+}
+
 /// The first rows of chunks of `rows_per_chunk` rows covering `rows` rows.
 pub fn regular_starts(rows_per_chunk: u64, rows: u64) -> Vec<u64> {
     let k = rows_per_chunk.max(1);
