@@ -48,13 +48,16 @@ pub struct LerobotSource {
     has_timestamp: bool,
     /// Per episode: its data file's footer and each row group's users (v3.0: read at open,
     /// the episodes that overlap each row group; v2: `None`, the file is the episode's alone).
-    footers: Vec<Option<Arc<(parquet_read::Footer, Vec<u32>)>>>,
+    footers: Vec<Option<Arc<FileRowGroups>>>,
     /// Decoded column chunks, keyed by (data file, row group, column), each decoded once.
     cache: ChunkCache<(PathBuf, usize, String), Vec<f64>>,
     /// Per episode: timestamps the audit read, kept for the episode read (8 bytes a step), so
     /// that the `timestamp` column is decoded once.
     stamps: Vec<OnceLock<Vec<f64>>>,
 }
+
+/// A v3.0 data file's footer, and the episodes that take rows from each of its row groups.
+type FileRowGroups = (parquet_read::Footer, Vec<u32>);
 
 /// One row of v3.0's `meta/episodes`: the episode, its length, its data file and its videos.
 struct EpisodeRow {
@@ -518,7 +521,7 @@ impl LerobotSource {
                     .push(r.start as u64..r.end as u64);
             }
         }
-        let mut shared: BTreeMap<&PathBuf, Arc<(parquet_read::Footer, Vec<u32>)>> = BTreeMap::new();
+        let mut shared: BTreeMap<&PathBuf, Arc<FileRowGroups>> = BTreeMap::new();
         for (rel, mut ranges) in by_file {
             let footer = parquet_read::footer(&root.join(rel))?;
             ranges.sort_by_key(|r| r.start);
@@ -680,7 +683,7 @@ impl Source for LerobotSource {
                     .push(r.start as u64..r.end as u64);
             }
         }
-        let mut done: BTreeMap<PathBuf, Arc<(parquet_read::Footer, Vec<u32>)>> = BTreeMap::new();
+        let mut done: BTreeMap<PathBuf, Arc<FileRowGroups>> = BTreeMap::new();
         for i in 0..self.locations.len() {
             let (rel, _) = &self.locations[i];
             let Some(f) = &self.footers[i] else { continue };
