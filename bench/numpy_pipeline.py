@@ -19,6 +19,10 @@ It does the work chunkc's `act` profile (index layout) does on an ALOHA source:
    index) and `stats.json`, and fsync them (chunkc does too).
 
     python bench/numpy_pipeline.py SOURCE_DIR OUT_DIR --chunk 100 --fps 50 [--cameras cam0,cam1]
+
+With `--zarr`, SOURCE_DIR is a Diffusion Policy zarr replay buffer instead (low-dim only): step 1
+reads `data/action`, `data/state` and `meta/episode_ends` whole with zarr-python (vectorized:
+whatever the chunking, each chunk is decoded once) and splits them at the episode ends.
 """
 
 import argparse
@@ -56,20 +60,32 @@ def main():
     ap.add_argument("--fps", type=float, default=50)
     ap.add_argument("--cameras", default="")
     ap.add_argument("--val-fraction", type=float, default=0.1)
+    ap.add_argument("--zarr", action="store_true", help="SOURCE_DIR is a zarr replay buffer")
     args = ap.parse_args()
     cams = [c for c in args.cameras.split(",") if c]
 
-    files = sorted(args.source.glob("episode_*.hdf5"), key=lambda p: int(p.stem.split("_")[1]))
-    actions, states = [], []
-    for p in files:
-        with h5py.File(p, "r") as f:
-            actions.append(f["action"][:])
-            states.append(f["observations/qpos"][:])
-    lengths = np.array([len(a) for a in actions])
+    if args.zarr:
+        import zarr
+
+        root = zarr.open(str(args.source), mode="r")
+        ends = np.asarray(root["meta/episode_ends"][:], np.int64)
+        action = np.asarray(root["data/action"][:], np.float32)
+        state = np.asarray(root["data/state"][:], np.float32)
+        lengths = np.diff(ends, prepend=0)
+        files = [None] * len(ends)
+        assert not cams, "--zarr reads low-dim sources only"
+    else:
+        files = sorted(args.source.glob("episode_*.hdf5"), key=lambda p: int(p.stem.split("_")[1]))
+        actions, states = [], []
+        for p in files:
+            with h5py.File(p, "r") as f:
+                actions.append(f["action"][:])
+                states.append(f["observations/qpos"][:])
+        lengths = np.array([len(a) for a in actions])
+        action, state = np.concatenate(actions), np.concatenate(states)
+        del actions, states
     ends = np.cumsum(lengths)
     starts = ends - lengths
-    action, state = np.concatenate(actions), np.concatenate(states)
-    del actions, states
 
     # Audit: intervals of the (nominal) step times, per episode.
     t = (np.arange(len(action)) - np.repeat(starts, lengths)) / args.fps

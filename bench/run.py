@@ -15,6 +15,14 @@ then measures wall time, CPU time (user + sys) and peak RSS (`/usr/bin/time`) of
 5. bench/loader_bench.py: samples/s of the generated loader (0 and 2 workers, and in memory)
    against an open-the-file-per-item Dataset (ACT's pattern) and in-memory numpy chunks.
 
+`--only zarr` measures the same low-dim work on Diffusion Policy zarr replay buffers (N episodes
+of 400 steps, 14-D action and state, generated with `chunkc synth --format diffusion-policy-zarr`)
+in three chunkings: one chunk per episode (`episode`), 36,000-row chunks (Diffusion Policy's
+~2 MB target, `dp`), and zarr-python's default for a (2,000,000, 14) float32 array, (125000, 2)
+(`zarr_default`, which also splits the columns). Per layout: chunkc, the numpy pipeline
+(`--zarr`: zarr-python reads each array whole), the I/O floor, and chunkc on N/2 episodes (peak
+RSS flat from N/2 to N).
+
 Every measurement runs `--repeat` times (5 by default), interleaved: each round runs every
 measurement of a group once (low-dim: numpy, chunkc 1 profile, the I/O floor, 1 thread, two
 independent 1-thread builds at once, 4 profiles, 2N; images: numpy, chunkc, the floor, N/2;
@@ -94,6 +102,90 @@ def synth(work, name, episodes, steps, cameras):
                DIMS["fps"], "--seed", DIMS["seed"]]
         subprocess.run([str(c) for c in cmd], check=True)
     return root
+
+
+ZARR_LAYOUTS = {"episode": dict(rows=400), "dp": dict(rows=36000),
+                "zarr_default": dict(rows=125000, cols=2)}
+
+
+def synth_zarr(work, layout, episodes, steps):
+    """A Diffusion Policy zarr replay buffer in one of ZARR_LAYOUTS (cached by parameters)."""
+    chunking = ZARR_LAYOUTS[layout]
+    params = dict(DIMS, episodes=episodes, steps=steps, **chunking)
+    key = "-".join(f"{k}{v}" for k, v in sorted(params.items()))
+    root = work / "data" / f"zarr-{layout}-{key}"
+    if not (root / "spec.toml").exists():
+        if root.exists():
+            shutil.rmtree(root)
+        log(f"generating {root.name}")
+        cmd = [BIN, "synth", root, "--format", "diffusion-policy-zarr", "--episodes", episodes,
+               "--steps", steps, "--action-dim", DIMS["action_dim"], "--state-dim",
+               DIMS["state_dim"], "--fps", DIMS["fps"], "--seed", DIMS["seed"],
+               "--zarr-chunk-rows", chunking["rows"]]
+        if "cols" in chunking:
+            cmd += ["--zarr-chunk-cols", chunking["cols"]]
+        subprocess.run([str(c) for c in cmd], check=True)
+    return root
+
+
+def zarr_spec(root, out):
+    text = (f'version = 1\n[source]\nformat = "diffusion_policy_zarr"\n'
+            f'path = "{root / "replay.zarr"}"\nfps = 50\n[source.channels]\naction = "action"\n'
+            f'"observation.state" = "state"\n'
+            f'[split]\nval_fraction = 0.1\nseed = 0\n[output]\ndir = "{out}"\n{ONE}')
+    path = out.parent / f"{out.name}.toml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def zarr_chunkc(work, label, root):
+    out = work / "runs" / label
+    path = zarr_spec(root, out)
+    lock = out.parent / "chunkc.lock"
+
+    def clean():
+        shutil.rmtree(out, ignore_errors=True)
+        lock.unlink(missing_ok=True)
+
+    clean()
+    return Case(label, [BIN, "build", "-q", "-j", 2, path], before=clean,
+                after=lambda: {"output_bytes": du(out)}), out
+
+
+def zarr_floor(work, label, root, out):
+    """The I/O floor of a zarr source: `cat` of every file of the store, then the outputs."""
+    files = sorted(str(p) for p in (root / "replay.zarr").rglob("*") if p.is_file())
+    copy = work / "runs" / "floor.bin"
+    script = ('xargs -0 cat < "$1" > /dev/null && xargs -0 cat < "$2" | '
+              'dd of="$3" bs=4M conv=fsync status=none')
+    src_list, out_list = work / "runs" / f"{label}-src.lst", work / "runs" / f"{label}-out.lst"
+    src_list.write_text("\0".join(files))
+
+    def before():
+        out_list.write_text("\0".join(sorted(str(p) for p in out.rglob("*") if p.is_file())))
+
+    def after():
+        written = copy.stat().st_size
+        copy.unlink()
+        return {"read_bytes": sum(os.path.getsize(f) for f in files), "write_bytes": written}
+
+    return Case(label, ["bash", "-c", script, "floor", src_list, out_list, copy], before=before,
+                after=after)
+
+
+def zarr_numpy(work, label, root):
+    out = work / "runs" / label
+
+    def after():
+        size = du(out)
+        shutil.rmtree(out)
+        return {"output_bytes": size}
+
+    return Case(label, [PY, REPO / "bench" / "numpy_pipeline.py", root / "replay.zarr", out,
+                        "--chunk", 100, "--fps", 50, "--zarr"],
+                env={"OMP_NUM_THREADS": "1"},
+                before=lambda: shutil.rmtree(out, ignore_errors=True), after=after)
 
 
 def linked(src_root, dest, count, repeat=1):
@@ -261,7 +353,9 @@ def main():
     ap.add_argument("--quick", action="store_true", help="small sizes, for a smoke run")
     ap.add_argument("--work", type=Path, default=Path("/tmp/chunkc-bench"))
     ap.add_argument("--out", type=Path, default=REPO / "bench" / "results.json")
-    ap.add_argument("--only", choices=["lowdim", "images", "loader"], action="append")
+    ap.add_argument("--only", choices=["lowdim", "images", "loader", "zarr"], action="append",
+                    help="measurement groups (default: lowdim, images, loader; zarr only when "
+                    "asked for)")
     ap.add_argument("--clean", action="store_true", help="delete WORK when done")
     ap.add_argument("--repeat", type=int, default=5,
                     help="rounds of every measurement; medians are reported (default 5)")
@@ -302,6 +396,20 @@ def main():
                  chunkc(work, "lowdim_1p_2N", low2, 0)[0]])
         for label in ("lowdim_1p", "lowdim_1p_1thread", "lowdim_4p", "lowdim_1p_2N"):
             shutil.rmtree(work / "runs" / label, ignore_errors=True)
+    if "zarr" in parts:
+        n, steps = size["lowdim"]["episodes"], size["lowdim"]["steps"]
+        for layout in ZARR_LAYOUTS:
+            root = synth_zarr(work, layout, n, steps)
+            half = synth_zarr(work, layout, n // 2, steps)
+            subprocess.run(["bash", "-c", f'find "{root}" "{half}" -type f -exec cat {{}} + '
+                            '> /dev/null'], check=True)
+            one, out = zarr_chunkc(work, f"zarr_{layout}_1p", root)
+            log(f"zarr {layout}, interleaved")
+            measure([zarr_numpy(work, f"zarr_{layout}_numpy", root), one,
+                     zarr_floor(work, f"zarr_{layout}_floor", root, out),
+                     zarr_chunkc(work, f"zarr_{layout}_1p_half", half)[0]])
+            for label in (f"zarr_{layout}_1p", f"zarr_{layout}_1p_half"):
+                shutil.rmtree(work / "runs" / label, ignore_errors=True)
     if "images" in parts:
         n = size["images"]["episodes"]
         img = synth(work, "images", cameras=2, **size["images"])
@@ -355,6 +463,18 @@ def main():
             "<= 1.1", lambda v: v <= 1.1)
         row("low-dim: peak RSS MiB (2N, largest run)", peak("lowdim_1p_2N"), "< 512",
             lambda v: v < 512)
+    if "zarr" in parts:
+        for layout in ZARR_LAYOUTS:
+            z = f"zarr_{layout}"
+            floor_target = 1.5 if layout == "episode" else 2
+            row(f"zarr {layout}: numpy pipeline / chunkc (wall)",
+                pair(f"{z}_numpy", f"{z}_1p"), ">= 2.5", lambda v: v >= 2.5)
+            row(f"zarr {layout}: chunkc / I/O floor (wall)", pair(f"{z}_1p", f"{z}_floor"),
+                f"<= {floor_target}", lambda v, t=floor_target: v <= t)
+            row(f"zarr {layout}: peak RSS N / (N/2)",
+                pair(f"{z}_1p", f"{z}_1p_half", "peak_rss_mib"), "<= 1.1", lambda v: v <= 1.1)
+            row(f"zarr {layout}: peak RSS MiB (N, largest run)", peak(f"{z}_1p"), "< 512",
+                lambda v: v < 512)
     if "images" in parts:
         row("images: numpy pipeline / chunkc (wall)", pair("images_numpy", "images_1p"),
             ">= 2", lambda v: v >= 2)

@@ -96,6 +96,17 @@ struct SynthArgs {
     /// robomimic only: robosuite's older layout (no obs group; time in states[:, 0]).
     #[arg(long)]
     robosuite: bool,
+    /// diffusion-policy-zarr only: rows per chunk of the low-dim arrays (default: about 1 MiB
+    /// of rows).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    zarr_chunk_rows: Option<u64>,
+    /// diffusion-policy-zarr only: columns per chunk of the low-dim arrays (default: all, as
+    /// Diffusion Policy writes them; zarr-python's default chunking splits them).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    zarr_chunk_cols: Option<u64>,
+    /// diffusion-policy-zarr only: the zarr format, 2 (Diffusion Policy's) or 3.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(2..=3))]
+    zarr_format: u8,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -257,6 +268,11 @@ fn run(cli: Cli) -> Result<(), Error> {
                 faults: args.faults,
                 fault_fraction: args.fault_fraction,
                 robosuite: args.robosuite,
+                zarr: synth::dp_zarr::ZarrLayout {
+                    chunk_rows: args.zarr_chunk_rows.map(|r| r as usize),
+                    chunk_cols: args.zarr_chunk_cols.map(|c| c as usize),
+                    format: args.zarr_format,
+                },
             };
             let spec = synth::generate(&opts, &args.out)?;
             eprintln!("wrote {}", tidy(&spec).display());

@@ -64,6 +64,14 @@ impl Source for Audited {
         &self.manifest
     }
 
+    fn decode_counts(&self) -> crate::source::DecodeCounts {
+        self.inner.decode_counts()
+    }
+
+    fn only_reading(&mut self, positions: &[usize]) {
+        self.inner.only_reading(positions);
+    }
+
     fn read_episode(&self, index: usize) -> Result<Episode> {
         let repair = &self.repairs[index];
         let episode = self.inner.read_episode(index)?;

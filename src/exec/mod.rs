@@ -57,6 +57,10 @@ pub struct BuildReport {
     /// How many times each source episode was read (manifest order): 1 each when anything was
     /// built, whatever the number of profiles and rates; empty when nothing was.
     pub episode_reads: Vec<usize>,
+    /// How many times each storage chunk of the source was decoded (array, then chunk index;
+    /// see [`source::chunk_cache`]): 1 each when anything was built, whatever the source's
+    /// chunking; empty when nothing was.
+    pub chunk_decodes: source::DecodeCounts,
 }
 
 /// Opens the source and audits it: the source as read, the audit, and each episode's repair.
@@ -140,6 +144,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
             built: Vec::new(),
             up_to_date,
             episode_reads: Vec::new(),
+            chunk_decodes: Default::default(),
         });
     }
     if opts.locked {
@@ -156,9 +161,11 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let reads: Vec<AtomicUsize> = (0..plan.source.episodes)
         .map(|_| AtomicUsize::new(0))
         .collect();
+    let chunk_decodes: source::DecodeCounts;
     let (plan, stale, hashes) =
         match run_staged(spec, &plan, &stale, source.as_ref(), opts, &reads)? {
             Outcome::Built(staging, hashes) => {
+                chunk_decodes = source.decode_counts();
                 let built: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
                 build_lock.keep();
                 let _commit = timings::phase("commit (fsync)");
@@ -203,6 +210,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
                     .collect();
                 match run_staged(spec, &replan, &restale, kept.as_ref(), opts, &again)? {
                     Outcome::Built(staging, hashes) => {
+                        chunk_decodes = kept.decode_counts();
                         build_lock.keep();
                         staging.commit(&names)?;
                         (replan, names, hashes)
@@ -254,6 +262,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         built,
         up_to_date,
         episode_reads: reads.into_iter().map(AtomicUsize::into_inner).collect(),
+        chunk_decodes,
     })
 }
 

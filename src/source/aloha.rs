@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 use hdf5::Dataset;
 use rayon::prelude::*;
 
+use super::chunk_cache::{self, ChunkCache, DecodeCounts};
 use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::{fingerprint, h5, h5meta, jpeg, Episode, EpisodeInfo, Manifest, Source};
 use crate::error::{Error, Result};
@@ -30,6 +31,9 @@ pub struct AlohaSource {
     /// stored contiguously or in unfiltered chunks of whole rows (see [`h5::direct`]); such an
     /// episode is read without HDF5.
     direct: Vec<Located>,
+    /// Counts the datasets read (each belongs to one episode and is read whole, once), keyed
+    /// by (file name/key, number of chunks).
+    decodes: ChunkCache<(String, u64), ()>,
 }
 
 /// `episode_12.hdf5` → 12.
@@ -252,6 +256,7 @@ impl AlohaSource {
             mapped,
             jpeg: jpeg_keys,
             direct,
+            decodes: ChunkCache::new(0),
         })
     }
 }
@@ -297,9 +302,21 @@ fn decode_rows(ds: &Dataset, size: (usize, usize), what: &str) -> Result<Vec<u8>
     Ok(out)
 }
 
+impl AlohaSource {
+    /// `episode_3.hdf5/action`: how the decode counts name a dataset.
+    fn dataset_name(&self, index: usize, key: &str) -> String {
+        let file = self.files[index].file_name().unwrap_or_default();
+        format!("{}/{key}", file.to_string_lossy())
+    }
+}
+
 impl Source for AlohaSource {
     fn manifest(&self) -> &Manifest {
         &self.manifest
+    }
+
+    fn decode_counts(&self) -> DecodeCounts {
+        chunk_cache::whole_datasets(self.decodes.decodes())
     }
 
     fn read_episode(&self, index: usize) -> Result<Episode> {
@@ -314,6 +331,8 @@ impl Source for AlohaSource {
                     .iter()
                     .find(|(k, _)| k == key)
                     .expect("every mapped key located");
+                self.decodes
+                    .count(&(self.dataset_name(index, key), h5::direct_chunks(d)));
                 h5::read_direct(&file, d)
                     .map_err(|e| Error::source(format!("{place}: {key}: cannot read: {e}")))
             })?;
@@ -327,6 +346,8 @@ impl Source for AlohaSource {
         let file = h5::open(path)?;
         let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
             let ds = h5::dataset(&file, key, path)?;
+            self.decodes
+                .count(&(self.dataset_name(index, key), h5::chunks(&ds)));
             let what = format!("{place}: {key}");
             match self.jpeg.iter().find(|(k, _)| k == key) {
                 Some((_, size)) => decode_rows(&ds, *size, &what).map(Raw::U8),

@@ -1,5 +1,10 @@
 //! Diffusion Policy's zarr ReplayBuffer: all episodes concatenated along axis 0 of `data/<key>`,
 //! with `meta/episode_ends` holding the exclusive cumulative ends.
+//!
+//! Episodes are read chunk by chunk through a [`ChunkCache`]: a chunk that spans several
+//! episodes (Diffusion Policy's ~2 MB chunks, or zarr-python's default chunking, which also
+//! splits the columns) is decoded once, by the first episode that needs it, and each episode
+//! copies its rows out of the decoded chunks.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -7,6 +12,7 @@ use std::sync::Arc;
 use zarrs::array::{Array, ArraySubset};
 use zarrs::filesystem::FilesystemStore;
 
+use super::chunk_cache::{self, ChunkCache, DecodeCounts};
 use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::{fingerprint, Episode, EpisodeInfo, Manifest, Source};
 use crate::error::{Error, Result};
@@ -19,9 +25,202 @@ pub struct DpZarrSource {
     manifest: Manifest,
     /// Cumulative episode starts (len = episodes + 1).
     bounds: Vec<u64>,
-    /// The arrays the channels read, by key.
-    arrays: std::collections::BTreeMap<String, ZArray>,
+    /// The arrays the channels read, by key, with their chunk grids.
+    arrays: std::collections::BTreeMap<String, Chunked>,
     mapped: Mapped,
+    /// Decoded chunks, keyed by (array position in `arrays`, chunk grid index).
+    cache: ChunkCache<(usize, Vec<u64>), Decoded>,
+}
+
+/// One array and where its chunks lie.
+struct Chunked {
+    array: ZArray,
+    /// Its position among the source's arrays (the cache key's first part).
+    index: usize,
+    shape: Vec<usize>,
+    /// Per axis, the (first element, length) of each chunk along it.
+    grid: Vec<Vec<(usize, usize)>>,
+    /// Per chunk along the time axis: the episode reads that take rows from it.
+    users: Vec<u32>,
+    dtype: String,
+}
+
+/// A decoded chunk, as the channels take it (every numeric type but `uint8` as `f32`).
+enum Decoded {
+    F32(Vec<f32>),
+    U8(Vec<u8>),
+}
+
+/// Codec options for decoding one chunk: no parallelism inside the decode (episodes already
+/// decode in parallel, and a rayon worker waiting inside a decode could otherwise be handed the
+/// read of an episode that waits for that very chunk).
+fn one_thread() -> zarrs::array::CodecOptions {
+    let mut o = zarrs::array::CodecOptions::default();
+    o.set_concurrent_target(1);
+    o
+}
+
+impl Chunked {
+    fn new(array: ZArray, index: usize) -> std::result::Result<Chunked, String> {
+        let shape: Vec<usize> = array.shape().iter().map(|&d| d as usize).collect();
+        let grid_shape = array.chunk_grid_shape().to_vec();
+        let mut grid = Vec::with_capacity(shape.len());
+        for (axis, &n) in grid_shape.iter().enumerate() {
+            let mut along = Vec::with_capacity(n as usize);
+            for i in 0..n {
+                let mut idx = vec![0u64; shape.len()];
+                idx[axis] = i;
+                let sub = array.chunk_subset(&idx).map_err(|e| e.to_string())?;
+                along.push((sub.start()[axis] as usize, sub.shape()[axis] as usize));
+            }
+            grid.push(along);
+        }
+        let dtype = dtype_name(&array);
+        Ok(Chunked {
+            array,
+            index,
+            shape,
+            grid,
+            users: Vec::new(),
+            dtype,
+        })
+    }
+
+    /// Counts, for each chunk along time, the episodes among `bounds` (positions `reading`)
+    /// that overlap it.
+    fn count_users(&mut self, bounds: &[u64], reading: &[usize]) {
+        let starts: Vec<u64> = self
+            .grid
+            .first()
+            .map_or(Vec::new(), |g| g.iter().map(|&(s, _)| s as u64).collect());
+        let episodes: Vec<std::ops::Range<u64>> =
+            reading.iter().map(|&i| bounds[i]..bounds[i + 1]).collect();
+        let rows = self.shape.first().copied().unwrap_or(0) as u64;
+        self.users = chunk_cache::users_per_chunk(&episodes, &starts, rows);
+    }
+
+    /// Decodes chunk `idx` whole (its full chunk shape, edges included).
+    fn decode(&self, idx: &[u64]) -> std::result::Result<(Decoded, usize), String> {
+        let o = one_thread();
+        macro_rules! conv {
+            ($t:ty) => {
+                self.array
+                    .retrieve_chunk_opt::<Vec<$t>>(idx, &o)
+                    .map(|v| v.into_iter().map(|x| x as f32).collect::<Vec<f32>>())
+                    .map_err(|e| e.to_string())?
+            };
+        }
+        let values = match self.dtype.as_str() {
+            "uint8" => {
+                let v = self
+                    .array
+                    .retrieve_chunk_opt::<Vec<u8>>(idx, &o)
+                    .map_err(|e| e.to_string())?;
+                let n = v.len();
+                return Ok((Decoded::U8(v), n));
+            }
+            "float32" => self
+                .array
+                .retrieve_chunk_opt::<Vec<f32>>(idx, &o)
+                .map_err(|e| e.to_string())?,
+            "float64" => conv!(f64),
+            "int8" => conv!(i8),
+            "int16" => conv!(i16),
+            "int32" => conv!(i32),
+            "int64" => conv!(i64),
+            "uint16" => conv!(u16),
+            "uint32" => conv!(u32),
+            "uint64" => conv!(u64),
+            "bool" => self
+                .array
+                .retrieve_chunk_opt::<Vec<bool>>(idx, &o)
+                .map(|v| v.into_iter().map(|x| x as u8 as f32).collect())
+                .map_err(|e| e.to_string())?,
+            other => return Err(format!("unsupported element type {other}")),
+        };
+        let n = values.len() * 4;
+        Ok((Decoded::F32(values), n))
+    }
+}
+
+/// Copies the rows `rows` (array rows) of a decoded chunk into `out`, which holds whole array
+/// rows from `out_row` on. The chunk starts at `origin` and has (full) shape `chunk`; the array
+/// has shape `shape`, so the chunk's elements past the array's edge are skipped.
+fn copy_from_chunk<T: Copy>(
+    src: &[T],
+    chunk: &[usize],
+    origin: &[usize],
+    shape: &[usize],
+    rows: std::ops::Range<usize>,
+    out_row: usize,
+    out: &mut [T],
+) {
+    let n = shape.len();
+    if n <= 1 {
+        let (a, b) = (rows.start - origin[0], rows.end - origin[0]);
+        out[rows.start - out_row..rows.end - out_row].copy_from_slice(&src[a..b]);
+        return;
+    }
+    let chunk_row: usize = chunk[1..].iter().product();
+    let array_row: usize = shape[1..].iter().product();
+    if chunk[1..] == shape[1..] {
+        // Whole rows: one run.
+        let (a, b) = (
+            (rows.start - origin[0]) * chunk_row,
+            (rows.end - origin[0]) * chunk_row,
+        );
+        let at = (rows.start - out_row) * array_row;
+        out[at..at + (b - a)].copy_from_slice(&src[a..b]);
+        return;
+    }
+    // The part of the chunk inside the array along every axis after time.
+    let inside: Vec<usize> = (1..n)
+        .map(|d| chunk[d].min(shape[d].saturating_sub(origin[d])))
+        .collect();
+    if inside.contains(&0) {
+        return;
+    }
+    let run = inside[n - 2];
+    // Strides (elements) along axes 1..n of the chunk and of the array.
+    let stride = |dims: &[usize]| -> Vec<usize> {
+        let mut s = vec![1usize; n - 1];
+        for d in (0..n - 2).rev() {
+            s[d] = s[d + 1] * dims[d + 2];
+        }
+        s
+    };
+    let (cs, ss) = (stride(chunk), stride(shape));
+    let base: usize = (1..n).map(|d| origin[d] * ss[d - 1]).sum();
+    let mut counter = vec![0usize; n.saturating_sub(2)];
+    for r in rows {
+        let src_row = (r - origin[0]) * chunk_row;
+        let dst_row = (r - out_row) * array_row + base;
+        counter.iter_mut().for_each(|c| *c = 0);
+        loop {
+            let (mut s, mut d) = (src_row, dst_row);
+            for (k, &c) in counter.iter().enumerate() {
+                s += c * cs[k];
+                d += c * ss[k];
+            }
+            out[d..d + run].copy_from_slice(&src[s..s + run]);
+            // The next index over axes 1..n-1 (the last axis is the run), odometer-wise.
+            let mut k = counter.len();
+            let done = loop {
+                if k == 0 {
+                    break true;
+                }
+                k -= 1;
+                counter[k] += 1;
+                if counter[k] < inside[k] {
+                    break false;
+                }
+                counter[k] = 0;
+            };
+            if done {
+                break;
+            }
+        }
+    }
 }
 
 fn open_array(store: &Arc<FilesystemStore>, root: &Path, key: &str) -> Result<ZArray> {
@@ -47,38 +246,6 @@ fn data_keys(root: &Path) -> Vec<String> {
         .unwrap_or_default();
     keys.sort();
     keys
-}
-
-/// Reads `subset` of `array` and converts it to `f32`, whatever the stored numeric type.
-fn read_f32(array: &ZArray, subset: &ArraySubset) -> std::result::Result<Vec<f32>, String> {
-    let dtype = dtype_name(array);
-    macro_rules! conv {
-        ($t:ty) => {
-            array
-                .retrieve_array_subset::<Vec<$t>>(subset)
-                .map(|v| v.into_iter().map(|x| x as f32).collect())
-                .map_err(|e| e.to_string())
-        };
-    }
-    match dtype.as_str() {
-        "float32" => array
-            .retrieve_array_subset::<Vec<f32>>(subset)
-            .map_err(|e| e.to_string()),
-        "float64" => conv!(f64),
-        "int8" => conv!(i8),
-        "int16" => conv!(i16),
-        "int32" => conv!(i32),
-        "int64" => conv!(i64),
-        "uint8" => conv!(u8),
-        "uint16" => conv!(u16),
-        "uint32" => conv!(u32),
-        "uint64" => conv!(u64),
-        "bool" => array
-            .retrieve_array_subset::<Vec<bool>>(subset)
-            .map(|v| v.into_iter().map(|x| x as u8 as f32).collect())
-            .map_err(|e| e.to_string()),
-        other => Err(format!("unsupported element type {other}")),
-    }
 }
 
 fn dtype_name(array: &ZArray) -> String {
@@ -170,6 +337,15 @@ impl DpZarrSource {
             }
         }
         arrays.retain(|k, _| mapped.keys().contains(k));
+        let everyone: Vec<usize> = (0..episodes.len()).collect();
+        let mut chunked = std::collections::BTreeMap::new();
+        for (index, (key, array)) in arrays.into_iter().enumerate() {
+            let mut c = Chunked::new(array, index).map_err(|e| {
+                Error::source(format!("{}: data/{key}: chunk grid: {e}", root.display()))
+            })?;
+            c.count_users(&bounds, &everyone);
+            chunked.insert(key, c);
+        }
 
         let mut files = fingerprint::list_files(&root.join("meta"))?
             .into_iter()
@@ -199,8 +375,9 @@ impl DpZarrSource {
                 warnings: mapped.warnings.clone(),
             },
             bounds,
-            arrays,
+            arrays: chunked,
             mapped,
+            cache: ChunkCache::new(chunk_cache::budget_from_env()),
         })
     }
 }
@@ -225,9 +402,104 @@ fn read_f32_exact_i64(array: &ZArray, n: u64) -> std::result::Result<Vec<i64>, S
     }
 }
 
+impl DpZarrSource {
+    /// Rows `rows` of `c`, every column, from the chunks that hold them (each decoded once, see
+    /// the module documentation).
+    fn read_rows(
+        &self,
+        c: &Chunked,
+        rows: std::ops::Range<usize>,
+    ) -> std::result::Result<Raw, String> {
+        let width: usize = c.shape.iter().skip(1).product();
+        let mut out = if c.dtype == "uint8" {
+            Raw::U8(vec![0; rows.len() * width])
+        } else {
+            Raw::F32(vec![0.0; rows.len() * width])
+        };
+        if rows.is_empty() || c.grid.is_empty() {
+            return Ok(out);
+        }
+        let time = &c.grid[0];
+        let first = time.partition_point(|&(s, n)| s + n <= rows.start);
+        // Every combination of chunk positions along the axes after time.
+        let others: Vec<usize> = c.grid[1..].iter().map(Vec::len).collect();
+        let combos: usize = others.iter().product();
+        for (b, &(t0, tn)) in time.iter().enumerate().skip(first) {
+            if t0 >= rows.end {
+                break;
+            }
+            let overlap = rows.start.max(t0)..rows.end.min(t0 + tn);
+            for combo in 0..combos {
+                let mut idx = vec![b as u64];
+                let mut rest = combo;
+                let mut axis_idx = vec![0usize; others.len()];
+                for (k, &n) in others.iter().enumerate().rev() {
+                    axis_idx[k] = rest % n;
+                    rest /= n;
+                }
+                idx.extend(axis_idx.iter().map(|&i| i as u64));
+                let mut origin = vec![t0];
+                let mut chunk = vec![tn];
+                for (k, &i) in axis_idx.iter().enumerate() {
+                    let (s, n) = c.grid[k + 1][i];
+                    origin.push(s);
+                    chunk.push(n);
+                }
+                let users = c.users.get(b).copied().unwrap_or(1);
+                let decoded = self
+                    .cache
+                    .get(&(c.index, idx.clone()), users, || c.decode(&idx))?;
+                match (&*decoded, &mut out) {
+                    (Decoded::F32(src), Raw::F32(dst)) => copy_from_chunk(
+                        src,
+                        &chunk,
+                        &origin,
+                        &c.shape,
+                        overlap.clone(),
+                        rows.start,
+                        dst,
+                    ),
+                    (Decoded::U8(src), Raw::U8(dst)) => copy_from_chunk(
+                        src,
+                        &chunk,
+                        &origin,
+                        &c.shape,
+                        overlap.clone(),
+                        rows.start,
+                        dst,
+                    ),
+                    _ => return Err("decoded chunk of another type".into()),
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
 impl Source for DpZarrSource {
     fn manifest(&self) -> &Manifest {
         &self.manifest
+    }
+
+    fn decode_counts(&self) -> DecodeCounts {
+        let names: std::collections::BTreeMap<usize, &str> = self
+            .arrays
+            .iter()
+            .map(|(k, c)| (c.index, k.as_str()))
+            .collect();
+        let mut out = DecodeCounts::new();
+        for ((array, chunk), n) in self.cache.decodes() {
+            out.entry(format!("data/{}", names[&array]))
+                .or_default()
+                .insert(chunk, n);
+        }
+        out
+    }
+
+    fn only_reading(&mut self, positions: &[usize]) {
+        for c in self.arrays.values_mut() {
+            c.count_users(&self.bounds, positions);
+        }
     }
 
     fn read_episode(&self, index: usize) -> Result<Episode> {
@@ -235,21 +507,8 @@ impl Source for DpZarrSource {
         let (start, end) = (self.bounds[index], self.bounds[index + 1]);
         let place = format!("{}: episode {}", self.root.display(), info.id);
         let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
-            let array = &self.arrays[key];
-            // One range per dimension: time first, then the whole of every other axis.
-            let mut ranges = Vec::with_capacity(array.shape().len());
-            ranges.push(start..end);
-            ranges.extend(array.shape()[1..].iter().map(|&d| 0..d));
-            let subset = ArraySubset::new_with_ranges(&ranges);
-            let fail = |e: String| Error::source(format!("{place}: data/{key}: {e}"));
-            if dtype_name(array) == "uint8" {
-                array
-                    .retrieve_array_subset::<Vec<u8>>(&subset)
-                    .map(Raw::U8)
-                    .map_err(|e| fail(e.to_string()))
-            } else {
-                read_f32(array, &subset).map(Raw::F32).map_err(fail)
-            }
+            self.read_rows(&self.arrays[key], start as usize..end as usize)
+                .map_err(|e| Error::source(format!("{place}: data/{key}: {e}")))
         })?;
         Ok(Episode {
             id: info.id,

@@ -207,6 +207,24 @@ pub fn direct(ds: &Dataset) -> Option<Direct> {
     })
 }
 
+/// The number of storage chunks of a dataset located by [`direct`] (contiguous storage: one).
+pub fn direct_chunks(d: &Direct) -> u64 {
+    match &d.place {
+        Place::Contiguous(_) => 1,
+        Place::Chunked(map) => map.rows.div_ceil(map.rows_per_chunk.max(1)) as u64,
+        Place::Deflated(map) => map.rows.div_ceil(map.rows_per_chunk.max(1)) as u64,
+    }
+}
+
+/// The number of storage chunks of `ds` (allocated ones; contiguous or compact storage: one).
+pub fn chunks(ds: &Dataset) -> u64 {
+    if ds.is_chunked() {
+        ds.num_chunks().unwrap_or(1) as u64
+    } else {
+        1
+    }
+}
+
 /// Reads a dataset located by [`direct`] from `file` (opened with std, no HDF5 involved):
 /// `uint8` as bytes, floats converted to `f32` as [`read`] does.
 pub fn read_direct(file: &std::fs::File, d: &Direct) -> std::io::Result<Raw> {

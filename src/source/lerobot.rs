@@ -15,12 +15,14 @@
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
 
 use arrow_array::cast::AsArray;
 use arrow_array::types::Int64Type;
 use arrow_array::Array;
 use serde_json::Value;
 
+use super::chunk_cache::{self, ChunkCache, DecodeCounts};
 use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::parquet_read::{self, num_rows, read_columns};
 use super::{fingerprint, Episode, EpisodeInfo, Manifest, Source, SourceSplit};
@@ -44,7 +46,18 @@ pub struct LerobotSource {
     locations: Vec<(PathBuf, Option<Range<usize>>)>,
     /// Whether frames have a `timestamp` column.
     has_timestamp: bool,
+    /// Per episode: its data file's footer and each row group's users (v3.0: read at open,
+    /// the episodes that overlap each row group; v2: `None`, the file is the episode's alone).
+    footers: Vec<Option<Arc<FileRowGroups>>>,
+    /// Decoded column chunks, keyed by (data file, row group, column), each decoded once.
+    cache: ChunkCache<(PathBuf, usize, String), Vec<f64>>,
+    /// Per episode: timestamps the audit read, kept for the episode read (8 bytes a step), so
+    /// that the `timestamp` column is decoded once.
+    stamps: Vec<OnceLock<Vec<f64>>>,
 }
+
+/// A v3.0 data file's footer, and the episodes that take rows from each of its row groups.
+type FileRowGroups = (parquet_read::Footer, Vec<u32>);
 
 /// One row of v3.0's `meta/episodes`: the episode, its length, its data file and its videos.
 struct EpisodeRow {
@@ -498,6 +511,28 @@ impl LerobotSource {
         read_files.dedup();
         let fingerprint = fingerprint::of_files(root, &read_files)?;
         let has_timestamp = keys.iter().any(|k| k.key == "timestamp");
+        // v3.0: each data file's footer, and how many episodes take rows from each row group.
+        let mut by_file: BTreeMap<&PathBuf, Vec<Range<u64>>> = BTreeMap::new();
+        for (rel, rows) in &locations {
+            if let Some(r) = rows {
+                by_file
+                    .entry(rel)
+                    .or_default()
+                    .push(r.start as u64..r.end as u64);
+            }
+        }
+        let mut shared: BTreeMap<&PathBuf, Arc<FileRowGroups>> = BTreeMap::new();
+        for (rel, mut ranges) in by_file {
+            let footer = parquet_read::footer(&root.join(rel))?;
+            ranges.sort_by_key(|r| r.start);
+            let users = chunk_cache::users_per_chunk(&ranges, &footer.starts, footer.rows);
+            shared.insert(rel, Arc::new((footer, users)));
+        }
+        let footers = locations
+            .iter()
+            .map(|(rel, rows)| rows.as_ref().and_then(|_| shared.get(rel).cloned()))
+            .collect();
+        let stamps = (0..locations.len()).map(|_| OnceLock::new()).collect();
         Ok(LerobotSource {
             root: root.to_path_buf(),
             manifest: Manifest {
@@ -513,6 +548,9 @@ impl LerobotSource {
             mapped,
             locations,
             has_timestamp,
+            footers,
+            cache: ChunkCache::new(chunk_cache::budget_from_env()),
+            stamps,
         })
     }
 }
@@ -564,47 +602,57 @@ impl Source for LerobotSource {
         if !self.has_timestamp {
             return Ok(None);
         }
+        if let Some(t) = self.stamps[index].get() {
+            return Ok(Some(t.clone()));
+        }
         let info = &self.manifest.episodes[index];
-        let (rel, rows) = &self.locations[index];
-        let path = self.root.join(rel);
-        let mut cols = read_columns(&path, &["timestamp"], rows.clone())?;
-        let t = cols.pop().expect("timestamp was asked for");
-        let place = format!("{}: episode {}: `timestamp`", path.display(), info.id);
-        Ok(Some(parquet_read::to_f64_rows(&t, 1, &place)?))
+        let path = self.root.join(&self.locations[index].0);
+        let place = format!("{}: episode {}", path.display(), info.id);
+        let t = match self.columns(index, &[("timestamp", 1)]) {
+            Ok(mut cols) => cols.pop().expect("timestamp was asked for"),
+            Err(_) => self
+                .columns_of_episode(index, &[("timestamp", 1)], &place)?
+                .remove(0),
+        };
+        Ok(Some(self.stamps[index].get_or_init(|| t).clone()))
     }
 
     fn read_episode(&self, index: usize) -> Result<Episode> {
         let info = &self.manifest.episodes[index];
-        let (rel, rows) = &self.locations[index];
+        let (rel, _) = &self.locations[index];
         let path = self.root.join(rel);
         let place = format!("{}: episode {}", path.display(), info.id);
         let keys = self.mapped.keys();
-        let mut names: Vec<&str> = keys.iter().map(String::as_str).collect();
-        if self.has_timestamp {
-            names.push("timestamp");
-        }
-        let mut cols = read_columns(&path, &names, rows.clone())?;
-        let timestamps = if self.has_timestamp {
-            let t = cols.pop().expect("timestamp was asked for");
-            Some(parquet_read::to_f64_rows(
-                &t,
-                1,
-                &format!("{place}: `timestamp`"),
-            )?)
-        } else {
-            None
-        };
-        let mut by_key: BTreeMap<&str, _> = keys.iter().map(String::as_str).zip(cols).collect();
         let widths: BTreeMap<&str, usize> = self
             .mapped
             .recipes
             .iter()
             .flat_map(|r| r.parts.iter().map(|p| (p.key.as_str(), p.width)))
             .collect();
+        let mut wanted: Vec<(&str, usize)> = keys
+            .iter()
+            .map(|k| (k.as_str(), widths[k.as_str()]))
+            .collect();
+        let kept = self.stamps[index].get();
+        if self.has_timestamp && kept.is_none() {
+            wanted.push(("timestamp", 1));
+        }
+        // Through the decoded row groups; on a bad value, read the episode's own rows again the
+        // plain way, so that the message names the step in this episode (or, when the bad row
+        // is another episode's, this one reads fine).
+        let mut cols = match self.columns(index, &wanted) {
+            Ok(cols) => cols,
+            Err(_) => self.columns_of_episode(index, &wanted, &place)?,
+        };
+        let timestamps = match kept {
+            Some(t) => Some(t.clone()),
+            None if self.has_timestamp => cols.pop(),
+            None => None,
+        };
+        let mut by_key: BTreeMap<&str, Vec<f64>> =
+            keys.iter().map(String::as_str).zip(cols).collect();
         let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
-            let batches = by_key.remove(key).expect("every mapped key was read");
-            let values =
-                parquet_read::to_f64_rows(&batches, widths[key], &format!("{place}: `{key}`"))?;
+            let values = by_key.remove(key).expect("every mapped key was read");
             Ok(Raw::F32(values.into_iter().map(|v| v as f32).collect()))
         })?;
         Ok(Episode {
@@ -613,6 +661,114 @@ impl Source for LerobotSource {
             timestamps,
             channels,
         })
+    }
+
+    fn decode_counts(&self) -> DecodeCounts {
+        let mut out = DecodeCounts::new();
+        for ((file, rg, column), n) in self.cache.decodes() {
+            out.entry(format!("{}/{column}", file.display()))
+                .or_default()
+                .insert(vec![rg as u64], n);
+        }
+        out
+    }
+
+    fn only_reading(&mut self, positions: &[usize]) {
+        let mut by_file: BTreeMap<PathBuf, Vec<Range<u64>>> = BTreeMap::new();
+        for &i in positions {
+            if let (rel, Some(r)) = &self.locations[i] {
+                by_file
+                    .entry(rel.clone())
+                    .or_default()
+                    .push(r.start as u64..r.end as u64);
+            }
+        }
+        let mut done: BTreeMap<PathBuf, Arc<FileRowGroups>> = BTreeMap::new();
+        for i in 0..self.locations.len() {
+            let (rel, _) = &self.locations[i];
+            let Some(f) = &self.footers[i] else { continue };
+            let updated = done.entry(rel.clone()).or_insert_with(|| {
+                let mut ranges = by_file.remove(rel).unwrap_or_default();
+                ranges.sort_by_key(|r| r.start);
+                let users = chunk_cache::users_per_chunk(&ranges, &f.0.starts, f.0.rows);
+                Arc::new((f.0.clone(), users))
+            });
+            self.footers[i] = Some(updated.clone());
+        }
+    }
+}
+
+impl LerobotSource {
+    /// The columns `wanted` (name, values per step) of episode `index`, as `rows × width`
+    /// values each, from its data file's row groups: each row group's column decoded once
+    /// (through the cache), however many episodes it holds.
+    fn columns(&self, index: usize, wanted: &[(&str, usize)]) -> Result<Vec<Vec<f64>>> {
+        let (rel, rows) = &self.locations[index];
+        let path = self.root.join(rel);
+        let loaded;
+        let (footer, users): (&parquet_read::Footer, Option<&[u32]>) = match &self.footers[index] {
+            Some(f) => (&f.0, Some(&f.1)),
+            None => {
+                loaded = parquet_read::footer(&path)?;
+                (&loaded, None)
+            }
+        };
+        let rows = match rows {
+            Some(r) => r.start as u64..r.end as u64,
+            None => 0..footer.rows,
+        };
+        let mut out = Vec::with_capacity(wanted.len());
+        for &(name, width) in wanted {
+            let mut values = vec![0f64; (rows.end - rows.start) as usize * width];
+            let first = footer
+                .starts
+                .partition_point(|&s| s <= rows.start)
+                .saturating_sub(1);
+            for rg in first..footer.starts.len() {
+                let lo = footer.starts[rg];
+                if lo >= rows.end {
+                    break;
+                }
+                let hi = footer.starts.get(rg + 1).copied().unwrap_or(footer.rows);
+                let n = users.and_then(|u| u.get(rg).copied()).unwrap_or(1);
+                let what = format!("{}: `{name}`", path.display());
+                let decoded = self
+                    .cache
+                    .get(&(rel.clone(), rg, name.to_string()), n, || {
+                        let v =
+                            parquet_read::row_group_column(&path, footer, rg, name, width, &what)?;
+                        let bytes = v.len() * 8;
+                        Ok::<_, Error>((v, bytes))
+                    })?;
+                let (a, b) = (rows.start.max(lo), rows.end.min(hi));
+                if a < b {
+                    let src = &decoded[(a - lo) as usize * width..(b - lo) as usize * width];
+                    let at = (a - rows.start) as usize * width;
+                    values[at..at + src.len()].copy_from_slice(src);
+                }
+            }
+            out.push(values);
+        }
+        Ok(out)
+    }
+
+    /// The columns `wanted` of episode `index` read from its own rows alone (not cached): the
+    /// way to a message that names the bad step within the episode.
+    fn columns_of_episode(
+        &self,
+        index: usize,
+        wanted: &[(&str, usize)],
+        place: &str,
+    ) -> Result<Vec<Vec<f64>>> {
+        let (rel, rows) = &self.locations[index];
+        let names: Vec<&str> = wanted.iter().map(|(n, _)| *n).collect();
+        let cols = read_columns(&self.root.join(rel), &names, rows.clone())?;
+        cols.iter()
+            .zip(wanted)
+            .map(|(batches, (name, width))| {
+                parquet_read::to_f64_rows(batches, *width, &format!("{place}: `{name}`"))
+            })
+            .collect()
     }
 }
 

@@ -17,6 +17,8 @@
 //! - `h5`: HDF5 reading helpers (key listing, typed reads, clear errors, reads without HDF5).
 //! - `h5meta`: where contiguous datasets lie, read from a file's metadata without the HDF5
 //!   library (so that the headers of many episode files are read in parallel).
+//! - `chunk_cache`: decoded storage chunks shared by the episodes that overlap them (each chunk
+//!   decoded at most once per build), and the decode counts the build reports.
 //! - `chunk_map`: where a chunked, unfiltered HDF5 dataset's chunks lie in its file (read and
 //!   written with `pread`/`pwrite`, outside HDF5's lock; the HDF5 writer uses it too).
 //! - `jpeg`: decoding JPEG frames.
@@ -26,6 +28,7 @@
 
 mod aloha;
 pub mod check;
+pub mod chunk_cache;
 pub mod chunk_map;
 mod dp_zarr;
 pub mod fingerprint;
@@ -38,6 +41,7 @@ mod parquet_read;
 mod robomimic;
 mod subset;
 
+pub use chunk_cache::DecodeCounts;
 pub use lerobot::Info as LerobotInfo;
 pub use subset::Subset;
 
@@ -139,6 +143,16 @@ pub trait Source: Send + Sync {
     /// rest of the episode override this.
     fn read_timestamps(&self, index: usize) -> Result<Option<Vec<f64>>> {
         Ok(self.read_episode(index)?.timestamps)
+    }
+    /// How many times each storage chunk was decoded so far (see [`chunk_cache`]); empty for
+    /// sources that do not count.
+    fn decode_counts(&self) -> DecodeCounts {
+        DecodeCounts::new()
+    }
+    /// Only the episodes at `positions` (sorted) will be read from now on: adapters that keep a
+    /// decoded chunk until every episode overlapping it has been read count only these.
+    fn only_reading(&mut self, positions: &[usize]) {
+        let _ = positions;
     }
 }
 

@@ -185,3 +185,73 @@ fn rows_of(
     }
     Ok(())
 }
+
+/// A parquet file's footer, parsed once, and where its row groups start.
+#[derive(Clone)]
+pub struct Footer {
+    meta: parquet::arrow::arrow_reader::ArrowReaderMetadata,
+    /// The first row of each row group.
+    pub starts: Vec<u64>,
+    /// Rows in the file.
+    pub rows: u64,
+}
+
+/// Reads the footer of `path`.
+pub fn footer(path: &Path) -> Result<Footer> {
+    let file = File::open(path)
+        .map_err(|e| Error::source(format!("{}: cannot open: {e}", path.display())))?;
+    let meta = parquet::arrow::arrow_reader::ArrowReaderMetadata::load(&file, Default::default())
+        .map_err(|e| {
+        Error::source(format!(
+            "{}: cannot read as parquet (corrupt or not a parquet file): {e}",
+            path.display()
+        ))
+    })?;
+    let mut starts = Vec::new();
+    let mut rows = 0u64;
+    for rg in meta.metadata().row_groups() {
+        starts.push(rows);
+        rows += rg.num_rows() as u64;
+    }
+    Ok(Footer { meta, starts, rows })
+}
+
+/// Column `name` of row group `rg` of `path` (whose footer is `footer`), decoded, as
+/// `rows × width` values (see [`to_f64_rows`]; `what` names the column in messages).
+pub fn row_group_column(
+    path: &Path,
+    footer: &Footer,
+    rg: usize,
+    name: &str,
+    width: usize,
+    what: &str,
+) -> Result<Vec<f64>> {
+    let file = File::open(path)
+        .map_err(|e| Error::source(format!("{}: cannot open: {e}", path.display())))?;
+    let b = ParquetRecordBatchReaderBuilder::new_with_metadata(file, footer.meta.clone());
+    let Ok(i) = b.schema().index_of(name) else {
+        let have: Vec<&str> = b
+            .schema()
+            .fields()
+            .iter()
+            .map(|f| f.name().as_str())
+            .collect();
+        return Err(Error::source(format!(
+            "{}: no column `{name}`; the file has: {}",
+            path.display(),
+            have.join(", ")
+        )));
+    };
+    let mask = ProjectionMask::roots(b.parquet_schema(), [i]);
+    let reader = b
+        .with_projection(mask)
+        .with_row_groups(vec![rg])
+        .with_batch_size(64 * 1024)
+        .build()
+        .map_err(|e| Error::source(format!("{}: {e}", path.display())))?;
+    let batches: Vec<ArrayRef> = reader
+        .map(|b| b.map(|b| b.column(0).clone()))
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|e| Error::source(format!("{}: cannot read: {e}", path.display())))?;
+    to_f64_rows(&batches, width, what)
+}

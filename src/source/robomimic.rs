@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 
 use hdf5::File;
 
-use super::mapping::{self, KeyInfo, Mapped};
+use super::chunk_cache::{self, ChunkCache, DecodeCounts};
+use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::{
     fingerprint, fps_from_timestamps, h5, Episode, EpisodeInfo, Manifest, Source, SourceSplit,
 };
@@ -28,6 +29,10 @@ pub struct RobomimicSource {
     mapped: Mapped,
     /// Per episode: simulation time from `states[:, 0]` (robosuite files only).
     timestamps: Option<Vec<Vec<f64>>>,
+    /// Datasets read, keyed by (path in the file, number of chunks). A robosuite `states`
+    /// decoded at open for the timestamps waits here for the episode read (when it fits the
+    /// budget), so that it is decoded once.
+    cache: ChunkCache<(String, u64), Raw>,
 }
 
 /// `demo_12` → 12.
@@ -74,6 +79,8 @@ impl RobomimicSource {
         let mapped = mapping::resolve(spec, &place, &keys)?;
         let wanted = mapped.keys();
 
+        let cache = ChunkCache::new(chunk_cache::budget_from_env());
+        let states_mapped = wanted.iter().any(|k| k == "states");
         let mut episodes = Vec::with_capacity(demos.len());
         let mut timestamps = Vec::new();
         let mut has_timestamps = true;
@@ -156,6 +163,17 @@ impl RobomimicSource {
                         .map_err(|e| Error::source(format!("{here}: cannot read `states`: {e}")))?;
                     let cols = ds.shape()[1].max(1);
                     timestamps.push(all.iter().step_by(cols).copied().collect());
+                    // The episode read converts to f32 as `h5::read_direct` does: keep the
+                    // values so converted for it instead of decoding `states` again.
+                    let key = (format!("data/{name}/states"), h5::chunks(ds));
+                    match h5::direct(ds) {
+                        Some(_) if states_mapped => {
+                            let values: Vec<f32> = all.iter().map(|&x| x as f32).collect();
+                            let bytes = values.len() * 4;
+                            cache.get(&key, 2, || Ok::<_, Error>((Raw::F32(values), bytes)))?;
+                        }
+                        _ => cache.count(&key),
+                    }
                 }
                 _ => has_timestamps = false,
             }
@@ -204,6 +222,7 @@ impl RobomimicSource {
             demos: demos.into_iter().map(|(_, n)| n).collect(),
             mapped,
             timestamps,
+            cache,
         })
     }
 }
@@ -277,6 +296,10 @@ impl Source for RobomimicSource {
         Ok(self.timestamps.as_ref().map(|t| t[index].clone()))
     }
 
+    fn decode_counts(&self) -> DecodeCounts {
+        chunk_cache::whole_datasets(self.cache.decodes())
+    }
+
     fn read_episode(&self, index: usize) -> Result<Episode> {
         let info = &self.manifest.episodes[index];
         let demo = &self.demos[index];
@@ -284,13 +307,21 @@ impl Source for RobomimicSource {
         let group = h5::group(&self.file, &format!("data/{demo}"), &self.path)?;
         let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
             let ds = h5::dataset(&group, key, &self.path)?;
-            // Located under HDF5's lock, then read (and inflated) outside it, so that episodes
-            // decode in parallel.
-            match h5::direct(&ds) {
-                Some(d) => h5::read_direct(&self.raw, &d)
-                    .map_err(|e| Error::source(format!("{place}/{key}: cannot read: {e}"))),
-                None => h5::read(&ds, || format!("{place}/{key}")),
-            }
+            let id = (format!("data/{demo}/{key}"), h5::chunks(&ds));
+            // One user: a `states` kept at open is taken (and dropped from the cache); anything
+            // else is decoded here and not kept.
+            let raw = self.cache.get(&id, 1, || {
+                // Located under HDF5's lock, then read (and inflated) outside it, so that
+                // episodes decode in parallel.
+                let raw = match h5::direct(&ds) {
+                    Some(d) => h5::read_direct(&self.raw, &d)
+                        .map_err(|e| Error::source(format!("{place}/{key}: cannot read: {e}"))),
+                    None => h5::read(&ds, || format!("{place}/{key}")),
+                }?;
+                Ok::<_, Error>((raw, 0))
+            })?;
+            // Each dataset has one reader in the build: the value is this episode's alone.
+            Ok(std::sync::Arc::try_unwrap(raw).unwrap_or_else(|shared| (*shared).clone()))
         })?;
         Ok(Episode {
             id: info.id,

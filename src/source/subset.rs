@@ -1,6 +1,6 @@
 //! `[source] episodes = […]`: some episodes of any source, in the source's order.
 
-use super::{Episode, Manifest, Source};
+use super::{DecodeCounts, Episode, Manifest, Source};
 use crate::error::Result;
 use crate::spec::LoadedSpec;
 
@@ -12,7 +12,7 @@ pub struct Subset {
 }
 
 impl Subset {
-    pub fn new(spec: &LoadedSpec, inner: Box<dyn Source>, ids: &[u64]) -> Result<Self> {
+    pub fn new(spec: &LoadedSpec, mut inner: Box<dyn Source>, ids: &[u64]) -> Result<Self> {
         let all = &inner.manifest().episodes;
         if let Some(id) = ids.iter().find(|id| !all.iter().any(|e| e.id == **id)) {
             let shown: Vec<String> = all.iter().take(20).map(|e| e.id.to_string()).collect();
@@ -31,6 +31,7 @@ impl Subset {
             .collect();
         let mut manifest = inner.manifest().clone();
         manifest.episodes = positions.iter().map(|&i| all[i].clone()).collect();
+        inner.only_reading(&positions);
         if let Some(split) = manifest.source_split.as_mut() {
             split.train.retain(|id| ids.contains(id));
             split.val.retain(|id| ids.contains(id));
@@ -45,13 +46,14 @@ impl Subset {
 
 impl Subset {
     /// Every episode of `inner` except those in `excluded` (ids).
-    pub fn without(inner: Box<dyn Source>, excluded: &[u64]) -> Self {
+    pub fn without(mut inner: Box<dyn Source>, excluded: &[u64]) -> Self {
         let all = &inner.manifest().episodes;
         let positions: Vec<usize> = (0..all.len())
             .filter(|&i| !excluded.contains(&all[i].id))
             .collect();
         let mut manifest = inner.manifest().clone();
         manifest.episodes = positions.iter().map(|&i| all[i].clone()).collect();
+        inner.only_reading(&positions);
         if let Some(split) = manifest.source_split.as_mut() {
             split.train.retain(|id| !excluded.contains(id));
             split.val.retain(|id| !excluded.contains(id));
@@ -75,5 +77,14 @@ impl Source for Subset {
 
     fn read_timestamps(&self, index: usize) -> Result<Option<Vec<f64>>> {
         self.inner.read_timestamps(self.positions[index])
+    }
+
+    fn decode_counts(&self) -> DecodeCounts {
+        self.inner.decode_counts()
+    }
+
+    fn only_reading(&mut self, positions: &[usize]) {
+        let inner: Vec<usize> = positions.iter().map(|&i| self.positions[i]).collect();
+        self.inner.only_reading(&inner);
     }
 }

@@ -92,6 +92,8 @@ pub struct SynthOptions {
     /// robomimic only: write robosuite's older layout (no `obs` group; `states[:, 0]` is the
     /// simulation time chunkc reads as timestamps, the state follows in columns 1..).
     pub robosuite: bool,
+    /// diffusion_policy_zarr only: the arrays' chunking and zarr format.
+    pub zarr: dp_zarr::ZarrLayout,
 }
 
 impl Default for SynthOptions {
@@ -110,6 +112,7 @@ impl Default for SynthOptions {
             faults: Vec::new(),
             fault_fraction: 0.2,
             robosuite: false,
+            zarr: dp_zarr::ZarrLayout::default(),
         }
     }
 }
