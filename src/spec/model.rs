@@ -425,8 +425,10 @@ pub struct ProfileSpec {
     /// Names of the arrays of a native export (`zarr`, `robomimic_hdf5`, `act_episodes`), per
     /// channel: `"observation.image" = "camera_0"`. A channel left out keeps the name of the
     /// source key it was read from (its last `/` component), or, when it is built with `concat`
-    /// or `columns`, its chunkc name without `observation.`. Merged along `extends`; a name is one
-    /// path component (no `/`). `hdf5` and `parquet` keep chunkc's names and take none.
+    /// or `columns`, its chunkc name without `observation.`. Fixed by the codebase: robomimic's
+    /// `actions`, ACT's `action`, and ACT's state channel is `qpos` unless named here. Merged
+    /// along `extends`; a name is one path component (no `/`). `hdf5` and `parquet` keep
+    /// chunkc's names and take none (see `formats.md`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub export_keys: Option<BTreeMap<String, String>>,
     /// How `format = "hdf5"` stores the chunks: `index` (default, per-step arrays + window

@@ -476,28 +476,45 @@ impl Checker<'_> {
             &p.export_keys,
             state,
         );
+        let set_here = |n: &export_keys::ExportName| {
+            n.overridden
+                && own
+                    .export_keys
+                    .as_ref()
+                    .is_some_and(|m| m.contains_key(&n.channel))
+        };
         for (a, b) in export_keys::collisions(&names) {
+            // Point at the name this profile chose, if it chose one; else at the mapping.
+            let (other, culprit) = if set_here(a) && !set_here(b) {
+                (b, a)
+            } else {
+                (a, b)
+            };
             let message = format!(
                 "profile `{name}` (`{format}`) would export `{}` and `{}` both as `{}`",
                 a.channel, b.channel, b.name
             );
-            let help = Some(format!(
-                "give one of them its own name: `{}` = \"…\" in `[profiles.{name}.export_keys]`",
-                dotted(&[&b.channel])
-            ));
-            if b.overridden
-                && p.export_keys.contains_key(&b.channel)
-                && own
-                    .export_keys
-                    .as_ref()
-                    .is_some_and(|m| m.contains_key(&b.channel))
-            {
-                let key = at(&b.channel);
+            if set_here(culprit) {
+                let key = at(&culprit.channel);
                 let key: Vec<&str> = key.iter().map(String::as_str).collect();
-                self.value(&key, message, "already taken", help);
+                let label = format!(
+                    "`{}` is already exported as `{}`",
+                    other.channel, other.name
+                );
+                let help = Some(format!("choose another name for `{}`", culprit.channel));
+                self.value(&key, message, &label, help);
             } else {
-                let label = format!("exported as `{}`, as `{}` is", b.name, a.channel);
-                self.key(&["source", "channels", &b.channel], message, &label, help);
+                let help = Some(format!(
+                    "give one of them its own name: `{} = \"…\"` in `[profiles.{name}.export_keys]`",
+                    dotted(&[&culprit.channel])
+                ));
+                let label = format!("exported as `{}`, as `{}` is", culprit.name, other.channel);
+                self.key(
+                    &["source", "channels", &culprit.channel],
+                    message,
+                    &label,
+                    help,
+                );
             }
         }
     }
