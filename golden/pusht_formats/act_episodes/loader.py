@@ -133,6 +133,10 @@ class ChunkedDataset(_DatasetBase):
         self.raw_values = self.meta.get("stored_values", "normalized") == "raw"
         self._lowdim = {n for n, c in self.meta["channels"].items() if c["kind"] == "lowdim"}
         self._images = {n for n, c in self.meta["channels"].items() if c["kind"] == "image"}
+        # Where each channel's array lives (a native export names it as its codebase does:
+        # Push-T's zarr holds `data/img`); parquet columns are read into `data/<channel>`.
+        self._arrays = {n: "data/" + n if self.data_format == "parquet" else c.get("array", "data/" + n)
+                        for n, c in self.meta["channels"].items()}
         self._norm = {
             name: (
                 np.asarray(p["center"], dtype=np.float64),
@@ -153,20 +157,20 @@ class ChunkedDataset(_DatasetBase):
             keep = list(CHANNELS)
         else:
             lowdim = [n for n in CHANNELS if n in self._lowdim]
-            nbytes = sum(int(np.prod(f["data/" + n].shape)) * np.dtype(f["data/" + n].dtype).itemsize
+            nbytes = sum(int(np.prod(f[self._arrays[n]].shape)) * np.dtype(f[self._arrays[n]].dtype).itemsize
                          for n in lowdim)
             if cache_lowdim is None:
                 cache_lowdim = nbytes <= LOWDIM_CACHE_BYTES
             keep = lowdim if cache_lowdim else []
         for name in keep:
-            rows = np.asarray(f["data/" + name][...])
+            rows = np.asarray(f[self._arrays[name]][...])
             self._cache[name] = self._normalized(name, rows)
         # HDF5 frames read with one pread each, from the byte offsets looked up here.
         self._frames = {}
         if self.data_format == "hdf5":
             for name in CHANNELS:
                 if name not in self._cache:
-                    table = _frame_table(f["data/" + name])
+                    table = _frame_table(f[self._arrays[name]])
                     if table is not None:
                         self._frames[name] = table
             f.close()
@@ -234,7 +238,7 @@ class ChunkedDataset(_DatasetBase):
             else:
                 if self._file is None:
                     self._file = self._open()
-                read = self._make_reader(self._file["data/" + name])
+                read = self._make_reader(self._file[self._arrays[name]])
             self._readers[name] = read
         return read
 
