@@ -6,8 +6,11 @@
 //! profiles appears once: the source read, and the statistics of each (rate, channel) pair.
 //!
 //! - `split`: the deterministic train/validation split.
+//! - `export`: where each channel's array lives in the profile's container (native exports
+//!   name them as their codebase's configuration does).
 //! - `text`: the human-readable rendering of `chunkc plan`.
 
+pub mod export;
 pub mod split;
 mod text;
 
@@ -138,6 +141,18 @@ pub struct ProfileChannel {
     pub kind: ChannelKind,
     pub shape: Vec<usize>,
     pub normalize: NormalizeMode,
+    /// The name a native export gives the channel (`None`: the format keeps chunkc's names).
+    pub export: Option<String>,
+    /// The channel's per-step array in the data container (see [`export`]): `data/img`,
+    /// `data/demo_<i>/obs/state`, `observations/qpos`; `<i>` is the stored episode position.
+    pub array: String,
+}
+
+impl ProfileChannel {
+    /// [`ProfileChannel::array`] of the episode stored at position `i`.
+    pub fn array_of(&self, i: usize) -> String {
+        self.array.replace("<i>", &i.to_string())
+    }
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -514,8 +529,11 @@ fn resolve_profile(
             kind: ch.kind,
             shape: ch.shape.clone(),
             normalize,
+            export: None,
+            array: String::new(),
         });
     }
+    export::assign(spec, profile, &mut channels)?;
 
     let sampling = sampling_of(spec, manifest, profile, fps)?;
     let mut episodes = Vec::new();

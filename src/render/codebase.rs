@@ -33,18 +33,7 @@ pub struct Inputs<'a> {
 /// The channel ACT calls `qpos` and openpi calls `state`: `observation.qpos`, else
 /// `observation.state`, else the first vector-valued observation.
 pub fn state_channel(profile: &ProfilePlan) -> Option<&ProfileChannel> {
-    let lowdim = |c: &&ProfileChannel| c.kind == ChannelKind::Lowdim && c.shape.len() <= 1;
-    let obs = || {
-        profile
-            .channels
-            .iter()
-            .filter(lowdim)
-            .filter(|c| c.name != "action")
-    };
-    obs()
-        .find(|c| c.name == "observation.qpos")
-        .or_else(|| obs().find(|c| c.name == "observation.state"))
-        .or_else(|| obs().next())
+    crate::plan::export::state_channel(&profile.channels)
 }
 
 fn pretty(v: &Value) -> Vec<u8> {

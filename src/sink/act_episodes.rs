@@ -6,13 +6,16 @@
 //!   @sim = True                      actions start at the observation's step (chunkc's
 //!                                    `current` alignment)
 //!   /action                (T, A) float32 raw
-//!   /observations/qpos     (T, D) float32 raw (the state channel; see `codebase::state_channel`)
-//!   /observations/qvel     (T, D) float32 zeros (ACT reads it but never uses it)
-//!   /observations/<name>   (T, D) float32 raw, every other low-dim observation
+//!   /observations/qpos     (T, D) float32 raw (the state channel; see `plan::export`)
+//!   /observations/qvel     (T, D) float32: a channel exported as `qvel` (an ALOHA source's
+//!                          `observations/qvel`), else zeros (ACT reads it but never uses it)
+//!   /observations/<key>    (T, D) float32 raw, every other low-dim observation
 //!   /observations/images/<cam>  (T, H, W, C) uint8, one frame per chunk, uncompressed
 //! ```
-//! Values are raw: ACT normalizes with `dataset_stats.pkl`, written beside the episodes (the
-//! `act` statistics format is always on for this format).
+//! `<key>` and `<cam>` are export names (`plan::export`): by default the last component of the
+//! source key, so an ALOHA source's `observations/images/top` is camera `top` again, as ACT's
+//! `camera_names` expect. Values are raw: ACT normalizes with `dataset_stats.pkl`, written beside
+//! the episodes (the `act` statistics format is always on for this format).
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -22,16 +25,17 @@ use hdf5::{File, Group};
 use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
 use crate::exec::LowdimStore;
-use crate::render::codebase::state_channel;
+use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
 use crate::stats::normalize::Normalizer;
+
+const QPOS: &str = "observations/qpos";
+const QVEL: &str = "observations/qvel";
 
 pub struct ActEpisodesWriter {
     dir: PathBuf,
     ends: Vec<u64>,
-    /// Per channel: the name, its shape, its kind.
-    channels: Vec<(String, Vec<usize>, ChannelKind)>,
-    state: Option<String>,
+    channels: Vec<ProfileChannel>,
     raw: Vec<Option<Arc<LowdimStore>>>,
 }
 
@@ -52,12 +56,7 @@ fn open_rw(path: &std::path::Path) -> Result<File> {
 
 impl ActEpisodesWriter {
     pub fn create(ctx: &SinkContext) -> Result<Self> {
-        let channels: Vec<(String, Vec<usize>, ChannelKind)> = ctx
-            .profile
-            .channels
-            .iter()
-            .map(|c| (c.name.clone(), c.shape.clone(), c.kind))
-            .collect();
+        let channels = ctx.profile.channels.clone();
         let mut start = 0usize;
         for (e, &end) in ctx.episode_ends.iter().enumerate() {
             let len = end as usize - start;
@@ -69,28 +68,23 @@ impl ActEpisodesWriter {
                 .map_err(|err| Error::output(format!("cannot create {}: {err}", path.display())))?;
             file.new_attr::<bool>().create("sim")?.write_scalar(&true)?;
             let obs = group(&file, "observations")?;
-            let images = group(&obs, "images")?;
-            for (name, shape, kind) in &channels {
-                if *kind != ChannelKind::Image {
-                    continue;
-                }
+            group(&obs, "images")?;
+            for ch in channels.iter().filter(|c| c.kind == ChannelKind::Image) {
                 let mut full = vec![len];
-                full.extend(shape);
+                full.extend(&ch.shape);
                 let mut chunk = vec![1];
-                chunk.extend(shape);
-                images
-                    .new_dataset::<u8>()
+                chunk.extend(&ch.shape);
+                file.new_dataset::<u8>()
                     .shape(full)
                     .chunk(chunk)
                     .obj_track_times(false)
-                    .create(camera(name))?;
+                    .create(ch.array.as_str())?;
             }
             file.close()?;
         }
         Ok(ActEpisodesWriter {
             dir: ctx.dir.to_path_buf(),
             ends: ctx.episode_ends.to_vec(),
-            state: state_channel(ctx.profile).map(|c| c.name.clone()),
             raw: channels.iter().map(|_| None).collect(),
             channels,
         })
@@ -101,11 +95,6 @@ impl ActEpisodesWriter {
         let start = if e == 0 { 0 } else { self.ends[e - 1] as usize };
         (e, start)
     }
-}
-
-/// `observation.image` → `image`: ACT names cameras by their key under `images/`.
-fn camera(name: &str) -> &str {
-    name.strip_prefix("observation.").unwrap_or(name)
 }
 
 impl Sink for ActEpisodesWriter {
@@ -127,15 +116,15 @@ impl Sink for ActEpisodesWriter {
         }
         let (e, start) = self.episode_of(row);
         let file = open_rw(&episode_file(&self.dir, e))?;
-        let (name, shape, _) = &self.channels[channel];
-        let ds = file.dataset(&format!("observations/images/{}", camera(name)))?;
+        let ch = &self.channels[channel];
+        let ds = file.dataset(&ch.array)?;
         let mut dims = vec![frames.len()];
-        dims.extend(shape);
+        dims.extend(&ch.shape);
         let view = ndarray::ArrayViewD::from_shape(ndarray::IxDyn(&dims), frames.bytes())
-            .map_err(|err| Error::Internal(format!("frames of {name}: {err}")))?;
+            .map_err(|err| Error::Internal(format!("frames of {}: {err}", ch.name)))?;
         let mut sel: Vec<hdf5::SliceOrIndex> =
             vec![(row - start..row - start + frames.len()).into()];
-        sel.extend(shape.iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
+        sel.extend(ch.shape.iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
         ds.write_slice(view, hdf5::Hyperslab::from(sel))?;
         file.close()?;
         Ok(())
@@ -157,25 +146,19 @@ impl Sink for ActEpisodesWriter {
     }
 
     fn finish(self: Box<Self>) -> Result<()> {
+        let has_qvel = self.channels.iter().any(|c| c.array == QVEL);
         let mut start = 0usize;
         for (e, &end) in self.ends.iter().enumerate() {
             let (lo, hi) = (start, end as usize);
             start = hi;
             let file = open_rw(&episode_file(&self.dir, e))?;
-            for ((name, shape, kind), raw) in self.channels.iter().zip(&self.raw) {
-                let (ChannelKind::Lowdim, Some(raw)) = (kind, raw) else {
+            for (ch, raw) in self.channels.iter().zip(&self.raw) {
+                let (ChannelKind::Lowdim, Some(raw)) = (ch.kind, raw) else {
                     continue;
                 };
                 let values = raw.rows(lo, hi)?;
                 let mut dims = vec![hi - lo];
-                dims.extend(shape);
-                let path = if name == "action" {
-                    "action".to_string()
-                } else if Some(name) == self.state.as_ref() {
-                    "observations/qpos".to_string()
-                } else {
-                    format!("observations/{}", camera(name))
-                };
+                dims.extend(&ch.shape);
                 let write = |path: &str, values: &[f32]| -> Result<()> {
                     file.new_dataset::<f32>()
                         .shape(dims.clone())
@@ -184,9 +167,9 @@ impl Sink for ActEpisodesWriter {
                         .write_raw(values)?;
                     Ok(())
                 };
-                write(&path, &values)?;
-                if path == "observations/qpos" {
-                    write("observations/qvel", &vec![0.0; values.len()])?;
+                write(&ch.array, &values)?;
+                if ch.array == QPOS && !has_qvel {
+                    write(QVEL, &vec![0.0; values.len()])?;
                 }
             }
             file.close()?;

@@ -76,6 +76,7 @@ pub fn meta_json(
                 "dtype": match ch.kind { ChannelKind::Lowdim => "float32", ChannelKind::Image => "uint8" },
                 "source_key": src.key,
                 "source_dtype": src.source_dtype,
+                "array": ch.array,
             }),
         );
     }

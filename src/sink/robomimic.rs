@@ -1,19 +1,24 @@
 //! robomimic's dataset layout (`format = "robomimic_hdf5"`): one `data.hdf5` that robomimic's
-//! `SequenceDataset` opens directly.
+//! `SequenceDataset` opens directly, with every algorithm's configuration (the offline-RL and
+//! hierarchical ones set `hdf5_load_next_obs = true`).
 //!
 //! ```text
 //! data.hdf5
 //!   /data  @total = sum of T, @env_args = '{"env_name": "", "type": 1, "env_kwargs": {}}'
 //!   /data/demo_<i>          i = 0..E-1 in stored order, @num_samples = T
 //!     actions               (T, A) float64 raw (the `action` channel)
-//!     obs/<name>            (T, D) float64 raw, or (T, H, W, C) uint8 frames; <name> is the
-//!                           channel name without `observation.`
+//!     obs/<key>             (T, D) float64 raw, or (T, H, W, C) uint8 frames
+//!     next_obs/<key>        the same arrays one step later: next_obs[t] = obs[t + 1], the last
+//!                           step repeated (the episode ends there: `dones`)
 //!     dones                 (T,) uint8, 1 at the last step
 //!     rewards               (T,) float64 zeros
 //!   /mask/train, /mask/valid  byte strings: the demo names of each split
 //! ```
-//! Values are raw: robomimic normalizes in its own code. chunkc's loader does not read this
-//! format (there is no window index in it).
+//! `<key>` is the channel's export name (`plan::export`): by default the source key it was read
+//! from (`robot0_eef_pos` from a robomimic source's `obs/robot0_eef_pos`). Values are raw:
+//! robomimic normalizes in its own code. Frames are stored twice (`obs` and `next_obs`), as
+//! robomimic's own image datasets do. chunkc's loader does not read this format (there is no
+//! window index in it).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -24,6 +29,7 @@ use hdf5::{File, Group};
 use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
 use crate::exec::LowdimStore;
+use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
 use crate::stats::normalize::Normalizer;
 
@@ -33,8 +39,7 @@ const ENV_ARGS: &str = r#"{"env_name": "", "type": 1, "env_kwargs": {}}"#;
 pub struct RobomimicWriter {
     path: PathBuf,
     ends: Vec<u64>,
-    /// Per channel: the name, its shape, its kind.
-    channels: Vec<(String, Vec<usize>, ChannelKind)>,
+    channels: Vec<Channel>,
     raw: Vec<Option<Arc<LowdimStore>>>,
 }
 
@@ -49,9 +54,27 @@ fn open_rw(path: &Path) -> Result<File> {
     File::open_rw(path).map_err(|e| Error::output(format!("cannot open {}: {e}", path.display())))
 }
 
-/// `observation.image` → `image`.
-fn obs_name(name: &str) -> &str {
-    name.strip_prefix("observation.").unwrap_or(name)
+/// What the writer needs of a channel.
+struct Channel {
+    name: String,
+    /// `data/demo_<i>/obs/<key>` or `data/demo_<i>/actions` (see `ProfileChannel::array`).
+    array: ProfileChannel,
+    /// The export name, when the channel is an observation (it then has `next_obs`).
+    next_obs: Option<String>,
+    shape: Vec<usize>,
+    kind: ChannelKind,
+}
+
+impl Channel {
+    fn obs(&self, e: usize) -> String {
+        self.array.array_of(e)
+    }
+
+    fn next_obs(&self, e: usize) -> Option<String> {
+        self.next_obs
+            .as_ref()
+            .map(|key| format!("data/{}/next_obs/{key}", demo(e)))
+    }
 }
 
 fn demo(e: usize) -> String {
@@ -60,11 +83,17 @@ fn demo(e: usize) -> String {
 
 impl RobomimicWriter {
     pub fn create(ctx: &SinkContext) -> Result<Self> {
-        let channels: Vec<(String, Vec<usize>, ChannelKind)> = ctx
+        let channels: Vec<Channel> = ctx
             .profile
             .channels
             .iter()
-            .map(|c| (c.name.clone(), c.shape.clone(), c.kind))
+            .map(|c| Channel {
+                name: c.name.clone(),
+                array: c.clone(),
+                next_obs: c.export.clone().filter(|_| c.name != "action"),
+                shape: c.shape.clone(),
+                kind: c.kind,
+            })
             .collect();
         let path = ctx.dir.join(ROBOMIMIC_FILE);
         let file = File::with_options()
@@ -91,20 +120,20 @@ impl RobomimicWriter {
             g.new_attr::<i64>()
                 .create("num_samples")?
                 .write_scalar(&(len as i64))?;
-            let obs = group(&g, "obs")?;
-            for (name, shape, kind) in &channels {
-                if *kind != ChannelKind::Image {
-                    continue;
-                }
+            group(&g, "obs")?;
+            group(&g, "next_obs")?;
+            for ch in channels.iter().filter(|c| c.kind == ChannelKind::Image) {
                 let mut full = vec![len];
-                full.extend(shape);
+                full.extend(&ch.shape);
                 let mut chunk = vec![1];
-                chunk.extend(shape);
-                obs.new_dataset::<u8>()
-                    .shape(full)
-                    .chunk(chunk)
-                    .obj_track_times(false)
-                    .create(obs_name(name))?;
+                chunk.extend(&ch.shape);
+                for path in [Some(ch.obs(e)), ch.next_obs(e)].into_iter().flatten() {
+                    file.new_dataset::<u8>()
+                        .shape(full.clone())
+                        .chunk(chunk.clone())
+                        .obj_track_times(false)
+                        .create(path.as_str())?;
+                }
             }
             let name = FixedAscii::<32>::from_ascii(demo(e).as_bytes())
                 .map_err(|err| Error::Internal(format!("demo name: {err}")))?;
@@ -155,17 +184,36 @@ impl Sink for RobomimicWriter {
             return Ok(());
         }
         let (e, start) = self.episode_of(row);
+        let len = self.ends[e] as usize - start;
         let file = open_rw(&self.path)?;
-        let (name, shape, _) = &self.channels[channel];
-        let ds = file.dataset(&format!("data/{}/obs/{}", demo(e), obs_name(name)))?;
-        let mut dims = vec![frames.len()];
-        dims.extend(shape);
-        let view = ndarray::ArrayViewD::from_shape(ndarray::IxDyn(&dims), frames.bytes())
-            .map_err(|err| Error::Internal(format!("frames of {name}: {err}")))?;
-        let mut sel: Vec<hdf5::SliceOrIndex> =
-            vec![(row - start..row - start + frames.len()).into()];
-        sel.extend(shape.iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
-        ds.write_slice(view, hdf5::Hyperslab::from(sel))?;
+        let ch = &self.channels[channel];
+        let (lo, n) = (row - start, frames.len());
+        let write = |path: &str, at: usize, from: usize, to: usize| -> Result<()> {
+            if from == to {
+                return Ok(());
+            }
+            let ds = file.dataset(path)?;
+            let mut dims = vec![to - from];
+            dims.extend(&ch.shape);
+            let view =
+                ndarray::ArrayViewD::from_shape(ndarray::IxDyn(&dims), frames.span(from, to))
+                    .map_err(|err| Error::Internal(format!("frames of {}: {err}", ch.name)))?;
+            let mut sel: Vec<hdf5::SliceOrIndex> = vec![(at..at + to - from).into()];
+            sel.extend(ch.shape.iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
+            ds.write_slice(view, hdf5::Hyperslab::from(sel))?;
+            Ok(())
+        };
+        write(&ch.obs(e), lo, 0, n)?;
+        if let Some(next) = ch.next_obs(e) {
+            // Step s is the next observation of step s - 1; the last step is its own.
+            match lo {
+                0 => write(&next, 0, 1, n)?,
+                _ => write(&next, lo - 1, 0, n)?,
+            }
+            if lo + n == len {
+                write(&next, len - 1, n - 1, n)?;
+            }
+        }
         file.close()?;
         Ok(())
     }
@@ -192,23 +240,28 @@ impl Sink for RobomimicWriter {
             let (lo, hi) = (start, end as usize);
             start = hi;
             let g = file.group(&format!("data/{}", demo(e)))?;
-            for ((name, shape, kind), raw) in self.channels.iter().zip(&self.raw) {
-                let (ChannelKind::Lowdim, Some(raw)) = (kind, raw) else {
+            for (ch, raw) in self.channels.iter().zip(&self.raw) {
+                let (ChannelKind::Lowdim, Some(raw)) = (ch.kind, raw) else {
                     continue;
                 };
                 let values: Vec<f64> = raw.rows(lo, hi)?.iter().map(|&v| f64::from(v)).collect();
                 let mut dims = vec![hi - lo];
-                dims.extend(shape);
-                let path = if name == "action" {
-                    "actions".to_string()
-                } else {
-                    format!("obs/{}", obs_name(name))
+                dims.extend(&ch.shape);
+                let write = |path: &str, values: &[f64]| -> Result<()> {
+                    file.new_dataset::<f64>()
+                        .shape(dims.clone())
+                        .obj_track_times(false)
+                        .create(path)?
+                        .write_raw(values)?;
+                    Ok(())
                 };
-                g.new_dataset::<f64>()
-                    .shape(dims)
-                    .obj_track_times(false)
-                    .create(path.as_str())?
-                    .write_raw(&values)?;
+                write(&ch.obs(e), &values)?;
+                if let Some(next) = ch.next_obs(e) {
+                    let width = values.len() / (hi - lo).max(1);
+                    let mut shifted = values[width.min(values.len())..].to_vec();
+                    shifted.extend_from_slice(&values[values.len() - width..]);
+                    write(&next, &shifted)?;
+                }
             }
             let len = hi - lo;
             let mut dones = vec![0u8; len];

@@ -3,12 +3,15 @@
 //!
 //! ```text
 //! data.zarr/
-//!   data/<channel>      (N, ...) float32 raw values (low-dim) or uint8 HWC frames (images)
+//!   data/<key>          (N, ...) float32 raw values (low-dim) or uint8 HWC frames (images)
 //!   meta/episode_ends   (E,) int64  exclusive ends (Diffusion Policy's key)
 //!   meta/episode_ids    (E,) int64  source episode ids, in stored order
 //!   index/train         (S, 4) int64 rows of (episode position, current step t, limit, sub)
 //!   index/val           (S, 4) int64
 //! ```
+//! `<key>` is the channel's export name (`plan::export`): by default the source key it was read
+//! from (`img`, `state`, `action` for Push-T, as `PushTImageDataset` reads them), always one path
+//! component, so that `data/` holds arrays only, as `ReplayBuffer` expects.
 //! Native consumers normalize in their own code, so every value is raw (the loader normalizes
 //! on read with `meta.json`'s parameters). Zarr v2 by default (`.zgroup`/`.zarray`), v3 with
 //! `zarr_version = 3`. Low-dim arrays are chunked along time only; images one frame per chunk.
@@ -83,7 +86,7 @@ impl ZarrWriter {
             shape.extend(&ch.shape);
             let mut chunks = vec![rows];
             chunks.extend(&ch.shape);
-            let array = w.array(&format!("data/{}", ch.name), dtype, &shape, &chunks)?;
+            let array = w.array(&ch.array, dtype, &shape, &chunks)?;
             w.data.push(array);
             w.chunk_rows.push(rows);
             w.widths.push(width);

@@ -5,10 +5,12 @@
 //!   `file:line:col` diagnostics with "did you mean".
 //! - `validate`: semantic checks that need no source (ranges, channel names, references).
 //! - `preset`: preset expansion into [`Profile`].
+//! - `export_keys`: the names native exports give their arrays (default rule and overrides).
 //! - `diagnostic`: renders an error with the offending text underlined.
 //! - `reference`: the spec's documentation read from the JSON Schema (book chapter, hints).
 
 mod diagnostic;
+pub mod export_keys;
 mod load;
 pub mod model;
 mod preset;

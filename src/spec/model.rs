@@ -422,6 +422,15 @@ pub struct ProfileSpec {
     /// export (`act_episodes`, `robomimic_hdf5`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub format: Option<OutputFormat>,
+    /// Names of the arrays of a native export (`zarr`, `robomimic_hdf5`, `act_episodes`), per
+    /// channel: `"observation.image" = "camera_0"`. A channel left out keeps the name of the
+    /// source key it was read from (its last `/` component), or, when it is built with `concat`
+    /// or `columns`, its chunkc name without `observation.`. Fixed by the codebase: robomimic's
+    /// `actions`, ACT's `action`, and ACT's state channel is `qpos` unless named here. Merged
+    /// along `extends`; a name is one path component (no `/`). `hdf5` and `parquet` keep
+    /// chunkc's names and take none (see `formats.md`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub export_keys: Option<BTreeMap<String, String>>,
     /// How `format = "hdf5"` stores the chunks: `index` (default, per-step arrays + window
     /// index), `materialized` (plus `/chunks/<channel>` of shape (N, K, ...): K times the
     /// storage) or `virtual` (plus an HDF5 virtual dataset `/chunks/action` mapped onto the
@@ -677,7 +686,7 @@ impl StatsFormat {
 pub enum OutputFormat {
     /// chunkc's own HDF5 file `data.h5` (see `layout`), read by the generated `loader.py`.
     Hdf5,
-    /// A Diffusion Policy replay buffer `data.zarr` (`data/<channel>`, `meta/episode_ends`) in
+    /// A Diffusion Policy replay buffer `data.zarr` (`data/<key>`, `meta/episode_ends`) in
     /// raw units, plus chunkc's window index (`index/train`, `index/val`).
     Zarr,
     /// A LeRobot v3.0 dataset in raw units (`data/chunk-000/file-000.parquet`, `meta/…`), plus

@@ -36,6 +36,9 @@ pub struct Profile {
     /// Explicit per-channel modes from the spec (merged along the `extends` chain).
     pub normalize: BTreeMap<String, NormalizeMode>,
     pub format: OutputFormat,
+    /// Array names of the native exports per channel (merged along the `extends` chain); see
+    /// `spec::export_keys`.
+    pub export_keys: BTreeMap<String, String>,
     pub layout: Layout,
     pub compression: Compression,
     /// `None`: the codec's default level.
@@ -310,6 +313,12 @@ pub fn expand(
             normalize.extend(map.iter().map(|(k, v)| (k.clone(), *v)));
         }
     }
+    let mut export_keys = BTreeMap::new();
+    for (_, p) in chain.iter().rev() {
+        if let Some(map) = &p.export_keys {
+            export_keys.extend(map.iter().map(|(k, v)| (k.clone(), v.clone())));
+        }
+    }
     let (normalize_lowdim, normalize_multidim) = base
         .as_ref()
         .map(|b| (b.normalize_lowdim, b.normalize_multidim))
@@ -334,6 +343,7 @@ pub fn expand(
         normalize_multidim,
         normalize,
         format,
+        export_keys,
         layout,
         compression,
         compression_level,
@@ -402,6 +412,34 @@ mod tests {
         assert_eq!(p.origins["chunk"], "profiles.base");
         assert_eq!(p.origins["stride"], "profiles.child");
         assert_eq!(p.origins["obs_history"], "preset diffusion_policy");
+    }
+
+    #[test]
+    fn export_keys_merge_along_extends() {
+        let map = |pairs: &[(&str, &str)]| {
+            Some(
+                pairs
+                    .iter()
+                    .map(|(k, v)| (k.to_string(), v.to_string()))
+                    .collect(),
+            )
+        };
+        let base = ProfileSpec {
+            preset: Some(Preset::DiffusionPolicy),
+            format: Some(OutputFormat::Zarr),
+            export_keys: map(&[("observation.image", "camera_0"), ("action", "act")]),
+            ..Default::default()
+        };
+        let child = ProfileSpec {
+            extends: Some("base".into()),
+            export_keys: map(&[("action", "action")]),
+            ..Default::default()
+        };
+        let all = profiles(&[("base", base), ("child", child)]);
+        let p = expand("child", &all).unwrap();
+        assert_eq!(p.export_keys["observation.image"], "camera_0");
+        assert_eq!(p.export_keys["action"], "action");
+        assert_eq!(p.export_keys.len(), 2);
     }
 
     #[test]

@@ -369,6 +369,7 @@ mod tests {
                 "[output]",
                 "[profiles.<name>]",
                 "[profiles.<name>.normalize]",
+                "[profiles.<name>.export_keys]",
                 "[profiles.<name>.segment]",
                 "[profiles.<name>.hierarchy]",
             ]

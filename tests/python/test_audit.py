@@ -149,7 +149,7 @@ def test_repairs_match_scipy(faulty):
             action = g["actions"][:].astype(np.float32).astype(np.float64)
             o = out[f"data/demo_{i}"]
             got_state, got_action = o["obs/state"][:], o["actions"][:]
-            got_image = o["obs/image"][:, 0, 0, 0]
+            got_image = o["obs/agentview_image"][:, 0, 0, 0]  # the source key
             verdict = by_id[eid]["verdict"]
             if verdict == "ok":
                 want_state, want_action = state, action

@@ -134,9 +134,10 @@ def test_zarr_is_a_replay_buffer_of_raw_values(built, raw):
     root = zarr.open_group(str(built / "zarr" / "data.zarr"), mode="r")
     ends = root["meta/episode_ends"][:]
     np.testing.assert_array_equal(ends, raw.ends)
+    # Diffusion Policy's key names (PushTImageDataset reads `img`, `state`, `action`).
     mapping = {"action": "action", "observation.state": "state", "observation.image": "img"}
     for name, key in mapping.items():
-        arr = root["data"][name]
+        arr = root["data"][key]
         assert arr.shape[0] == ends[-1]
         assert arr.shape == raw.array(key).shape
         want = raw.array(key)
@@ -175,7 +176,7 @@ def act_episode(path, start_ts):
         episode_len = original_action_shape[0]
         qpos = root["/observations/qpos"][start_ts]
         root["/observations/qvel"][start_ts]
-        image_dict = {cam: root[f"/observations/images/{cam}"][start_ts] for cam in ["image"]}
+        image_dict = {cam: root[f"/observations/images/{cam}"][start_ts] for cam in ["img"]}
         if is_sim:
             action = root["/action"][start_ts:]
             action_len = episode_len - start_ts
@@ -199,7 +200,7 @@ def test_act_episodes_load_with_act_reader(built, raw):
         for start_ts in (0, length // 2, length - 1):
             images, qpos, action, is_pad = act_episode(path, start_ts)
             np.testing.assert_array_equal(qpos, raw.episode("state", e)[start_ts])
-            np.testing.assert_array_equal(images["image"], raw.episode("img", e)[start_ts].astype(np.uint8))
+            np.testing.assert_array_equal(images["img"], raw.episode("img", e)[start_ts].astype(np.uint8))
             np.testing.assert_array_equal(action[: length - start_ts], raw.episode("action", e)[start_ts:])
             assert is_pad.sum() == start_ts
     with open(out / "dataset_stats.pkl", "rb") as f:
@@ -229,8 +230,8 @@ def test_robomimic_export_reads_like_robomimic(built, raw):
             assert g["actions"].dtype == np.float64
             np.testing.assert_array_equal(g["actions"][()], raw.episode("action", e).astype(np.float64))
             np.testing.assert_array_equal(g["obs/state"][()], raw.episode("state", e).astype(np.float32).astype(np.float64))
-            assert g["obs/image"].dtype == np.uint8
-            np.testing.assert_array_equal(g["obs/image"][()], raw.episode("img", e).astype(np.uint8))
+            assert g["obs/img"].dtype == np.uint8
+            np.testing.assert_array_equal(g["obs/img"][()], raw.episode("img", e).astype(np.uint8))
             dones = g["dones"][()]
             assert dones.dtype == np.uint8 and dones.shape == (length,)
             assert dones[-1] == 1 and dones[:-1].sum() == 0

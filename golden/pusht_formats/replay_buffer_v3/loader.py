@@ -87,12 +87,6 @@ def _png(data, shape):
     return out.reshape(shape)
 
 
-def _shaped(values, shape):
-    """Per-dimension normalization parameters (flat or nested lists) in the per-step `shape`."""
-    array = np.asarray(values, dtype=np.float64)
-    return array.reshape(shape) if array.size == int(np.prod(shape)) and len(shape) > 1 else array.reshape(-1)
-
-
 # Low-dim channels are read into memory when the dataset is created (normalized, one array per
 # channel) if their stored arrays total at most this many bytes; larger ones are read from the file
 # per sample. `ChunkedDataset(cache_lowdim=True/False)` overrides the threshold.
@@ -139,12 +133,14 @@ class ChunkedDataset(_DatasetBase):
         self.raw_values = self.meta.get("stored_values", "normalized") == "raw"
         self._lowdim = {n for n, c in self.meta["channels"].items() if c["kind"] == "lowdim"}
         self._images = {n for n, c in self.meta["channels"].items() if c["kind"] == "image"}
-        # Per-dimension parameters laid out in the channel's per-step shape, so that (T, a, b)
-        # and (T, N, 3) channels broadcast like (T, D) ones.
+        # Where each channel's array lives (a native export names it as its codebase does:
+        # Push-T's zarr holds `data/img`); parquet columns are read into `data/<channel>`.
+        self._arrays = {n: "data/" + n if self.data_format == "parquet" else c.get("array", "data/" + n)
+                        for n, c in self.meta["channels"].items()}
         self._norm = {
             name: (
-                _shaped(p["center"], self.meta["channels"][name]["shape"]),
-                _shaped(p["scale"], self.meta["channels"][name]["shape"]),
+                np.asarray(p["center"], dtype=np.float64),
+                np.asarray(p["scale"], dtype=np.float64),
                 bool(p["clip"]),
             )
             for name, p in self.meta["normalization"].items()
@@ -161,20 +157,20 @@ class ChunkedDataset(_DatasetBase):
             keep = list(CHANNELS)
         else:
             lowdim = [n for n in CHANNELS if n in self._lowdim]
-            nbytes = sum(int(np.prod(f["data/" + n].shape)) * np.dtype(f["data/" + n].dtype).itemsize
+            nbytes = sum(int(np.prod(f[self._arrays[n]].shape)) * np.dtype(f[self._arrays[n]].dtype).itemsize
                          for n in lowdim)
             if cache_lowdim is None:
                 cache_lowdim = nbytes <= LOWDIM_CACHE_BYTES
             keep = lowdim if cache_lowdim else []
         for name in keep:
-            rows = np.asarray(f["data/" + name][...])
+            rows = np.asarray(f[self._arrays[name]][...])
             self._cache[name] = self._normalized(name, rows)
         # HDF5 frames read with one pread each, from the byte offsets looked up here.
         self._frames = {}
         if self.data_format == "hdf5":
             for name in CHANNELS:
                 if name not in self._cache:
-                    table = _frame_table(f["data/" + name])
+                    table = _frame_table(f[self._arrays[name]])
                     if table is not None:
                         self._frames[name] = table
             f.close()
@@ -196,7 +192,6 @@ class ChunkedDataset(_DatasetBase):
     def _open_parquet(self):
         """LeRobot v3.0 parquet: the whole table read once (pyarrow), as the arrays
         `data/<channel>` (images decoded from PNG) and `index/<split>`."""
-        import pyarrow as pa
         import pyarrow.parquet as pq
 
         table = pq.read_table(self.path)
@@ -205,11 +200,7 @@ class ChunkedDataset(_DatasetBase):
             shape = tuple(self.meta["channels"][name]["shape"])
             column = table.column(name).combine_chunks()
             if name in self._lowdim:
-                # Fixed-size lists, nested once per axis of the per-step shape.
-                values = column
-                while pa.types.is_fixed_size_list(values.type) or pa.types.is_list(values.type):
-                    values = values.flatten()
-                values = values.to_numpy(zero_copy_only=False).astype(np.float32)
+                values = column.values.to_numpy(zero_copy_only=False).astype(np.float32)
                 out["data/" + name] = values.reshape((len(column),) + shape)
             else:
                 frames = column.field("bytes").to_pylist()
@@ -247,7 +238,7 @@ class ChunkedDataset(_DatasetBase):
             else:
                 if self._file is None:
                     self._file = self._open()
-                read = self._make_reader(self._file["data/" + name])
+                read = self._make_reader(self._file[self._arrays[name]])
             self._readers[name] = read
         return read
 
