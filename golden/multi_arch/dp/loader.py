@@ -87,6 +87,12 @@ def _png(data, shape):
     return out.reshape(shape)
 
 
+def _shaped(values, shape):
+    """Per-dimension normalization parameters (flat or nested lists) in the per-step `shape`."""
+    array = np.asarray(values, dtype=np.float64)
+    return array.reshape(shape) if array.size == int(np.prod(shape)) and len(shape) > 1 else array.reshape(-1)
+
+
 # Low-dim channels are read into memory when the dataset is created (normalized, one array per
 # channel) if their stored arrays total at most this many bytes; larger ones are read from the file
 # per sample. `ChunkedDataset(cache_lowdim=True/False)` overrides the threshold.
@@ -137,10 +143,12 @@ class ChunkedDataset(_DatasetBase):
         # Push-T's zarr holds `data/img`); parquet columns are read into `data/<channel>`.
         self._arrays = {n: "data/" + n if self.data_format == "parquet" else c.get("array", "data/" + n)
                         for n, c in self.meta["channels"].items()}
+        # Per-dimension parameters laid out in the channel's per-step shape, so that (T, a, b)
+        # and (T, N, 3) channels broadcast like (T, D) ones.
         self._norm = {
             name: (
-                np.asarray(p["center"], dtype=np.float64),
-                np.asarray(p["scale"], dtype=np.float64),
+                _shaped(p["center"], self.meta["channels"][name]["shape"]),
+                _shaped(p["scale"], self.meta["channels"][name]["shape"]),
                 bool(p["clip"]),
             )
             for name, p in self.meta["normalization"].items()
@@ -192,6 +200,7 @@ class ChunkedDataset(_DatasetBase):
     def _open_parquet(self):
         """LeRobot v3.0 parquet: the whole table read once (pyarrow), as the arrays
         `data/<channel>` (images decoded from PNG) and `index/<split>`."""
+        import pyarrow as pa
         import pyarrow.parquet as pq
 
         table = pq.read_table(self.path)
@@ -200,7 +209,11 @@ class ChunkedDataset(_DatasetBase):
             shape = tuple(self.meta["channels"][name]["shape"])
             column = table.column(name).combine_chunks()
             if name in self._lowdim:
-                values = column.values.to_numpy(zero_copy_only=False).astype(np.float32)
+                # Fixed-size lists, nested once per axis of the per-step shape.
+                values = column
+                while pa.types.is_fixed_size_list(values.type) or pa.types.is_list(values.type):
+                    values = values.flatten()
+                values = values.to_numpy(zero_copy_only=False).astype(np.float32)
                 out["data/" + name] = values.reshape((len(column),) + shape)
             else:
                 frames = column.field("bytes").to_pylist()
