@@ -100,7 +100,13 @@ impl Chunked {
     }
 
     /// Decodes chunk `idx` whole (its full chunk shape, edges included).
+    /// Chunk `idx` decoded, or an error naming its file in the store.
     fn decode(&self, idx: &[u64]) -> std::result::Result<(Decoded, usize), String> {
+        self.decode_values(idx)
+            .map_err(|e| format!("chunk file {}: {e}", self.array.chunk_key(idx)))
+    }
+
+    fn decode_values(&self, idx: &[u64]) -> std::result::Result<(Decoded, usize), String> {
         let o = one_thread();
         macro_rules! conv {
             ($t:ty) => {
