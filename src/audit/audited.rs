@@ -72,6 +72,10 @@ impl Source for Audited {
         self.inner.only_reading(positions);
     }
 
+    fn prefetch(&self, positions: &[usize]) {
+        self.inner.prefetch(positions);
+    }
+
     fn read_episode(&self, index: usize) -> Result<Episode> {
         let repair = &self.repairs[index];
         let episode = self.inner.read_episode(index)?;

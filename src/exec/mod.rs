@@ -571,6 +571,7 @@ fn run(
         let batch = &positions[range];
         // Once an episode is excluded this attempt is thrown away: only check the rest.
         let checking_only = !excluded.is_empty();
+        source.prefetch(batch);
         let processed: Vec<Option<Processed>> = batch
             .par_iter()
             .map(|&i| {

@@ -172,6 +172,47 @@ impl<K: Hash + Eq + Clone, V> ChunkCache<K, V> {
         Ok(value)
     }
 
+    /// Decodes the chunk `key` ahead of its `users` readers, unless it is held or being decoded
+    /// already: a reader then finds it ready. Used to decode the chunks a batch of episodes needs
+    /// side by side before the batch is read (several readers of one large chunk would otherwise
+    /// wait for the one decoding it). A failed decode is left to the first reader, whose error
+    /// names its episode; a chunk over the budget is not kept (and counted when read again).
+    pub fn prefill<E>(&self, key: &K, users: u32, decode: impl FnOnce() -> Result<(V, usize), E>) {
+        let me = std::thread::current().id();
+        {
+            let mut state = self.lock();
+            if state.slots.contains_key(key) {
+                return;
+            }
+            state.slots.insert(key.clone(), Slot::Decoding(me));
+        }
+        let decoded = decode();
+        let mut state = self.lock();
+        match decoded {
+            Ok((value, bytes)) if users > 0 && state.held + bytes <= self.budget => {
+                *state.decodes.entry(key.clone()).or_insert(0) += 1;
+                state.held += bytes;
+                state.slots.insert(
+                    key.clone(),
+                    Slot::Ready {
+                        value: Arc::new(value),
+                        bytes,
+                        remaining: users,
+                    },
+                );
+            }
+            Ok(_) => {
+                *state.decodes.entry(key.clone()).or_insert(0) += 1;
+                state.slots.remove(key);
+            }
+            Err(_) => {
+                state.slots.remove(key);
+            }
+        }
+        drop(state);
+        self.decoded.notify_all();
+    }
+
     fn decode_uncached<E>(
         &self,
         key: &K,
@@ -321,6 +362,27 @@ mod tests {
         assert_eq!(cache.get(&1, 2, || Err("broken")).unwrap_err(), "broken");
         assert_eq!(
             cache.get(&1, 2, || Ok::<_, &str>((vec![1], 1))).unwrap()[0],
+            1
+        );
+    }
+
+    #[test]
+    fn a_prefilled_chunk_serves_all_its_readers() {
+        let cache: ChunkCache<u32, Vec<u8>> = ChunkCache::new(1 << 20);
+        cache.prefill(&4, 2, || Ok::<_, ()>((vec![5u8; 10], 10)));
+        cache.prefill(&4, 2, || -> Result<(Vec<u8>, usize), ()> {
+            panic!("decoded twice")
+        });
+        assert_eq!(cache.held_bytes(), 10);
+        let never = || -> Result<(Vec<u8>, usize), ()> { panic!("decoded twice") };
+        assert_eq!(cache.get(&4, 2, never).unwrap()[0], 5);
+        assert_eq!(cache.get(&4, 2, never).unwrap()[0], 5);
+        assert_eq!((cache.held_bytes(), cache.decodes()), (0, vec![(4, 1)]));
+        // A failed prefill is not counted; the reader decodes (and would report the error).
+        cache.prefill(&6, 1, || Err::<(Vec<u8>, usize), _>("broken"));
+        assert!(cache.decodes().iter().all(|(k, _)| *k != 6));
+        assert_eq!(
+            cache.get(&6, 1, || Ok::<_, ()>((vec![1], 1))).unwrap()[0],
             1
         );
     }

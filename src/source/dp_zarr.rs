@@ -408,6 +408,58 @@ fn read_f32_exact_i64(array: &ZArray, n: u64) -> std::result::Result<Vec<i64>, S
     }
 }
 
+/// One chunk of a [`Chunked`] array that some rows read: its grid index, its first element and
+/// its extent along every axis.
+struct ChunkAt {
+    idx: Vec<u64>,
+    origin: Vec<usize>,
+    extent: Vec<usize>,
+    /// Its position along the time axis.
+    time: usize,
+}
+
+impl Chunked {
+    /// The chunks holding rows `rows` (every column), in storage order.
+    fn chunks_of(&self, rows: std::ops::Range<usize>) -> Vec<ChunkAt> {
+        let mut out = Vec::new();
+        if rows.is_empty() || self.grid.is_empty() {
+            return out;
+        }
+        let time = &self.grid[0];
+        let first = time.partition_point(|&(s, n)| s + n <= rows.start);
+        // Every combination of chunk positions along the axes after time.
+        let others: Vec<usize> = self.grid[1..].iter().map(Vec::len).collect();
+        let combos: usize = others.iter().product();
+        for (b, &(t0, tn)) in time.iter().enumerate().skip(first) {
+            if t0 >= rows.end {
+                break;
+            }
+            for combo in 0..combos {
+                let mut rest = combo;
+                let mut axis_idx = vec![0usize; others.len()];
+                for (k, &n) in others.iter().enumerate().rev() {
+                    axis_idx[k] = rest % n;
+                    rest /= n;
+                }
+                let mut at = ChunkAt {
+                    idx: vec![b as u64],
+                    origin: vec![t0],
+                    extent: vec![tn],
+                    time: b,
+                };
+                for (k, &i) in axis_idx.iter().enumerate() {
+                    let (s, n) = self.grid[k + 1][i];
+                    at.idx.push(i as u64);
+                    at.origin.push(s);
+                    at.extent.push(n);
+                }
+                out.push(at);
+            }
+        }
+        out
+    }
+}
+
 impl DpZarrSource {
     /// Rows `rows` of `c`, every column, from the chunks that hold them (each decoded once, see
     /// the module documentation).
@@ -425,57 +477,21 @@ impl DpZarrSource {
         if rows.is_empty() || c.grid.is_empty() {
             return Ok(out);
         }
-        let time = &c.grid[0];
-        let first = time.partition_point(|&(s, n)| s + n <= rows.start);
-        // Every combination of chunk positions along the axes after time.
-        let others: Vec<usize> = c.grid[1..].iter().map(Vec::len).collect();
-        let combos: usize = others.iter().product();
-        for (b, &(t0, tn)) in time.iter().enumerate().skip(first) {
-            if t0 >= rows.end {
-                break;
-            }
+        for at in c.chunks_of(rows.clone()) {
+            let (t0, tn) = (at.origin[0], at.extent[0]);
             let overlap = rows.start.max(t0)..rows.end.min(t0 + tn);
-            for combo in 0..combos {
-                let mut idx = vec![b as u64];
-                let mut rest = combo;
-                let mut axis_idx = vec![0usize; others.len()];
-                for (k, &n) in others.iter().enumerate().rev() {
-                    axis_idx[k] = rest % n;
-                    rest /= n;
-                }
-                idx.extend(axis_idx.iter().map(|&i| i as u64));
-                let mut origin = vec![t0];
-                let mut chunk = vec![tn];
-                for (k, &i) in axis_idx.iter().enumerate() {
-                    let (s, n) = c.grid[k + 1][i];
-                    origin.push(s);
-                    chunk.push(n);
-                }
-                let users = c.users.get(b).copied().unwrap_or(1);
-                let decoded = self
-                    .cache
-                    .get(&(c.index, idx.clone()), users, || c.decode(&idx))?;
-                match (&*decoded, &mut out) {
-                    (Decoded::F32(src), Raw::F32(dst)) => copy_from_chunk(
-                        src,
-                        &chunk,
-                        &origin,
-                        &c.shape,
-                        overlap.clone(),
-                        rows.start,
-                        dst,
-                    ),
-                    (Decoded::U8(src), Raw::U8(dst)) => copy_from_chunk(
-                        src,
-                        &chunk,
-                        &origin,
-                        &c.shape,
-                        overlap.clone(),
-                        rows.start,
-                        dst,
-                    ),
-                    _ => return Err("decoded chunk of another type".into()),
-                }
+            let users = c.users.get(at.time).copied().unwrap_or(1);
+            let decoded = self
+                .cache
+                .get(&(c.index, at.idx.clone()), users, || c.decode(&at.idx))?;
+            match (&*decoded, &mut out) {
+                (Decoded::F32(src), Raw::F32(dst)) => copy_from_chunk(
+                    src, &at.extent, &at.origin, &c.shape, overlap, rows.start, dst,
+                ),
+                (Decoded::U8(src), Raw::U8(dst)) => copy_from_chunk(
+                    src, &at.extent, &at.origin, &c.shape, overlap, rows.start, dst,
+                ),
+                _ => return Err("decoded chunk of another type".into()),
             }
         }
         Ok(out)
@@ -500,6 +516,26 @@ impl Source for DpZarrSource {
                 .insert(chunk, n);
         }
         out
+    }
+
+    fn prefetch(&self, positions: &[usize]) {
+        use rayon::prelude::*;
+        let (Some(&first), Some(&last)) = (positions.first(), positions.last()) else {
+            return;
+        };
+        let rows = self.bounds[first] as usize..self.bounds[last + 1] as usize;
+        // Chunks wholly inside one episode gain nothing here (their one reader decodes them).
+        let wanted: Vec<(&Chunked, ChunkAt)> = self
+            .arrays
+            .values()
+            .flat_map(|c| c.chunks_of(rows.clone()).into_iter().map(move |at| (c, at)))
+            .filter(|(c, at)| c.users.get(at.time).copied().unwrap_or(1) > 1)
+            .collect();
+        wanted.par_iter().for_each(|(c, at)| {
+            let users = c.users.get(at.time).copied().unwrap_or(1);
+            self.cache
+                .prefill(&(c.index, at.idx.clone()), users, || c.decode(&at.idx));
+        });
     }
 
     fn only_reading(&mut self, positions: &[usize]) {

@@ -149,6 +149,13 @@ pub trait Source: Send + Sync {
     fn decode_counts(&self) -> DecodeCounts {
         DecodeCounts::new()
     }
+    /// The episodes at `positions` (sorted, consecutive in storage) are about to be read side by
+    /// side: adapters whose storage chunks span episodes decode those chunks now, in parallel,
+    /// so that the readers find them ready. Never an error: a chunk that fails here fails again,
+    /// with its episode named, when it is read.
+    fn prefetch(&self, positions: &[usize]) {
+        let _ = positions;
+    }
     /// Only the episodes at `positions` (sorted) will be read from now on: adapters that keep a
     /// decoded chunk until every episode overlapping it has been read count only these.
     fn only_reading(&mut self, positions: &[usize]) {

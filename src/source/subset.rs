@@ -83,6 +83,11 @@ impl Source for Subset {
         self.inner.decode_counts()
     }
 
+    fn prefetch(&self, positions: &[usize]) {
+        let inner: Vec<usize> = positions.iter().map(|&i| self.positions[i]).collect();
+        self.inner.prefetch(&inner);
+    }
+
     fn only_reading(&mut self, positions: &[usize]) {
         let inner: Vec<usize> = positions.iter().map(|&i| self.positions[i]).collect();
         self.inner.only_reading(&inner);
