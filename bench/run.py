@@ -155,23 +155,8 @@ def zarr_chunkc(work, label, root):
 
 def zarr_floor(work, label, root, out):
     """The I/O floor of a zarr source: `cat` of every file of the store, then the outputs."""
-    files = sorted(str(p) for p in (root / "replay.zarr").rglob("*") if p.is_file())
-    copy = work / "runs" / "floor.bin"
-    script = ('xargs -0 cat < "$1" > /dev/null && xargs -0 cat < "$2" | '
-              'dd of="$3" bs=4M conv=fsync status=none')
-    src_list, out_list = work / "runs" / f"{label}-src.lst", work / "runs" / f"{label}-out.lst"
-    src_list.write_text("\0".join(files))
-
-    def before():
-        out_list.write_text("\0".join(sorted(str(p) for p in out.rglob("*") if p.is_file())))
-
-    def after():
-        written = copy.stat().st_size
-        copy.unlink()
-        return {"read_bytes": sum(os.path.getsize(f) for f in files), "write_bytes": written}
-
-    return Case(label, ["bash", "-c", script, "floor", src_list, out_list, copy], before=before,
-                after=after)
+    return io_floor(work, label, root, out,
+                    files=sorted(str(p) for p in (root / "replay.zarr").rglob("*") if p.is_file()))
 
 
 def zarr_numpy(work, label, root):
@@ -284,10 +269,11 @@ def twin_builds(work, root):
                 before=clean, after=clean)
 
 
-def io_floor(work, label, root, out):
-    """`cat` of the source files, then of the outputs in `out` (as the last build left them)
-    into one file with `dd conv=fsync`."""
-    files = sorted(str(p) for p in (root / "episodes").iterdir())
+def io_floor(work, label, root, out, files=None):
+    """`cat` of the source files (`files`, by default the episode files under `root`), then of the
+    outputs in `out` (as the last build left them) into one file with `dd conv=fsync`."""
+    if files is None:
+        files = sorted(str(p) for p in (root / "episodes").iterdir())
     copy = work / "runs" / "floor.bin"
     script = ('xargs -0 cat < "$1" > /dev/null && xargs -0 cat < "$2" | '
               'dd of="$3" bs=4M conv=fsync status=none')
