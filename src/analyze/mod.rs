@@ -74,7 +74,7 @@ pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeRep
     if options.max_lag == Some(0) {
         return Err(Error::Spec("`--max-lag` must be at least 1".into()));
     }
-    crate::exec::check_output_location(spec, &spec.resolve(&spec.spec.output.dir))?;
+    crate::spec::check_output_location(spec, &spec.resolve(&spec.spec.output.dir))?;
     // Only the analyzed channel is opened, so images are never read.
     let mut narrow = spec.clone();
     narrow.spec.source.channels.retain(|k, _| k == name);
@@ -253,7 +253,7 @@ pub fn write(dir: &Path, report: &AnalyzeReport, html: &str) -> Result<Vec<PathB
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| Error::Internal(format!("analyze.json: {e}")))?
         + "\n";
-    crate::report::write_files(
+    crate::files::write_files(
         dir,
         &[
             ("analyze.json", json.into_bytes()),
