@@ -5,9 +5,9 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
 
-use chunkc::exec::{self, BuildOptions};
+use chunkc::commands::{self, BuildOptions};
 use chunkc::spec::{self, LoadedSpec, SourceFormat};
-use chunkc::{analyze, plan, report, synth, Error};
+use chunkc::{analyze, plan, synth, Error};
 
 #[derive(Parser)]
 #[command(
@@ -150,7 +150,7 @@ fn run(cli: Cli) -> Result<(), Error> {
     match cli.command {
         Command::Check { spec } => {
             let spec = LoadedSpec::load(&spec)?;
-            let (_, plan) = exec::plan(&spec)?;
+            let plan = commands::check(&spec)?;
             eprintln!(
                 "ok: {} ({} episodes, {} profile(s))",
                 spec.file.display(),
@@ -160,7 +160,7 @@ fn run(cli: Cli) -> Result<(), Error> {
         }
         Command::Plan { spec, format } => {
             let spec = LoadedSpec::load(&spec)?;
-            let (_, plan) = exec::plan(&spec)?;
+            let (_, plan) = commands::plan(&spec)?;
             match format {
                 PlanFormat::Text => print!("{}", plan::render_text(&plan)),
                 PlanFormat::Json => print!("{}", plan.to_json()),
@@ -172,7 +172,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             quiet,
         } => {
             let spec = LoadedSpec::load(&spec)?;
-            let report = exec::build(
+            let report = commands::build(
                 &spec,
                 &BuildOptions {
                     locked,
@@ -206,10 +206,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                 channel,
                 max_lag: max_lag.map(|n| n as usize),
             };
-            let result = analyze::analyze(&spec, &options)?;
-            let title = format!("chunkc analyze: {}", spec.file.display());
-            let html = report::analyze_html(&result, &title);
-            let paths = analyze::write(&analyze::audit_dir(&spec), &result, &html)?;
+            let (result, paths) = commands::analyze(&spec, &options)?;
             print!("{}", result.summary());
             eprintln!(
                 "wrote {} and {}",
@@ -219,17 +216,7 @@ fn run(cli: Cli) -> Result<(), Error> {
         }
         Command::Audit { spec } => {
             let spec = LoadedSpec::load(&spec)?;
-            let (source, mut report, repairs) = exec::audit(&spec)?;
-            report.examples = chunkc::audit::examples(source.as_ref(), &report, &repairs)?;
-            let title = format!("chunkc audit: {}", spec.file.display());
-            let html = report::audit_html(&report, &title);
-            let paths = report::write_files(
-                &analyze::audit_dir(&spec),
-                &[
-                    ("audit.json", report.to_json().into_bytes()),
-                    ("report.html", html.into_bytes()),
-                ],
-            )?;
+            let (report, paths) = commands::audit_report(&spec)?;
             print!("{}", report.summary());
             eprintln!(
                 "wrote {} and {}",
