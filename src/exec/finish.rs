@@ -32,8 +32,8 @@ pub(super) struct Shared<'a> {
     pub renderer: &'a render::Renderer,
 }
 
-/// A stale profile waiting for its rate's statistics: its rate position, its sink, its staging
-/// directory (in profile order).
+/// A stale profile waiting for its rate's statistics: a position (of its rate when handed in,
+/// of the profile once grouped by rate), its sink and its staging directory.
 pub(super) type Waiting = (usize, Box<dyn Sink>, PathBuf);
 
 /// Statistics once per (rate, channel), shared by every profile at that rate; each rate's
@@ -53,8 +53,7 @@ pub(super) fn all(
         .iter()
         .map(|e| shared.plan.split.is_train(e.id))
         .collect();
-    let mut by_rate: Vec<Vec<(usize, Box<dyn Sink>, PathBuf)>> =
-        rates.iter().map(|_| Vec::new()).collect();
+    let mut by_rate: Vec<Vec<Waiting>> = rates.iter().map(|_| Vec::new()).collect();
     for (i, (r, sink, dir)) in profiles.into_iter().enumerate() {
         by_rate[r].push((i, sink, dir));
     }
