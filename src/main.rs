@@ -179,22 +179,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                     progress: !quiet,
                 },
             )?;
-            if report.built.is_empty() {
-                eprintln!(
-                    "up to date: nothing to do ({} in {})",
-                    report.up_to_date.join(", "),
-                    tidy(&report.out_dir).display()
-                );
-            } else {
-                eprintln!(
-                    "built {} in {}",
-                    report.built.join(", "),
-                    tidy(&report.out_dir).display()
-                );
-                if !report.up_to_date.is_empty() {
-                    eprintln!("up to date: {}", report.up_to_date.join(", "));
-                }
-            }
+            print_build(&report);
         }
         Command::Analyze {
             spec,
@@ -226,46 +211,71 @@ fn run(cli: Cli) -> Result<(), Error> {
         }
         Command::Schema => print!("{}", spec::json_schema()),
         Command::Synth(args) => {
-            let (height, width) = args
-                .resolution
-                .split_once('x')
-                .and_then(|(h, w)| Some((h.parse().ok()?, w.parse().ok()?)))
-                .ok_or_else(|| {
-                    Error::Spec(format!(
-                        "chunkc synth: --resolution `{}` is not HEIGHTxWIDTH",
-                        args.resolution
-                    ))
-                })?;
-            let opts = synth::SynthOptions {
-                format: match args.format {
-                    SynthFormat::AlohaHdf5 => SourceFormat::AlohaHdf5,
-                    SynthFormat::RobomimicHdf5 => SourceFormat::RobomimicHdf5,
-                    SynthFormat::DiffusionPolicyZarr => SourceFormat::DiffusionPolicyZarr,
-                    SynthFormat::Lerobot => SourceFormat::Lerobot,
-                },
-                episodes: args.episodes,
-                steps: args.steps,
-                action_dim: args.action_dim,
-                state_dim: args.state_dim,
-                cameras: args.cameras,
-                height,
-                width,
-                fps: args.fps,
-                seed: args.seed,
-                faults: args.faults,
-                fault_fraction: args.fault_fraction,
-                robosuite: args.robosuite,
-                zarr: synth::dp_zarr::ZarrLayout {
-                    chunk_rows: args.zarr_chunk_rows.map(|r| r as usize),
-                    chunk_cols: args.zarr_chunk_cols.map(|c| c as usize),
-                    format: args.zarr_format,
-                },
-            };
+            let opts = synth_options(&args)?;
             let spec = synth::generate(&opts, &args.out)?;
             eprintln!("wrote {}", tidy(&spec).display());
         }
     }
     Ok(())
+}
+
+/// What `chunkc build` says: what it built, or that nothing was to do.
+fn print_build(report: &commands::BuildReport) {
+    if report.built.is_empty() {
+        eprintln!(
+            "up to date: nothing to do ({} in {})",
+            report.up_to_date.join(", "),
+            tidy(&report.out_dir).display()
+        );
+    } else {
+        eprintln!(
+            "built {} in {}",
+            report.built.join(", "),
+            tidy(&report.out_dir).display()
+        );
+        if !report.up_to_date.is_empty() {
+            eprintln!("up to date: {}", report.up_to_date.join(", "));
+        }
+    }
+}
+
+/// `chunkc synth`'s arguments as the library's options.
+fn synth_options(args: &SynthArgs) -> Result<synth::SynthOptions, Error> {
+    let (height, width) = args
+        .resolution
+        .split_once('x')
+        .and_then(|(h, w)| Some((h.parse().ok()?, w.parse().ok()?)))
+        .ok_or_else(|| {
+            Error::Spec(format!(
+                "chunkc synth: --resolution `{}` is not HEIGHTxWIDTH",
+                args.resolution
+            ))
+        })?;
+    Ok(synth::SynthOptions {
+        format: match args.format {
+            SynthFormat::AlohaHdf5 => SourceFormat::AlohaHdf5,
+            SynthFormat::RobomimicHdf5 => SourceFormat::RobomimicHdf5,
+            SynthFormat::DiffusionPolicyZarr => SourceFormat::DiffusionPolicyZarr,
+            SynthFormat::Lerobot => SourceFormat::Lerobot,
+        },
+        episodes: args.episodes,
+        steps: args.steps,
+        action_dim: args.action_dim,
+        state_dim: args.state_dim,
+        cameras: args.cameras,
+        height,
+        width,
+        fps: args.fps,
+        seed: args.seed,
+        faults: args.faults.clone(),
+        fault_fraction: args.fault_fraction,
+        robosuite: args.robosuite,
+        zarr: synth::dp_zarr::ZarrLayout {
+            chunk_rows: args.zarr_chunk_rows.map(|r| r as usize),
+            chunk_cols: args.zarr_chunk_cols.map(|c| c as usize),
+            format: args.zarr_format,
+        },
+    })
 }
 
 /// Episodes' frame buffers (megabytes each) are allocated on worker threads and freed on the
