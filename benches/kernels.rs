@@ -14,7 +14,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use chunkc::source::{ChannelData, ChannelKind};
 use chunkc::spec::{LoadedSpec, SourceFormat};
 use chunkc::stats::normalize::Normalizer;
-use chunkc::{exec, sink, stats, synth};
+use chunkc::{commands, sink, stats, synth};
 
 const EPISODES: usize = 16;
 const STEPS: usize = 400;
@@ -48,7 +48,7 @@ fn fixture() -> Fixture {
 
 fn window_index(c: &mut Criterion) {
     let f = fixture();
-    let (_, plan) = exec::plan(&f.spec).expect("plan");
+    let (_, plan) = commands::plan(&f.spec).expect("plan");
     let p = &plan.profiles[0];
     let mut g = c.benchmark_group("window_index");
     g.throughput(Throughput::Elements((EPISODES * STEPS) as u64));
@@ -124,7 +124,7 @@ fn statistics(c: &mut Criterion) {
 
 fn frames(c: &mut Criterion) {
     let f = fixture();
-    let (source, _) = exec::plan(&f.spec).expect("plan");
+    let (source, _) = commands::plan(&f.spec).expect("plan");
     let ep = source.read_episode(0).expect("episode");
     let pixels = ep
         .channels
@@ -152,7 +152,7 @@ fn frames(c: &mut Criterion) {
 /// Every writer, fed what `exec` feeds it: per-step low-dim arrays, encoded frames, the index.
 fn writers(c: &mut Criterion) {
     let f = fixture();
-    let (source, plan) = exec::plan(&f.spec).expect("plan");
+    let (source, plan) = commands::plan(&f.spec).expect("plan");
     let manifest = source.manifest();
     let episodes: Vec<_> = (0..manifest.episodes.len())
         .map(|i| source.read_episode(i).expect("episode"))
@@ -185,7 +185,7 @@ fn writers(c: &mut Criterion) {
         })
         .collect();
     // In memory (an unlimited budget), as a small build keeps them.
-    let stores: Vec<std::sync::Arc<chunkc::exec::LowdimStore>> = manifest
+    let stores: Vec<std::sync::Arc<chunkc::store::LowdimStore>> = manifest
         .channels
         .iter()
         .zip(&lowdim)
@@ -197,8 +197,8 @@ fn writers(c: &mut Criterion) {
             };
             let rows = v.len() / width.max(1);
             let mut store =
-                chunkc::exec::LowdimStore::new(width, usize::MAX, Default::default(), rows);
-            store.push(v, true).expect("in memory");
+                chunkc::store::LowdimStore::new(width, usize::MAX, Default::default(), rows);
+            store.push(v).expect("in memory");
             std::sync::Arc::new(store)
         })
         .collect();
@@ -213,6 +213,7 @@ fn writers(c: &mut Criterion) {
                 scratch: out.path(),
                 episode_ends: &ends,
                 episode_ids: &ids,
+                spill_budget: chunkc::exec::spill_budget(),
             };
             sink::create(&ctx).expect("sink").frame_encoding()
         };
@@ -241,6 +242,7 @@ fn writers(c: &mut Criterion) {
                     scratch: &dir.join(".scratch"),
                     episode_ends: &ends,
                     episode_ids: &ids,
+                    spill_budget: chunkc::exec::spill_budget(),
                 };
                 let mut s = sink::create(&ctx).expect("sink");
                 for (c, ch) in p.channels.iter().enumerate() {

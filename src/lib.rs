@@ -6,45 +6,85 @@
 //!
 //! # The map
 //!
-//! The stages run in this order; each owns one module and they talk through plain data types.
+//! **The rule**: a module imports only from the stages before it and from the leaves; the
+//! command drivers sit on top. Stages talk through plain data types ([`spec::Spec`],
+//! [`source::Episode`], [`audit::AuditReport`], [`plan::Plan`]), never through each other's
+//! internals. `tests/layering.rs` checks every `crate::` path in `src/` against the order
+//! below, and that this map names every module in it (the book's architecture page draws it).
+//!
+//! **Leaves**, usable by every stage:
+//!
+//! - [`error`]: the error type, its messages and exit codes.
+//! - [`bytes`]: `f32` values viewed as the little-endian bytes of files.
+//! - [`store`]: the row store, one channel's low-dim values at one rate, spilled to disk beyond a
+//!   budget its caller decides (exec fills it, the sinks read it).
+//! - [`timings`]: wall time per phase, printed when `CHUNKC_TIMINGS` is set.
+//! - [`files`]: where chunkc may write (never into the source), and several files written as one.
+//!
+//! **The stages**, in order:
 //!
 //! 1. **Parse** ([`spec`]): TOML → [`spec::Spec`] → fully explicit [`spec::Profile`]s (presets
-//!    expanded). Errors point at `file:line:col` with "did you mean".
+//!    expanded). Errors point at `file:line:col` with "did you mean". Also the per-format names
+//!    every later stage shares ([`spec::OutputFormat::files`]).
 //! 2. **Open** ([`source`]): an adapter per on-disk layout (Diffusion Policy zarr, ALOHA,
 //!    robomimic/robosuite, LeRobot v2.1/v3.0) gives a [`source::Manifest`] (metadata only) and
 //!    reads [`source::Episode`]s one at a time; [`source::mapping`] applies `[source.channels]`
 //!    (rename, column slices, concatenation, kind) the same way for all of them.
 //! 3. **Audit** ([`audit`]): inter-frame intervals per episode (timestamps only) → flags,
-//!    verdicts and repairs ([`audit::AuditReport`], `chunkc audit`). [`audit::Audited`] is the
-//!    source as the audit leaves it: exclusions gone, repaired lengths, each repair (cubic spline
-//!    re-grid, Fourier or linear resampling) applied right after the episode is read.
-//! 4. **Resolve** ([`plan`]): spec + audited manifest + audit + [`lock`] → [`plan::Plan`]: per
-//!    profile the episodes and split, repairs and exclusions, rate conversion (decimation or
-//!    resampling), window count, files, fingerprint and whether it must run. Shared work (the
-//!    source read, statistics per rate and channel) appears once.
-//! 5. **Execute** ([`exec`]): the only module with threads. Reads the source once, converts per
-//!    rate, keeps low-dim values in an [`exec::LowdimStore`] (spilled to the staging directory
-//!    beyond a memory budget), computes [`stats`], normalizes, and writes through [`sink`] into a
-//!    staging directory renamed into place on success; then writes `chunkc.lock`.
-//! 6. **Render** ([`render`]): minijinja templates (embedded) for the generated Python loader;
-//!    [`report`]: the self-contained HTML reports (inline SVG charts) of `audit` and `analyze`.
+//!    verdicts and repairs ([`audit::AuditReport`]). [`audit::Audited`] is the source as the
+//!    audit leaves it: exclusions gone, repaired lengths, each repair (cubic spline re-grid,
+//!    Fourier or linear resampling) applied right after the episode is read.
+//! 4. **Lock** ([`lock`]): `chunkc.lock`, what the last build recorded (spec hash, source
+//!    fingerprint, every output's hash), read by the plan and written after a build.
+//! 5. **Windows** ([`chunk`]): which rows every window reads; the invariants "never across an
+//!    episode" and "the observation belongs to the chunk's first step" live there.
+//! 6. **Resolve** ([`plan`]): spec + audited manifest + audit + lock → [`plan::Plan`]: per
+//!    profile the episodes and split, repairs and exclusions, rate conversion, window count,
+//!    files, the state channel, fingerprint and whether it must run. Shared work (the source
+//!    read, statistics per rate and channel) appears once.
+//! 7. **Statistics** ([`stats`]): mergeable moments, exact percentiles, image histograms, the
+//!    normalizers.
+//! 8. **Write** ([`sink`]): one writer per output format (chunkc's HDF5, Zarr, LeRobot parquet,
+//!    ACT episodes, robomimic), fed per-step arrays, frames and the window index, plus the
+//!    documents beside them (`meta.json`, `stats.json`).
+//! 9. **Render** ([`render`]): minijinja templates (embedded, overridable) for the generated
+//!    loader and scripts, and the codebases' own statistics files.
+//! 10. **Execute** ([`exec`]): one pass over the source into the row stores and sinks, the
+//!     statistics per rate, each stale profile finished into a staging directory.
 //!
-//! Beside the pipeline, [`analyze`] (`chunkc analyze`) reads the action channel and suggests a
-//! chunk length K from its autocorrelation, checking every profile's K against it.
+//! **Beside the pipeline**: [`analyze`] suggests a chunk length K from the action channel's
+//! autocorrelation; [`report`] draws the self-contained HTML pages of `audit` and `analyze`;
+//! [`synth`] writes synthetic sources in every input layout (`chunkc synth`, for the benchmarks
+//! and tests); [`fuzzing`] has the fuzz targets' bodies (one per input parser; see `fuzz/`).
 //!
-//! Supporting pieces: [`chunk`] decides which rows every window reads (the invariants "never
-//! across an episode" and "the observation belongs to the chunk's first step" live there);
-//! [`error`] holds the error type and exit codes; [`bytes`] views `f32` values as the
-//! little-endian bytes of files; [`synth`] writes synthetic sources in every
-//! input layout (`chunkc synth`, for the benchmarks and tests); [`fuzzing`] has the fuzz targets'
-//! bodies (one per input parser; see `fuzz/`).
+//! **On top**: [`commands`], the drivers of `check`, `plan`, `audit`, `analyze` and `build`
+//! (re-planning after an exclusion, the commit, the lock update). `main.rs` is the command line
+//! only: it parses arguments, sizes the thread pool, calls a driver and prints its result.
+//!
+//! # Threads
+//!
+//! All parallel work runs on rayon's global pool, sized once by `main.rs` (`-j`, else
+//! `RAYON_NUM_THREADS`, else the cores); results are always gathered in a fixed order, so the
+//! output bytes do not depend on the thread count. Where, and why:
+//!
+//! - [`exec`]: episodes of a batch decoded and converted side by side, the row stores filled
+//!   side by side, rates and profiles finished side by side; a few plain threads fsync outputs
+//!   while they are hashed (they wait on the disk, not the CPU).
+//! - [`source`]: storage chunks decoded in parallel (zarr, ALOHA's per-episode headers), and the
+//!   source fingerprint hashed in parallel with the opening.
+//! - [`stats`]: the percentile passes, one column per task.
+//! - [`sink`]: frames compressed and normalized blocks prepared in parallel, while the previous
+//!   block is written (`rayon::join`).
+//! - [`synth`]: synthetic episodes generated in parallel.
 
 pub mod analyze;
 pub mod audit;
 pub mod bytes;
 pub mod chunk;
+pub mod commands;
 pub mod error;
 pub mod exec;
+pub mod files;
 pub mod fuzzing;
 pub mod lock;
 pub mod plan;
@@ -54,6 +94,8 @@ pub mod sink;
 pub mod source;
 pub mod spec;
 pub mod stats;
+pub mod store;
 pub mod synth;
+pub mod timings;
 
 pub use error::{Error, Result};

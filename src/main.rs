@@ -5,9 +5,9 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
 
-use chunkc::exec::{self, BuildOptions};
+use chunkc::commands::{self, BuildOptions};
 use chunkc::spec::{self, LoadedSpec, SourceFormat};
-use chunkc::{analyze, plan, report, synth, Error};
+use chunkc::{analyze, plan, synth, Error};
 
 #[derive(Parser)]
 #[command(
@@ -150,7 +150,7 @@ fn run(cli: Cli) -> Result<(), Error> {
     match cli.command {
         Command::Check { spec } => {
             let spec = LoadedSpec::load(&spec)?;
-            let (_, plan) = exec::plan(&spec)?;
+            let plan = commands::check(&spec)?;
             eprintln!(
                 "ok: {} ({} episodes, {} profile(s))",
                 spec.file.display(),
@@ -160,7 +160,7 @@ fn run(cli: Cli) -> Result<(), Error> {
         }
         Command::Plan { spec, format } => {
             let spec = LoadedSpec::load(&spec)?;
-            let (_, plan) = exec::plan(&spec)?;
+            let (_, plan) = commands::plan(&spec)?;
             match format {
                 PlanFormat::Text => print!("{}", plan::render_text(&plan)),
                 PlanFormat::Json => print!("{}", plan.to_json()),
@@ -172,29 +172,14 @@ fn run(cli: Cli) -> Result<(), Error> {
             quiet,
         } => {
             let spec = LoadedSpec::load(&spec)?;
-            let report = exec::build(
+            let report = commands::build(
                 &spec,
                 &BuildOptions {
                     locked,
                     progress: !quiet,
                 },
             )?;
-            if report.built.is_empty() {
-                eprintln!(
-                    "up to date: nothing to do ({} in {})",
-                    report.up_to_date.join(", "),
-                    tidy(&report.out_dir).display()
-                );
-            } else {
-                eprintln!(
-                    "built {} in {}",
-                    report.built.join(", "),
-                    tidy(&report.out_dir).display()
-                );
-                if !report.up_to_date.is_empty() {
-                    eprintln!("up to date: {}", report.up_to_date.join(", "));
-                }
-            }
+            print_build(&report);
         }
         Command::Analyze {
             spec,
@@ -206,10 +191,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                 channel,
                 max_lag: max_lag.map(|n| n as usize),
             };
-            let result = analyze::analyze(&spec, &options)?;
-            let title = format!("chunkc analyze: {}", spec.file.display());
-            let html = report::analyze_html(&result, &title);
-            let paths = analyze::write(&analyze::audit_dir(&spec), &result, &html)?;
+            let (result, paths) = commands::analyze(&spec, &options)?;
             print!("{}", result.summary());
             eprintln!(
                 "wrote {} and {}",
@@ -219,17 +201,7 @@ fn run(cli: Cli) -> Result<(), Error> {
         }
         Command::Audit { spec } => {
             let spec = LoadedSpec::load(&spec)?;
-            let (source, mut report, repairs) = exec::audit(&spec)?;
-            report.examples = chunkc::audit::examples(source.as_ref(), &report, &repairs)?;
-            let title = format!("chunkc audit: {}", spec.file.display());
-            let html = report::audit_html(&report, &title);
-            let paths = report::write_files(
-                &analyze::audit_dir(&spec),
-                &[
-                    ("audit.json", report.to_json().into_bytes()),
-                    ("report.html", html.into_bytes()),
-                ],
-            )?;
+            let (report, paths) = commands::audit_report(&spec)?;
             print!("{}", report.summary());
             eprintln!(
                 "wrote {} and {}",
@@ -239,46 +211,71 @@ fn run(cli: Cli) -> Result<(), Error> {
         }
         Command::Schema => print!("{}", spec::json_schema()),
         Command::Synth(args) => {
-            let (height, width) = args
-                .resolution
-                .split_once('x')
-                .and_then(|(h, w)| Some((h.parse().ok()?, w.parse().ok()?)))
-                .ok_or_else(|| {
-                    Error::Spec(format!(
-                        "chunkc synth: --resolution `{}` is not HEIGHTxWIDTH",
-                        args.resolution
-                    ))
-                })?;
-            let opts = synth::SynthOptions {
-                format: match args.format {
-                    SynthFormat::AlohaHdf5 => SourceFormat::AlohaHdf5,
-                    SynthFormat::RobomimicHdf5 => SourceFormat::RobomimicHdf5,
-                    SynthFormat::DiffusionPolicyZarr => SourceFormat::DiffusionPolicyZarr,
-                    SynthFormat::Lerobot => SourceFormat::Lerobot,
-                },
-                episodes: args.episodes,
-                steps: args.steps,
-                action_dim: args.action_dim,
-                state_dim: args.state_dim,
-                cameras: args.cameras,
-                height,
-                width,
-                fps: args.fps,
-                seed: args.seed,
-                faults: args.faults,
-                fault_fraction: args.fault_fraction,
-                robosuite: args.robosuite,
-                zarr: synth::dp_zarr::ZarrLayout {
-                    chunk_rows: args.zarr_chunk_rows.map(|r| r as usize),
-                    chunk_cols: args.zarr_chunk_cols.map(|c| c as usize),
-                    format: args.zarr_format,
-                },
-            };
+            let opts = synth_options(&args)?;
             let spec = synth::generate(&opts, &args.out)?;
             eprintln!("wrote {}", tidy(&spec).display());
         }
     }
     Ok(())
+}
+
+/// What `chunkc build` says: what it built, or that nothing was to do.
+fn print_build(report: &commands::BuildReport) {
+    if report.built.is_empty() {
+        eprintln!(
+            "up to date: nothing to do ({} in {})",
+            report.up_to_date.join(", "),
+            tidy(&report.out_dir).display()
+        );
+    } else {
+        eprintln!(
+            "built {} in {}",
+            report.built.join(", "),
+            tidy(&report.out_dir).display()
+        );
+        if !report.up_to_date.is_empty() {
+            eprintln!("up to date: {}", report.up_to_date.join(", "));
+        }
+    }
+}
+
+/// `chunkc synth`'s arguments as the library's options.
+fn synth_options(args: &SynthArgs) -> Result<synth::SynthOptions, Error> {
+    let (height, width) = args
+        .resolution
+        .split_once('x')
+        .and_then(|(h, w)| Some((h.parse().ok()?, w.parse().ok()?)))
+        .ok_or_else(|| {
+            Error::Spec(format!(
+                "chunkc synth: --resolution `{}` is not HEIGHTxWIDTH",
+                args.resolution
+            ))
+        })?;
+    Ok(synth::SynthOptions {
+        format: match args.format {
+            SynthFormat::AlohaHdf5 => SourceFormat::AlohaHdf5,
+            SynthFormat::RobomimicHdf5 => SourceFormat::RobomimicHdf5,
+            SynthFormat::DiffusionPolicyZarr => SourceFormat::DiffusionPolicyZarr,
+            SynthFormat::Lerobot => SourceFormat::Lerobot,
+        },
+        episodes: args.episodes,
+        steps: args.steps,
+        action_dim: args.action_dim,
+        state_dim: args.state_dim,
+        cameras: args.cameras,
+        height,
+        width,
+        fps: args.fps,
+        seed: args.seed,
+        faults: args.faults.clone(),
+        fault_fraction: args.fault_fraction,
+        robosuite: args.robosuite,
+        zarr: synth::dp_zarr::ZarrLayout {
+            chunk_rows: args.zarr_chunk_rows.map(|r| r as usize),
+            chunk_cols: args.zarr_chunk_cols.map(|c| c as usize),
+            format: args.zarr_format,
+        },
+    })
 }
 
 /// Episodes' frame buffers (megabytes each) are allocated on worker threads and freed on the

@@ -10,7 +10,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-use chunkc::exec::{self, BuildOptions};
+use chunkc::commands::{self, BuildOptions};
 use chunkc::source::DecodeCounts;
 use chunkc::spec::{LoadedSpec, SourceFormat};
 use chunkc::synth::{self, dp_zarr::ZarrLayout, SynthOptions};
@@ -20,7 +20,7 @@ const STEPS: usize = 40;
 
 fn build(spec_path: &Path) -> DecodeCounts {
     let spec = LoadedSpec::load(spec_path).unwrap();
-    let report = exec::build(&spec, &BuildOptions::default()).unwrap();
+    let report = commands::build(&spec, &BuildOptions::default()).unwrap();
     assert!(report.episode_reads.iter().all(|&n| n == 1));
     report.chunk_decodes
 }

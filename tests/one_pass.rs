@@ -1,6 +1,6 @@
 //! Many profiles at different rates read the source once, and share their statistics.
 
-use chunkc::exec::{self, BuildOptions};
+use chunkc::commands::{self, BuildOptions};
 use chunkc::spec::LoadedSpec;
 
 fn spec_text(source: &str) -> String {
@@ -48,7 +48,7 @@ fn five_profiles_at_three_rates_read_each_episode_once() {
     std::fs::write(&spec_path, &text).unwrap();
     let spec = LoadedSpec::load(&spec_path).unwrap();
 
-    let (_, plan) = exec::plan(&spec).unwrap();
+    let (_, plan) = commands::plan(&spec).unwrap();
     let rates: Vec<f64> = plan.rates.iter().map(|r| r.fps).collect();
     assert_eq!(rates, vec![10.0, 5.0, 2.0]);
     // Statistics are planned once per (rate, channel), not once per profile.
@@ -60,7 +60,7 @@ fn five_profiles_at_three_rates_read_each_episode_once() {
         .unwrap();
     assert_eq!(shared.profiles, vec!["dp_5hz", "lerobot"]);
 
-    let report = exec::build(&spec, &BuildOptions::default()).unwrap();
+    let report = commands::build(&spec, &BuildOptions::default()).unwrap();
     assert_eq!(report.built.len(), 5);
     assert_eq!(report.episode_reads.len(), plan.source.episodes);
     assert!(
@@ -70,7 +70,7 @@ fn five_profiles_at_three_rates_read_each_episode_once() {
     );
 
     // A second build reads nothing.
-    let again = exec::build(&spec, &BuildOptions::default()).unwrap();
+    let again = commands::build(&spec, &BuildOptions::default()).unwrap();
     assert!(again.built.is_empty() && again.episode_reads.is_empty());
 }
 
@@ -82,7 +82,7 @@ fn extends_shows_resolved_values_and_origins_in_the_plan() {
     let spec_path = dir.path().join("spec.toml");
     std::fs::write(&spec_path, spec_text(&source.to_string_lossy())).unwrap();
     let spec = LoadedSpec::load(&spec_path).unwrap();
-    let (_, plan) = exec::plan(&spec).unwrap();
+    let (_, plan) = commands::plan(&spec).unwrap();
     let p = plan.profiles.iter().find(|p| p.name == "dp_5hz").unwrap();
     assert_eq!(p.values.chunk, 8);
     assert_eq!(p.values.obs_history, 2);

@@ -74,7 +74,7 @@ pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeRep
     if options.max_lag == Some(0) {
         return Err(Error::Spec("`--max-lag` must be at least 1".into()));
     }
-    crate::exec::check_output_location(spec, &spec.resolve(&spec.spec.output.dir))?;
+    crate::spec::check_output_location(spec, &spec.resolve(&spec.spec.output.dir))?;
     // Only the analyzed channel is opened, so images are never read.
     let mut narrow = spec.clone();
     narrow.spec.source.channels.retain(|k, _| k == name);
@@ -108,29 +108,7 @@ pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeRep
         )));
     }
 
-    let mut profiles = Vec::new();
-    for p in &spec.profiles {
-        let fps = p.fps.unwrap_or(manifest.fps);
-        // Only refuses upsampling; the method does not matter for the step ratio.
-        crate::plan::conversion(manifest.fps, fps, spec.spec.audit.resample).map_err(|msg| {
-            spec.error_at(
-                &["profiles", &p.name, "fps"],
-                format!("profile `{}` runs at {msg}", p.name),
-                None,
-            )
-        })?;
-        let rate_factor = manifest.fps / fps;
-        profiles.push(ProfileCheck {
-            name: p.name.clone(),
-            fps,
-            rate_factor,
-            chunk: p.chunk,
-            chunk_source_steps: (p.chunk as f64 * rate_factor).round() as usize,
-            acf_at_chunk: None,
-            suggested_chunk: None,
-            warning: None,
-        });
-    }
+    let profiles = profile_checks(spec, manifest.fps)?;
     let longest_k = profiles
         .iter()
         .map(|p| p.chunk_source_steps)
@@ -165,6 +143,35 @@ pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeRep
         episodes_at_lag,
         profiles,
     ))
+}
+
+/// Every profile's K in source steps (its verdict is filled in by [`finish`]); refuses a
+/// profile that would upsample.
+fn profile_checks(spec: &LoadedSpec, source_fps: f64) -> Result<Vec<ProfileCheck>> {
+    let mut profiles = Vec::new();
+    for p in &spec.profiles {
+        let fps = p.fps.unwrap_or(source_fps);
+        // Only refuses upsampling; the method does not matter for the step ratio.
+        crate::plan::conversion(source_fps, fps, spec.spec.audit.resample).map_err(|msg| {
+            spec.error_at(
+                &["profiles", &p.name, "fps"],
+                format!("profile `{}` runs at {msg}", p.name),
+                None,
+            )
+        })?;
+        let rate_factor = source_fps / fps;
+        profiles.push(ProfileCheck {
+            name: p.name.clone(),
+            fps,
+            rate_factor,
+            chunk: p.chunk,
+            chunk_source_steps: (p.chunk as f64 * rate_factor).round() as usize,
+            acf_at_chunk: None,
+            suggested_chunk: None,
+            warning: None,
+        });
+    }
+    Ok(profiles)
 }
 
 /// The suggested K, each profile's verdict, and the dataset-wide warnings.
@@ -253,7 +260,7 @@ pub fn write(dir: &Path, report: &AnalyzeReport, html: &str) -> Result<Vec<PathB
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| Error::Internal(format!("analyze.json: {e}")))?
         + "\n";
-    crate::report::write_files(
+    crate::files::write_files(
         dir,
         &[
             ("analyze.json", json.into_bytes()),

@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
-use super::RateState;
+use super::rate::RateState;
+use super::staging::Staging;
+use super::FileHashes;
 use crate::chunk::Sampling;
 use crate::error::{Error, IoContext, Result};
 use crate::lock;
@@ -17,6 +19,7 @@ use crate::sink::{self, documents, Sink};
 use crate::source::{self, ChannelKind, Manifest};
 use crate::spec::LoadedSpec;
 use crate::stats::{normalize::Normalizer, ChannelStats};
+use crate::timings;
 
 /// Threads that fsync a profile's outputs while they are hashed (they mostly wait on the disk).
 const SYNC_THREADS: usize = 4;
@@ -29,17 +32,98 @@ pub(super) struct Shared<'a> {
     pub renderer: &'a render::Renderer,
 }
 
+/// A stale profile waiting for its rate's statistics: a position (of its rate when handed in,
+/// of the profile once grouped by rate), its sink and its staging directory.
+pub(super) type Waiting = (usize, Box<dyn Sink>, PathBuf);
+
+/// Statistics once per (rate, channel), shared by every profile at that rate; each rate's
+/// profiles finish (normalized writes, window index, documents, hashes) as soon as its
+/// statistics are known, while other rates still reduce theirs. Profiles' files are
+/// independent, and results are gathered in profile order.
+pub(super) fn all(
+    shared: &Shared,
+    stale: &[&ProfilePlan],
+    rates: &[RateState],
+    profiles: Vec<Waiting>,
+    staging: &Staging,
+) -> Result<FileHashes> {
+    let manifest = shared.manifest;
+    let train_mask: Vec<bool> = manifest
+        .episodes
+        .iter()
+        .map(|e| shared.plan.split.is_train(e.id))
+        .collect();
+    let mut by_rate: Vec<Vec<Waiting>> = rates.iter().map(|_| Vec::new()).collect();
+    for (i, (r, sink, dir)) in profiles.into_iter().enumerate() {
+        by_rate[r].push((i, sink, dir));
+    }
+    type Finished = Vec<(usize, Result<BTreeMap<String, String>>)>;
+    let finished: Vec<Finished> = rates
+        .par_iter()
+        .zip(by_rate)
+        .map(|(rate, profiles)| -> Result<Vec<_>> {
+            let stats = {
+                let _statistics = timings::phase("statistics");
+                rate.stats(manifest, &train_mask)?
+            };
+            Ok(profiles
+                .into_par_iter()
+                .map(|(i, sink, dir)| (i, profile(shared, stale[i], rate, &stats, sink, &dir)))
+                .collect())
+        })
+        // The first failing rate in plan order, whatever finished first.
+        .collect::<Vec<Result<_>>>()
+        .into_iter()
+        .collect::<Result<_>>()?;
+    let mut finished: Finished = finished.into_iter().flatten().collect();
+    finished.sort_by_key(|(i, _)| *i);
+    let mut hashes = BTreeMap::new();
+    for (p, (_, files)) in stale.iter().zip(finished) {
+        hashes.insert(p.name.clone(), files?);
+        // `profile` fsynced every file it hashed.
+        staging.files_synced(&p.name);
+    }
+    Ok(hashes)
+}
+
+/// A profile's last writes, in order: the container (normalized low-dim values, window index),
+/// its documents and generated files; returns each file's BLAKE3.
 pub(super) fn profile(
     shared: &Shared,
     p: &ProfilePlan,
     rate: &RateState,
     stats: &BTreeMap<String, ChannelStats>,
-    mut sink: Box<dyn Sink>,
+    sink: Box<dyn Sink>,
     dir: &Path,
 ) -> Result<BTreeMap<String, String>> {
-    let (manifest, plan, spec, renderer) =
-        (shared.manifest, shared.plan, shared.spec, shared.renderer);
-    let lowdim = super::timings::phase("write low-dim");
+    let data = write_data(shared, p, rate, stats, sink)?;
+    let documents = timings::phase("documents");
+    write_documents(shared, p, rate, stats, &data, dir)?;
+    drop(documents);
+    let _hashing = timings::phase("hash outputs");
+    hash_and_sync(dir)
+}
+
+/// What the container's writes leave for the documents.
+struct Written {
+    normalizers: BTreeMap<String, Normalizer>,
+    /// Samples per split (train, val).
+    counts: [usize; 2],
+    /// Per episode, the `[t, t + limit]` of each sample, when the sampling is by segments.
+    segments: Vec<Vec<[usize; 2]>>,
+    data_file: String,
+    normalized: bool,
+}
+
+/// The normalized low-dim values and the window index, then the sink's last writes.
+fn write_data(
+    shared: &Shared,
+    p: &ProfilePlan,
+    rate: &RateState,
+    stats: &BTreeMap<String, ChannelStats>,
+    mut sink: Box<dyn Sink>,
+) -> Result<Written> {
+    let lowdim = timings::phase("write low-dim");
     let mut normalizers = BTreeMap::new();
     for (c, ch) in p.channels.iter().enumerate() {
         let n = Normalizer::fit(ch.normalize, &stats[&ch.name]);
@@ -49,12 +133,12 @@ pub(super) fn profile(
         normalizers.insert(ch.name.clone(), n);
     }
     drop(lowdim);
-    let windows = super::timings::phase("write index");
+    let _windows = timings::phase("write index");
     // The index is counted here and generated again a block at a time as the sink writes it.
     let mut index = Index {
         p,
         rate,
-        manifest,
+        manifest: shared.manifest,
         splits: [Vec::new(), Vec::new()],
     };
     let mut segments = Vec::new();
@@ -85,9 +169,25 @@ pub(super) fn profile(
     let data_file = sink.data_file().to_string();
     let normalized = sink.stores_normalized();
     sink.finish()?;
-    drop(windows);
-    let documents = super::timings::phase("documents");
+    Ok(Written {
+        normalizers,
+        counts,
+        segments,
+        data_file,
+        normalized,
+    })
+}
 
+/// `meta.json`, `stats.json`, the codebase statistics files and the generated scripts.
+fn write_documents(
+    shared: &Shared,
+    p: &ProfilePlan,
+    rate: &RateState,
+    stats: &BTreeMap<String, ChannelStats>,
+    data: &Written,
+    dir: &Path,
+) -> Result<()> {
+    let (plan, spec, renderer) = (shared.plan, shared.spec, shared.renderer);
     let write = |name: &str, text: String| -> Result<()> {
         let path = dir.join(name);
         std::fs::write(&path, text).at("write", &path)
@@ -99,12 +199,12 @@ pub(super) fn profile(
             p,
             &documents::Built {
                 episode_ends: &rate.ends,
-                normalizers: &normalizers,
-                num_samples: counts,
-                segments: &segments,
+                normalizers: &data.normalizers,
+                num_samples: data.counts,
+                segments: &data.segments,
             },
-            &data_file,
-            normalized,
+            &data.data_file,
+            data.normalized,
         ),
     )?;
     write(STATS_FILE, documents::stats_json(p, stats))?;
@@ -113,32 +213,7 @@ pub(super) fn profile(
         let path = dir.join(sink::lerobot::STATS_PATH);
         std::fs::write(&path, render::codebase::lerobot(p, stats)).at("write", &path)?;
     }
-    let mut stats_files = Vec::new();
-    if !p.values.stats_formats.is_empty() {
-        // ACT's `example_qpos`: the state of the first training episode, in raw units.
-        let example_state = render::codebase::state_channel(p)
-            .and_then(|state| {
-                let c = p.channels.iter().position(|ch| ch.name == state.name)?;
-                let e = p.episodes.iter().position(|ep| ep.split == "train")?;
-                let width = manifest.channels[c].width();
-                let start = if e == 0 { 0 } else { rate.ends[e - 1] as usize };
-                let end = rate.ends[e] as usize;
-                Some(rate.lowdim[c].rows(start, end).map(|v| (v, width)))
-            })
-            .transpose()?;
-        let inputs = render::codebase::Inputs {
-            profile: p,
-            stats,
-            normalizers: &normalizers,
-            example_state: example_state.as_ref().map(|(v, w)| (v.as_ref(), *w)),
-            renderer,
-        };
-        for f in render::codebase::files(&p.values.stats_formats, &inputs)? {
-            let path = dir.join(&f.name);
-            std::fs::write(&path, f.bytes).at("write", &path)?;
-            stats_files.push((f.name, f.what));
-        }
-    }
+    let stats_files = codebase_files(shared, p, rate, stats, &data.normalizers, dir)?;
     let hint = Path::new(&spec.spec.output.dir).join(&p.name);
     let generated = render::profile_files(
         renderer,
@@ -147,17 +222,58 @@ pub(super) fn profile(
             profile: p,
             spec_file: &spec.file.file_name().unwrap_or_default().to_string_lossy(),
             output_hint: &hint.to_string_lossy(),
-            data_file: &data_file,
-            num_samples: counts,
+            data_file: &data.data_file,
+            num_samples: data.counts,
             stats_files: &stats_files,
         },
     )?;
     for (name, text) in generated {
         write(name, text)?;
     }
+    Ok(())
+}
 
-    drop(documents);
-    let _hashing = super::timings::phase("hash outputs");
+/// The statistics files the profile's `stats_formats` ask for; returns (name, what) of each.
+fn codebase_files(
+    shared: &Shared,
+    p: &ProfilePlan,
+    rate: &RateState,
+    stats: &BTreeMap<String, ChannelStats>,
+    normalizers: &BTreeMap<String, Normalizer>,
+    dir: &Path,
+) -> Result<Vec<(String, String)>> {
+    let mut stats_files = Vec::new();
+    if p.values.stats_formats.is_empty() {
+        return Ok(stats_files);
+    }
+    // ACT's `example_qpos`: the state of the first training episode, in raw units.
+    let example_state = p
+        .state_channel()
+        .and_then(|state| {
+            let c = p.channels.iter().position(|ch| ch.name == state.name)?;
+            let e = p.episodes.iter().position(|ep| ep.split == "train")?;
+            let width = shared.manifest.channels[c].width();
+            let (start, end) = (rate.start(e), rate.ends[e] as usize);
+            Some(rate.lowdim[c].rows(start, end).map(|v| (v, width)))
+        })
+        .transpose()?;
+    let inputs = render::codebase::Inputs {
+        profile: p,
+        stats,
+        normalizers,
+        example_state: example_state.as_ref().map(|(v, w)| (v.as_ref(), *w)),
+        renderer: shared.renderer,
+    };
+    for f in render::codebase::files(&p.values.stats_formats, &inputs)? {
+        let path = dir.join(&f.name);
+        std::fs::write(&path, f.bytes).at("write", &path)?;
+        stats_files.push((f.name, f.what));
+    }
+    Ok(stats_files)
+}
+
+/// The BLAKE3 of every file under `dir`, each fsynced meanwhile.
+fn hash_and_sync(dir: &Path) -> Result<BTreeMap<String, String>> {
     let listed = source::fingerprint::list_files(dir)?;
     // The files start reaching the disk (fsync, which mostly waits) while they are hashed, so
     // the commit need not sync them again. Several syncing threads: an output of many small

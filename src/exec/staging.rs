@@ -22,9 +22,7 @@ use std::fs::{File, TryLockError};
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, IoContext, Result};
-
-pub const STAGING_DIR: &str = ".chunkc-staging";
-pub const BUILD_LOCK_FILE: &str = ".chunkc-build.lock";
+use crate::files::{BUILD_LOCK_FILE, STAGING_DIR};
 const OLD_SUFFIX: &str = ".old";
 
 /// Held for the duration of a build; see the module docs.

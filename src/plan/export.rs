@@ -14,7 +14,7 @@
 //! `episode_<i>.hdf5`). The spec checks catch collisions by name; this check, with the source's
 //! kinds and ACT's state channel known, is the authoritative one.
 
-use super::ProfileChannel;
+use super::{ProfileChannel, ProfilePlan};
 use crate::error::Result;
 use crate::source::ChannelKind;
 use crate::spec::{export_keys, LoadedSpec, OutputFormat, Profile};
@@ -33,6 +33,15 @@ pub fn state_channel(channels: &[ProfileChannel]) -> Option<&ProfileChannel> {
         .find(|c| c.name == "observation.qpos")
         .or_else(|| obs().find(|c| c.name == "observation.state"))
         .or_else(|| obs().next())
+}
+
+impl ProfilePlan {
+    /// The profile's robot state, resolved once by [`state_channel`]: the channel ACT calls
+    /// `qpos` (and its statistics `qpos_*`), openpi `state`, and the native exports name
+    /// after it. Sinks and templates ask here, never decide it themselves.
+    pub fn state_channel(&self) -> Option<&ProfileChannel> {
+        state_channel(&self.channels)
+    }
 }
 
 /// Fills in `export` and `array` of every channel of `profile`.

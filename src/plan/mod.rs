@@ -34,7 +34,6 @@ pub const PLAN_VERSION: u32 = 1;
 pub const TOOL_VERSION: &str = env!("CARGO_PKG_VERSION");
 
 /// Files every profile writes, relative to its directory.
-pub const DATA_FILE: &str = "data.h5";
 pub const META_FILE: &str = "meta.json";
 pub const STATS_FILE: &str = "stats.json";
 pub const LOADER_FILE: &str = "loader.py";
@@ -618,15 +617,7 @@ fn resolve_profile(
     };
     let files = vec![
         PlannedFile {
-            path: match profile.format {
-                crate::spec::OutputFormat::Zarr => "data.zarr/".into(),
-                crate::spec::OutputFormat::ActEpisodes => "episode_*.hdf5".into(),
-                crate::spec::OutputFormat::Parquet => "data/".into(),
-                crate::spec::OutputFormat::RobomimicHdf5 => {
-                    crate::sink::robomimic::ROBOMIMIC_FILE.into()
-                }
-                _ => DATA_FILE.into(),
-            },
+            path: profile.format.files().planned.into(),
             estimated_bytes: data_bytes + chunk_bytes + 8192,
         },
         PlannedFile {

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use serde_json::{json, Value};
 
 use super::pickle::{self, Array};
-use crate::plan::{ProfileChannel, ProfilePlan};
+use crate::plan::ProfilePlan;
 use crate::source::ChannelKind;
 use crate::spec::StatsFormat;
 use crate::stats::normalize::{Normalizer, ZSCORE_STD_FLOOR};
@@ -28,12 +28,6 @@ pub struct Inputs<'a> {
     /// Raw values (row-major, width) of the state channel over the first training episode.
     pub example_state: Option<(&'a [f32], usize)>,
     pub renderer: &'a super::Renderer,
-}
-
-/// The channel ACT calls `qpos` and openpi calls `state`: `observation.qpos`, else
-/// `observation.state`, else the first vector-valued observation.
-pub fn state_channel(profile: &ProfilePlan) -> Option<&ProfileChannel> {
-    crate::plan::export::state_channel(&profile.channels)
 }
 
 fn pretty(v: &Value) -> Vec<u8> {
@@ -109,7 +103,7 @@ fn act(inputs: &Inputs) -> Vec<File> {
         }
     };
     add("action", &inputs.stats["action"], true);
-    if let Some(state) = state_channel(inputs.profile) {
+    if let Some(state) = inputs.profile.state_channel() {
         add("qpos", &inputs.stats[&state.name], false);
     }
     if let Some((values, width)) = inputs.example_state {
@@ -230,7 +224,7 @@ fn openpi(inputs: &Inputs) -> Vec<u8> {
     let entry =
         |s: &ChannelStats| json!({ "mean": s.mean, "std": s.std, "q01": s.q01, "q99": s.q99 });
     let mut norm = serde_json::Map::new();
-    if let Some(state) = state_channel(inputs.profile) {
+    if let Some(state) = inputs.profile.state_channel() {
         norm.insert("state".into(), entry(&inputs.stats[&state.name]));
     }
     norm.insert("actions".into(), entry(&inputs.stats["action"]));

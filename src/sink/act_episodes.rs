@@ -24,10 +24,10 @@ use hdf5::{File, Group};
 
 use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
-use crate::exec::LowdimStore;
 use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
 use crate::stats::normalize::Normalizer;
+use crate::store::LowdimStore;
 
 const QPOS: &str = "observations/qpos";
 const QVEL: &str = "observations/qvel";
@@ -99,7 +99,7 @@ impl ActEpisodesWriter {
 
 impl Sink for ActEpisodesWriter {
     fn data_file(&self) -> &str {
-        "episode_0.hdf5"
+        crate::spec::OutputFormat::ActEpisodes.files().data
     }
 
     fn frame_encoding(&self) -> FrameEncoding {

@@ -23,13 +23,14 @@ use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::bytes::f32_bytes;
 use crate::chunk::Window;
 use crate::error::{Error, Result};
-use crate::exec::LowdimStore;
-use crate::plan::DATA_FILE;
 use crate::source::chunk_map::{self, ChunkMap};
 use crate::source::ChannelKind;
 use crate::spec::{Compression, ImageCompression, Layout, Padding};
 use crate::stats::normalize::Normalizer;
+use crate::store::LowdimStore;
 
+/// chunkc's own container, where the format says.
+const DATA_FILE: &str = crate::spec::OutputFormat::Hdf5.files().data;
 /// Chunks of low-dimensional data hold about this many bytes (a few windows' worth).
 const LOWDIM_CHUNK_BYTES: usize = 64 * 1024;
 /// `image_compression = "gzip"` compresses frames at this level unless the spec gives one.
@@ -60,6 +61,8 @@ pub struct Hdf5Writer {
     episode_ends: Vec<u64>,
     /// Normalized low-dim values and normalizers, kept for `/chunks` (not for `index`).
     kept: Vec<Option<(Vec<f32>, Normalizer)>>,
+    /// The row store's memory budget (exec's), which bounds the index blocks too.
+    spill_budget: usize,
 }
 
 fn group(parent: &Group, name: &str) -> Result<Group> {
@@ -262,6 +265,7 @@ impl Hdf5Writer {
             padding: v.padding,
             episode_ends: episode_ends.to_vec(),
             kept: plan.channels.iter().map(|_| None).collect(),
+            spill_budget: ctx.spill_budget,
         })
     }
 
@@ -380,7 +384,7 @@ impl Hdf5Writer {
             .create(name)?;
         // Within the low-dim memory budget too: a tiny `CHUNKC_SPILL_BYTES` (the tests) makes
         // blocks of a few rows, which start and end inside episodes.
-        let block = (INDEX_BLOCK_BYTES.min(crate::exec::spill_budget()) / 32).max(1);
+        let block = (INDEX_BLOCK_BYTES.min(self.spill_budget) / 32).max(1);
         let starts: Vec<usize> = (0..n).step_by(block).collect();
         let generate = |lo: usize| index.rows(split, lo, (lo + block).min(n));
         // The next block is generated while this one is written.

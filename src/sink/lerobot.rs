@@ -38,12 +38,12 @@ use serde_json::{json, Value};
 
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
-use crate::exec::LowdimStore;
 use crate::source::ChannelKind;
 use crate::spec::Compression;
 use crate::stats::normalize::Normalizer;
+use crate::store::LowdimStore;
 
-pub const DATA_PATH: &str = "data/chunk-000/file-000.parquet";
+pub const DATA_PATH: &str = crate::spec::OutputFormat::Parquet.files().data;
 pub const INDEX_FILE: &str = "chunkc_index.parquet";
 pub const STATS_PATH: &str = "meta/stats.json";
 const TASK: &str = "chunkc";

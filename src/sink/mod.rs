@@ -31,10 +31,10 @@ use std::path::Path;
 use std::sync::Arc;
 
 use crate::error::Result;
-use crate::exec::LowdimStore;
 use crate::plan::ProfilePlan;
 use crate::spec::OutputFormat;
 use crate::stats::normalize::Normalizer;
+use crate::store::LowdimStore;
 
 /// How a sink wants image frames handed to it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -148,6 +148,9 @@ pub struct SinkContext<'a> {
     pub episode_ends: &'a [u64],
     /// Source episode ids, in stored order.
     pub episode_ids: &'a [u64],
+    /// The row store's memory budget, decided by exec (`CHUNKC_SPILL_BYTES`); a sink that
+    /// buffers rows of its own keeps within it too.
+    pub spill_budget: usize,
 }
 
 /// One output container being written.

@@ -28,12 +28,12 @@ use hdf5::{File, Group};
 
 use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
-use crate::exec::LowdimStore;
 use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
 use crate::stats::normalize::Normalizer;
+use crate::store::LowdimStore;
 
-pub const ROBOMIMIC_FILE: &str = "data.hdf5";
+pub const ROBOMIMIC_FILE: &str = crate::spec::OutputFormat::RobomimicHdf5.files().data;
 const ENV_ARGS: &str = r#"{"env_name": "", "type": 1, "env_kwargs": {}}"#;
 
 pub struct RobomimicWriter {

@@ -29,12 +29,12 @@ use zarrs::metadata::ArrayMetadata;
 use super::zarr_store::DirStore;
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
-use crate::exec::LowdimStore;
 use crate::source::ChannelKind;
 use crate::spec::Compression;
 use crate::stats::normalize::Normalizer;
+use crate::store::LowdimStore;
 
-pub const ZARR_DIR: &str = "data.zarr";
+pub const ZARR_DIR: &str = crate::spec::OutputFormat::Zarr.files().data;
 /// Low-dim chunks hold about this many bytes.
 const LOWDIM_CHUNK_BYTES: usize = 256 * 1024;
 const DEFAULT_BLOSC_LEVEL: u32 = 5;

@@ -149,7 +149,7 @@ impl AlohaSource {
         let names: Vec<PathBuf> = found.iter().map(|(_, n)| PathBuf::from(n)).collect();
         let (headers, fingerprint) = rayon::join(
             || -> Result<(Vec<EpisodeInfo>, Vec<Located>)> {
-                let _headers = crate::exec::timings::phase("episode headers");
+                let _headers = crate::timings::phase("episode headers");
                 // Files whose datasets are all contiguous are understood without HDF5 (and so
                 // in parallel); the others are read through it below.
                 let fast: Vec<Option<Vec<h5meta::Located>>> = if jpeg_keys.is_empty() {
@@ -235,7 +235,7 @@ impl AlohaSource {
                 Ok((episodes, direct))
             },
             || {
-                let _fingerprint = crate::exec::timings::phase("fingerprint source");
+                let _fingerprint = crate::timings::phase("fingerprint source");
                 fingerprint::of_files(dir, &names)
             },
         );

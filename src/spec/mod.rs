@@ -7,12 +7,15 @@
 //! - `preset`: preset expansion into [`Profile`].
 //! - `export_keys`: the names native exports give their arrays (default rule and overrides).
 //! - `diagnostic`: renders an error with the offending text underlined.
+//! - `output_location`: where the outputs may go (never into the source; through a symlink
+//!   only when the spec allows it).
 //! - `reference`: the spec's documentation read from the JSON Schema (book chapter, hints).
 
 mod diagnostic;
 pub mod export_keys;
 mod load;
 pub mod model;
+mod output_location;
 mod preset;
 pub mod reference;
 mod validate;
@@ -21,6 +24,7 @@ pub(crate) use diagnostic::suggest as suggest_name;
 pub use diagnostic::Diagnostic;
 pub use load::LoadedSpec;
 pub use model::*;
+pub use output_location::check_output_location;
 pub use preset::Profile;
 
 /// The JSON Schema of the spec, pretty-printed with a trailing newline (`chunkc schema`).

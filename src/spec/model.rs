@@ -717,6 +717,19 @@ impl OutputFormat {
         }
     }
 
+    /// The format's data container, relative to the profile directory: one copy of the names
+    /// that the sinks write, `meta.json` names and `chunkc plan` lists.
+    pub const fn files(self) -> DataFiles {
+        let (data, planned) = match self {
+            OutputFormat::Hdf5 => ("data.h5", "data.h5"),
+            OutputFormat::Zarr => ("data.zarr", "data.zarr/"),
+            OutputFormat::Parquet => ("data/chunk-000/file-000.parquet", "data/"),
+            OutputFormat::ActEpisodes => ("episode_0.hdf5", "episode_*.hdf5"),
+            OutputFormat::RobomimicHdf5 => ("data.hdf5", "data.hdf5"),
+        };
+        DataFiles { data, planned }
+    }
+
     /// Whether the output is a codebase's own layout (raw values, no chunkc loader).
     pub fn is_native_export(self) -> bool {
         matches!(
@@ -724,6 +737,16 @@ impl OutputFormat {
             OutputFormat::ActEpisodes | OutputFormat::RobomimicHdf5
         )
     }
+}
+
+/// Where a format's data lives in a profile directory ([`OutputFormat::files`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DataFiles {
+    /// The file (or directory) written first and named by `meta.json` as the data: the whole
+    /// container, or its first file (ACT's `episode_0.hdf5`, LeRobot's first parquet file).
+    pub data: &'static str,
+    /// What `chunkc plan` lists: the container, a directory (`/`-terminated) or a glob.
+    pub planned: &'static str,
 }
 
 /// How chunkc's HDF5 file stores the chunks.

@@ -1,16 +1,17 @@
-//! Where a build may write: never into its source (checked on the paths as written and with
+//! Where chunkc may write (`build`, and `audit`/`analyze` under the output directory too), a
+//! rule on the spec's `output.dir` and `source.path`: never into its source (checked on the paths as written and with
 //! every symlink resolved), and through a symlink in `output.dir`, or one chunkc would write
 //! through directly under it, only when `[output] follow_symlinks = true`.
 
 use std::path::{Component, Path, PathBuf};
 
-use super::staging;
+use super::LoadedSpec;
 use crate::error::Result;
-use crate::spec::LoadedSpec;
+use crate::files::{BUILD_LOCK_FILE, STAGING_DIR};
 
 /// Refuses an output directory inside the source (however it gets there), and one that a symlink
 /// the spec did not allow sends somewhere else.
-pub(super) fn check(spec: &LoadedSpec, out_dir: &Path) -> Result<()> {
+pub fn check_output_location(spec: &LoadedSpec, out_dir: &Path) -> Result<()> {
     let source_dir = spec.resolve(&spec.spec.source.path);
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
     let (out_real, source_real) = (real_path(out_dir), real_path(&source_dir));
@@ -74,7 +75,7 @@ fn symlink_on_the_way(spec: &LoadedSpec, out_dir: &Path) -> Option<(PathBuf, Pat
             candidates.push(path.clone());
         }
     }
-    let made = [staging::STAGING_DIR, staging::BUILD_LOCK_FILE];
+    let made = [STAGING_DIR, BUILD_LOCK_FILE];
     let profiles = spec.profiles.iter().map(|p| p.name.as_str());
     candidates.extend(made.into_iter().chain(profiles).map(|n| out_dir.join(n)));
     candidates.into_iter().find_map(|p| {

@@ -1,19 +1,21 @@
-//! The low-dimensional values of one channel at one rate, for the whole build, in bounded memory.
+//! The row store (a leaf): the low-dimensional values of one channel at one rate, for the whole
+//! build, in bounded memory.
 //!
 //! Exact percentiles need every value of a column, and normalized values can only be written once
-//! the statistics are known, so exec keeps every low-dim value until the end of the build. A
+//! the statistics are known, so exec keeps every low-dim value until the end of the build, and the
+//! sinks read them back from here (a leaf, so that neither depends on the other). A
 //! [`LowdimStore`] knows how many rows it will hold: when they fit in a byte budget it keeps them
 //! in memory (row-major, as read, one allocation); otherwise it spills from the start, appending
 //! 8 MiB of rows at a time (a quarter budget if less) to one file in the build's staging
-//! directory, row-major as they are, and keeps at most that many rows in memory. As training rows are pushed it counts
-//! each column's first percentile pass ([`LowdimStore::high_counts`]). Reading is then (a) the
+//! directory, row-major as they are, and keeps at most that many rows in memory. Reading is then (a) the
 //! training rows a block at a time, every column at once, for the percentiles' second pass
 //! ([`LowdimStore::for_rows`]), and (b) a range of rows, for the writers and per-episode exports
 //! ([`LowdimStore::rows`], [`LowdimStore::rows_into`]): one read each, nothing to reorder.
 //! Small builds never touch the disk.
 //!
 //! The file lives under the staging directory, which is removed whether the build succeeds or
-//! fails. `CHUNKC_SPILL_BYTES` overrides the budget (the tests force spilling with it).
+//! fails. The budget is the caller's: exec decides it (`CHUNKC_SPILL_BYTES`, else
+//! [`DEFAULT_BUDGET`]) and hands it to whoever needs it; nothing here reads the environment.
 
 use std::borrow::Cow;
 use std::fs::File;
@@ -22,7 +24,6 @@ use std::path::PathBuf;
 
 use crate::bytes;
 use crate::error::{Error, IoContext, Result};
-use crate::stats::HighCounts;
 
 /// Bytes of values one store keeps in memory rather than spill: a channel of up to about 1.2
 /// million rows of 14 values. A spec's lower rates mostly fit (the 25, 10 and 5 Hz stores of
@@ -34,21 +35,8 @@ pub const DEFAULT_BUDGET: usize = 64 << 20;
 /// quarter of the budget when that is smaller).
 const SPILL_BLOCK: usize = 8 << 20;
 
-/// Channels up to this wide count their first percentile pass as rows are pushed (a 256 KiB
-/// table per column, 16 MiB at most a store); wider ones (point clouds) leave both passes to
-/// the statistics, a group of columns at a time.
-pub const COUNT_AHEAD_COLUMNS: usize = 64;
-
 /// Rows [`LowdimStore::for_rows`] hands over at once.
 const BLOCK_ROWS: usize = 1 << 14;
-
-/// The budget: `CHUNKC_SPILL_BYTES` if set, else [`DEFAULT_BUDGET`].
-pub fn budget_from_env() -> usize {
-    std::env::var("CHUNKC_SPILL_BYTES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(DEFAULT_BUDGET)
-}
 
 /// Row-major `f32` rows of `width` values, appended in order; see the module docs.
 #[derive(Debug)]
@@ -64,10 +52,6 @@ pub struct LowdimStore {
     flush_at: usize,
     /// The spill file (row-major rows, little-endian) once spilled, and how many rows it holds.
     spilled: Option<(File, usize)>,
-    /// Per column, the first pass of the exact percentiles over the training rows, counted as
-    /// they are pushed (see [`crate::stats::SecondPass`] for the second); empty for channels
-    /// wider than [`COUNT_AHEAD_COLUMNS`].
-    high: Vec<HighCounts>,
 }
 
 impl LowdimStore {
@@ -92,17 +76,7 @@ impl LowdimStore {
             mem: Vec::with_capacity(capacity),
             flush_at,
             spilled: None,
-            high: (0..width)
-                .filter(|_| width <= COUNT_AHEAD_COLUMNS)
-                .map(|_| HighCounts::new())
-                .collect(),
         }
-    }
-
-    /// Per column, the first pass of the percentiles over the training rows pushed so far;
-    /// `None` for channels wider than [`COUNT_AHEAD_COLUMNS`].
-    pub fn high_counts(&self) -> Option<&[HighCounts]> {
-        (self.width <= COUNT_AHEAD_COLUMNS).then_some(self.high.as_slice())
     }
 
     pub fn width(&self) -> usize {
@@ -127,15 +101,12 @@ impl LowdimStore {
         self.spilled.as_ref().map_or(0, |(_, rows)| *rows)
     }
 
-    /// Appends whole rows; `train`: they are training rows, counted for the percentiles.
-    pub fn push(&mut self, values: &[f32], train: bool) -> Result<()> {
+    /// Appends whole rows.
+    pub fn push(&mut self, values: &[f32]) -> Result<()> {
         if self.width == 0 {
             return Ok(());
         }
         debug_assert_eq!(values.len() % self.width, 0);
-        if train && !self.high.is_empty() {
-            HighCounts::add_rows(&mut self.high, values);
-        }
         self.mem.extend_from_slice(values);
         if self.mem.len() * 4 > self.flush_at {
             self.flush()?;
@@ -266,7 +237,7 @@ mod tests {
                     next * 0.37 - 5.0
                 })
                 .collect();
-            store.push(&values, true).unwrap();
+            store.push(&values).unwrap();
         }
         store
     }
@@ -287,10 +258,6 @@ mod tests {
         );
         assert!(spilled.is_spilled());
         let n: usize = batches.iter().sum();
-        for store in [&memory, &spilled] {
-            let high = store.high_counts().expect("narrow channels count ahead");
-            assert!(high.iter().all(|h| h.total() == n as u64));
-        }
         assert_eq!(memory.len(), n);
         assert_eq!(spilled.len(), n);
         let all = memory.rows(0, n).unwrap().into_owned();
@@ -326,7 +293,7 @@ mod tests {
         let mut store = LowdimStore::new(2, 80_000, tmp.path().join("b"), big);
         let values: Vec<f32> = (0..2 * big).map(|i| i as f32).collect();
         for part in values.chunks(2 * 1000) {
-            store.push(part, false).unwrap();
+            store.push(part).unwrap();
         }
         assert!(store.is_spilled() && store.disk_rows() < big);
         let ranges = [(5, BLOCK_ROWS + 7), (BLOCK_ROWS + 9, big - 1)];
@@ -340,9 +307,6 @@ mod tests {
             .unwrap();
         assert_eq!(got, expected);
         assert!(store.for_rows(&[(0, big + 1)], &mut |_| {}).is_err());
-        // Wide channels (point clouds) leave the first pass to the statistics.
-        let wide = LowdimStore::new(COUNT_AHEAD_COLUMNS + 1, 1 << 20, tmp.path().join("w"), 4);
-        assert!(wide.high_counts().is_none());
         assert!(spilled.rows(0, n + 1).is_err());
         // Every range, including those straddling the rows on disk and those in memory, read
         // into a caller's buffer.

@@ -1,0 +1,54 @@
+//! `chunkc audit`: the source opened and every episode's timing judged; the report written
+//! beside the outputs as `audit/audit.json` and `audit/report.html`.
+
+use std::path::PathBuf;
+
+use crate::audit::{self, AuditReport};
+use crate::error::Result;
+use crate::files;
+use crate::source::{self, Source};
+use crate::spec::{self, LoadedSpec};
+use crate::timings;
+
+/// The source as read, its audit, and each episode's repair.
+pub struct Audit {
+    pub source: Box<dyn Source>,
+    pub report: AuditReport,
+    pub repairs: Vec<audit::Repair>,
+}
+
+/// Opens the source and audits it (after checking where the outputs would go).
+pub fn audit(spec: &LoadedSpec) -> Result<Audit> {
+    spec::check_output_location(spec, &spec.resolve(&spec.spec.output.dir))?;
+    let opened = timings::phase("open source");
+    let source = source::open(spec)?;
+    drop(opened);
+    let _audit = timings::phase("audit");
+    let (report, repairs) = audit::run(spec, source.as_ref())?;
+    Ok(Audit {
+        source,
+        report,
+        repairs,
+    })
+}
+
+/// `chunkc audit`: the audit with its repair examples, written as JSON and HTML; returns the
+/// report and the two paths.
+pub fn audit_report(spec: &LoadedSpec) -> Result<(AuditReport, Vec<PathBuf>)> {
+    let Audit {
+        source,
+        mut report,
+        repairs,
+    } = audit(spec)?;
+    report.examples = audit::examples(source.as_ref(), &report, &repairs)?;
+    let title = format!("chunkc audit: {}", spec.file.display());
+    let html = crate::report::audit_html(&report, &title);
+    let paths = files::write_files(
+        &crate::analyze::audit_dir(spec),
+        &[
+            ("audit.json", report.to_json().into_bytes()),
+            ("report.html", html.into_bytes()),
+        ],
+    )?;
+    Ok((report, paths))
+}

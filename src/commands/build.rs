@@ -1,0 +1,220 @@
+//! `chunkc build`: every stale profile built from one pass over the source, the staging
+//! directory renamed into place, `chunkc.lock` updated.
+//!
+//! When `[audit] non_finite = "exclude_episode"` finds episodes to leave out, which ones
+//! depends only on the data, so the output stays deterministic: the build plans again without
+//! them and builds from that plan (reading the kept episodes a second time).
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::atomic::AtomicUsize;
+
+use crate::error::{Error, Result};
+use crate::exec::{self, BuildLock, Excluded, FileHashes, Outcome, Staging};
+use crate::lock::{self, Lock, LockedProfile, SpecLock, LOCK_VERSION};
+use crate::plan::{self, Plan, ProfilePlan};
+use crate::source::{self, Source};
+use crate::spec::{self, LoadedSpec};
+use crate::timings;
+
+#[derive(Debug, Clone, Default)]
+pub struct BuildOptions {
+    /// Fail instead of building when anything is out of date (`--locked`).
+    pub locked: bool,
+    /// Show progress bars (they are hidden anyway when stderr is not a terminal).
+    pub progress: bool,
+}
+
+#[derive(Debug, Clone)]
+pub struct BuildReport {
+    pub out_dir: PathBuf,
+    pub built: Vec<String>,
+    pub up_to_date: Vec<String>,
+    /// How many times each source episode was read (manifest order): 1 each when anything was
+    /// built, whatever the number of profiles and rates; empty when nothing was.
+    pub episode_reads: Vec<usize>,
+    /// How many times each storage chunk of the source was decoded (array, then chunk index;
+    /// see [`source::chunk_cache`]): 1 each when anything was built, whatever the source's
+    /// chunking; empty when nothing was.
+    pub chunk_decodes: source::DecodeCounts,
+}
+
+/// A build that committed: the plan it followed, the profiles it built and their files' hashes.
+struct Committed {
+    plan: Plan,
+    built: Vec<String>,
+    hashes: FileHashes,
+    chunk_decodes: source::DecodeCounts,
+}
+
+pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
+    let whole = timings::phase("whole build");
+    let out_dir = spec.resolve(&spec.spec.output.dir);
+    // Never create anything (not even the lock) inside a source.
+    spec::check_output_location(spec, &out_dir)?;
+    let mut build_lock = BuildLock::acquire(&out_dir)?;
+    // Repair what an interrupted build left, before the plan compares outputs with the lock.
+    Staging::recover(&out_dir)?;
+    let (source, plan) = super::plan(spec)?;
+    let (stale, up_to_date): (Vec<&ProfilePlan>, Vec<&ProfilePlan>) =
+        plan.profiles.iter().partition(|p| !p.status.up_to_date);
+    let up_to_date: Vec<String> = up_to_date.iter().map(|p| p.name.clone()).collect();
+    if stale.is_empty() {
+        return Ok(BuildReport {
+            out_dir,
+            built: Vec::new(),
+            up_to_date,
+            episode_reads: Vec::new(),
+            chunk_decodes: Default::default(),
+        });
+    }
+    if opts.locked {
+        let reasons: Vec<String> = stale
+            .iter()
+            .map(|p| format!("  {}: {}", p.name, p.status.reason))
+            .collect();
+        return Err(Error::Locked(format!(
+            "--locked: these profiles would be rebuilt:\n{}",
+            reasons.join("\n")
+        )));
+    }
+    let reads: Vec<AtomicUsize> = (0..plan.source.episodes)
+        .map(|_| AtomicUsize::new(0))
+        .collect();
+    let names: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
+    let committed =
+        match exec::execute(spec, &plan, &stale, source.as_ref(), opts.progress, &reads)? {
+            Outcome::Built(staging, hashes) => {
+                let chunk_decodes = source.decode_counts();
+                build_lock.keep();
+                let _commit = timings::phase("commit (fsync)");
+                staging.commit(&names)?;
+                Committed {
+                    plan,
+                    built: names,
+                    hashes,
+                    chunk_decodes,
+                }
+            }
+            Outcome::Exclude(excluded) => {
+                let again = (spec, &plan, names, opts);
+                rebuild_without(again, source, &excluded, &mut build_lock)?
+            }
+        };
+    update_lock(spec, &committed.plan, &committed.hashes)?;
+    drop(whole);
+    timings::report();
+    Ok(BuildReport {
+        out_dir,
+        built: committed.built,
+        up_to_date,
+        episode_reads: reads.into_iter().map(AtomicUsize::into_inner).collect(),
+        chunk_decodes: committed.chunk_decodes,
+    })
+}
+
+/// Plans again without the `excluded` episodes and builds the profiles `names` from that plan
+/// (see the module docs); commits the result.
+fn rebuild_without(
+    (spec, plan, names, opts): (&LoadedSpec, &Plan, Vec<String>, &BuildOptions),
+    source: Box<dyn Source>,
+    excluded: &Excluded,
+    build_lock: &mut BuildLock,
+) -> Result<Committed> {
+    let ids: Vec<u64> = excluded.keys().copied().collect();
+    let kept: Box<dyn Source> = Box::new(source::Subset::without(source, &ids));
+    let replan = replan(spec, plan, kept.as_ref(), excluded)?;
+    let restale: Vec<&ProfilePlan> = replan
+        .profiles
+        .iter()
+        .filter(|p| names.contains(&p.name))
+        .collect();
+    let again: Vec<AtomicUsize> = (0..replan.source.episodes)
+        .map(|_| AtomicUsize::new(0))
+        .collect();
+    match exec::execute(
+        spec,
+        &replan,
+        &restale,
+        kept.as_ref(),
+        opts.progress,
+        &again,
+    )? {
+        Outcome::Built(staging, hashes) => {
+            let chunk_decodes = kept.decode_counts();
+            build_lock.keep();
+            staging.commit(&names)?;
+            Ok(Committed {
+                plan: replan,
+                built: names,
+                hashes,
+                chunk_decodes,
+            })
+        }
+        Outcome::Exclude(more) => Err(Error::Internal(format!(
+            "episodes {:?} passed the audit once and failed it the second time",
+            more.keys().collect::<Vec<_>>()
+        ))),
+    }
+}
+
+/// The plan of `kept` (the source less the excluded episodes), carrying over the first plan's
+/// audit, exclusions and repairs, with the new exclusions added.
+fn replan(spec: &LoadedSpec, plan: &Plan, kept: &dyn Source, excluded: &Excluded) -> Result<Plan> {
+    let out_dir = spec.resolve(&spec.spec.output.dir);
+    let lock = Lock::read(&lock::path_for(&spec.file))?;
+    let entry = lock
+        .as_ref()
+        .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
+    let mut replan = plan::resolve(spec, kept.manifest(), entry, &out_dir)?;
+    replan.audit = plan.audit.clone();
+    for (p, before) in replan.profiles.iter_mut().zip(&plan.profiles) {
+        p.excluded = before.excluded.clone();
+        p.excluded
+            .extend(excluded.iter().map(|(&id, reason)| plan::Excluded {
+                id,
+                reason: reason.clone(),
+            }));
+        p.excluded.sort_by_key(|e| e.id);
+        p.repaired = before
+            .repaired
+            .iter()
+            .filter(|r| !excluded.contains_key(&r.id))
+            .cloned()
+            .collect();
+    }
+    Ok(replan)
+}
+
+/// Records the build in `chunkc.lock`: re-read, so that only this spec's entry changes whatever
+/// else it holds; profiles not built keep their previous entries.
+fn update_lock(spec: &LoadedSpec, plan: &Plan, hashes: &FileHashes) -> Result<()> {
+    let lock_path = lock::path_for(&spec.file);
+    let key = lock::key_for(&spec.file);
+    let mut all = Lock::read(&lock_path)?.unwrap_or(Lock {
+        version: LOCK_VERSION,
+        specs: BTreeMap::new(),
+    });
+    let previous = all.specs.remove(&key).unwrap_or_default();
+    let mut profiles = BTreeMap::new();
+    for p in &plan.profiles {
+        let entry = match hashes.get(&p.name) {
+            Some(files) => LockedProfile {
+                fingerprint: p.fingerprint.clone(),
+                files: files.clone(),
+            },
+            None => previous.profiles.get(&p.name).cloned().unwrap_or_default(),
+        };
+        profiles.insert(p.name.clone(), entry);
+    }
+    all.specs.insert(
+        key,
+        SpecLock {
+            tool_version: plan::TOOL_VERSION.to_string(),
+            spec_hash: plan.spec_hash.clone(),
+            source_fingerprint: plan.source.fingerprint.clone(),
+            profiles,
+        },
+    );
+    all.write(&lock_path)
+}

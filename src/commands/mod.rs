@@ -1,0 +1,23 @@
+//! The command drivers, on top of every stage: each `chunkc` command that does more than one
+//! stage's work is one function here, which `main.rs` (the command line only) calls and whose
+//! result it prints. The drivers sequence the stages (open, audit, resolve, execute, render)
+//! and own what belongs to no single stage: re-planning after an exclusion, committing the
+//! staging directory, updating `chunkc.lock`.
+//!
+//! - `audit`: open the source and audit it; `chunkc audit` writes the report.
+//! - `plan`: the audited source and the plan against the lock (`chunkc plan`).
+//! - `check`: the plan, for `chunkc check`'s one line.
+//! - `analyze`: the chunk-length analysis and its report.
+//! - `build`: the stale profiles built, committed and locked.
+
+mod analyze;
+mod audit;
+mod build;
+mod check;
+mod plan;
+
+pub use analyze::analyze;
+pub use audit::{audit, audit_report, Audit};
+pub use build::{build, BuildOptions, BuildReport};
+pub use check::check;
+pub use plan::plan;

@@ -1,0 +1,54 @@
+//! `chunkc plan` (and the start of `check` and `build`): the audited source and the plan
+//! resolved against the lock.
+
+use super::audit::audit;
+use crate::audit::Audited;
+use crate::error::{Error, Result};
+use crate::lock::{self, Lock};
+use crate::plan::{self, Plan};
+use crate::source::Source;
+use crate::spec::{self, LoadedSpec, SplitFrom};
+
+/// Opens the source, audits it, and resolves the plan against the lock (what `chunkc plan`
+/// shows). The source returned is the audited one: exclusions gone, repairs applied on read.
+pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
+    let audited = audit(spec)?;
+    let report = audited.report;
+    let applied = spec.spec.audit.repair;
+    let source: Box<dyn Source> = Box::new(Audited::new(
+        audited.source,
+        &report,
+        audited.repairs,
+        applied,
+    ));
+    let manifest = source.manifest();
+    if manifest.episodes.is_empty() {
+        return Err(Error::source(format!(
+            "{}: the audit excluded every episode ({}); see `chunkc audit`, or relax `[audit]`",
+            spec.spec.source.path,
+            report
+                .episodes
+                .first()
+                .map(|e| format!("episode {}: {}", e.id, e.detail))
+                .unwrap_or_default()
+        )));
+    }
+    for warning in &manifest.warnings {
+        eprintln!("warning: {warning}");
+    }
+    if spec.spec.split.from == SplitFrom::Source && manifest.source_split.is_none() {
+        eprintln!(
+            "warning: `split.from = \"source\"`, but {} stores no split; using `val_fraction` and `seed`",
+            spec.spec.source.path
+        );
+    }
+    let out_dir = spec.resolve(&spec.spec.output.dir);
+    spec::check_output_location(spec, &out_dir)?;
+    let lock = Lock::read(&lock::path_for(&spec.file))?;
+    let entry = lock
+        .as_ref()
+        .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
+    let mut plan = plan::resolve(spec, source.manifest(), entry, &out_dir)?;
+    plan::apply_audit(&mut plan, &report, applied);
+    Ok((source, plan))
+}

@@ -1,0 +1,107 @@
+//! The parallel part of reading an episode: its channels converted to every output rate, its
+//! frames encoded once per encoding a sink asked for, and, for a training episode, its
+//! statistics partials. Nothing here writes; the results are consumed in episode order.
+
+use super::rate::Partial;
+use crate::audit;
+use crate::plan::Conversion;
+use crate::sink::{FrameEncoding, Frames};
+use crate::source::{ChannelData, Episode, Source};
+use crate::stats::{self, ImagePartial};
+
+/// One episode's channel after the parallel part of the work.
+pub(super) enum Prepared {
+    Lowdim(Vec<f32>),
+    /// The frames in every encoding a sink at this rate asked for.
+    Frames(Vec<(FrameEncoding, Frames)>),
+}
+
+/// One episode after the parallel part of the work: decimated per rate, images compressed,
+/// statistics partials computed.
+pub(super) struct Processed {
+    /// Per rate (in `RateState` order), per channel.
+    pub data: Vec<Vec<Prepared>>,
+    /// Per rate, per channel: the statistics partial, if this is a training episode.
+    pub partials: Vec<Vec<Option<Partial>>>,
+}
+
+fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
+    if factor == 1 || width == 0 {
+        return values.to_vec();
+    }
+    let mut out = Vec::with_capacity((values.len() / width).div_ceil(factor) * width);
+    for row in values.chunks_exact(width).step_by(factor) {
+        out.extend_from_slice(row);
+    }
+    out
+}
+
+/// Decimates an episode to every rate, encodes its frames for every sink, and computes the
+/// statistics partials of a training episode. Runs in parallel over episodes.
+pub(super) fn process(
+    mut episode: Episode,
+    source: &dyn Source,
+    rates: &[(Conversion, Vec<FrameEncoding>)],
+    train: bool,
+) -> Processed {
+    let channels = &source.manifest().channels;
+    let mut data: Vec<Vec<Prepared>> = rates.iter().map(|_| Vec::new()).collect();
+    let mut partials: Vec<Vec<Option<Partial>>> = rates.iter().map(|_| Vec::new()).collect();
+    // The source's own rate goes last, so that it can take the values once every other rate
+    // has been derived from them (no copy of the episode).
+    let identity = |r: &usize| rates[*r].0 == Conversion::Decimate { factor: 1 };
+    let order: Vec<usize> = (0..rates.len())
+        .filter(|r| !identity(r))
+        .chain((0..rates.len()).filter(identity))
+        .collect();
+    for (k, &r) in order.iter().enumerate() {
+        let (conversion, encodings) = &rates[r];
+        let last = k + 1 == order.len();
+        let mut per_channel = Vec::with_capacity(channels.len());
+        let mut per_partial = Vec::with_capacity(channels.len());
+        for (ch, values) in channels.iter().zip(episode.channels.iter_mut()) {
+            let width = ch.width();
+            let converted = match *conversion {
+                // The source's own rate, last, takes the values (no copy).
+                Conversion::Decimate { factor: 1 } if last => match values {
+                    ChannelData::Lowdim(v) => ChannelData::Lowdim(std::mem::take(v)),
+                    ChannelData::Image(v) => ChannelData::Image(std::mem::take(v)),
+                },
+                Conversion::Decimate { factor } => match &*values {
+                    ChannelData::Lowdim(v) => ChannelData::Lowdim(decimate(v, width, factor)),
+                    ChannelData::Image(v) => ChannelData::Image(decimate(v, width, factor)),
+                },
+                Conversion::Resample { method, .. } => {
+                    audit::repair::convert_rate(values, width, conversion.len(episode.len), method)
+                }
+            };
+            match converted {
+                ChannelData::Lowdim(v) => {
+                    per_partial
+                        .push(train.then(|| Partial::Lowdim(stats::Moments::of_rows(&v, width))));
+                    per_channel.push(Prepared::Lowdim(v));
+                }
+                ChannelData::Image(d) => {
+                    let frames = d.len() / width.max(1);
+                    let colors = *ch.shape.last().unwrap_or(&1);
+                    per_partial.push(
+                        train.then(|| Partial::Image(ImagePartial::of_frames(&d, frames, colors))),
+                    );
+                    // Compressed encodings first, then the pixels themselves become the raw frames.
+                    let mut encoded: Vec<(FrameEncoding, Frames)> = encodings
+                        .iter()
+                        .filter(|&&enc| enc != FrameEncoding::Raw)
+                        .map(|&enc| (enc, Frames::encode(enc, &d, &ch.shape)))
+                        .collect();
+                    if encodings.contains(&FrameEncoding::Raw) {
+                        encoded.push((FrameEncoding::Raw, Frames::raw(d, width)));
+                    }
+                    per_channel.push(Prepared::Frames(encoded));
+                }
+            }
+        }
+        data[r] = per_channel;
+        partials[r] = per_partial;
+    }
+    Processed { data, partials }
+}

@@ -1,0 +1,146 @@
+//! What a build keeps per output rate while the source is read: each episode's end in the
+//! converted per-step arrays, every low-dim value (in a [`LowdimStore`]), and the statistics
+//! partials of the training episodes, merged in episode order; then the statistics of every
+//! channel at that rate, shared by all the profiles that use it.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use super::staging::Staging;
+use crate::error::Result;
+use crate::plan::Conversion;
+use crate::source::{ChannelKind, Manifest};
+use crate::stats::{self, ChannelStats, HighCounts, ImagePartial};
+use crate::store::LowdimStore;
+
+/// Channels up to this wide count their first percentile pass as rows are pushed (a 256 KiB
+/// table per column, 16 MiB at most a channel); wider ones (point clouds) leave both passes to
+/// the statistics, a group of columns at a time.
+pub(super) const COUNT_AHEAD_COLUMNS: usize = 64;
+
+/// Per-rate state: the converted low-dimensional data of every episode, and the streaming
+/// statistics of every channel.
+pub(super) struct RateState {
+    pub conversion: Conversion,
+    /// Exclusive ends of each episode in the converted per-step arrays.
+    pub ends: Vec<u64>,
+    /// Per channel (manifest order): concatenated low-dim values; empty for images. Shared with
+    /// the sinks that export episode by episode once reading is over.
+    pub lowdim: Vec<Arc<LowdimStore>>,
+    /// Per channel: the first pass of the exact percentiles over the training rows, counted as
+    /// they are pushed (see [`stats::SecondPass`] for the second); `None` for images and for
+    /// channels wider than [`COUNT_AHEAD_COLUMNS`].
+    pub high: Vec<Option<Vec<HighCounts>>>,
+    /// Per channel: the statistics partials of the training episodes, merged in episode order.
+    pub partials: Vec<Partial>,
+}
+
+impl RateState {
+    /// The empty state of rate number `r`; stores that outgrow `budget` spill under the
+    /// staging directory's scratch space.
+    pub fn new(
+        r: usize,
+        conversion: Conversion,
+        manifest: &Manifest,
+        staging: &Staging,
+        budget: usize,
+    ) -> RateState {
+        let mut ends = Vec::with_capacity(manifest.episodes.len());
+        let mut total = 0u64;
+        for e in &manifest.episodes {
+            total += conversion.len(e.len) as u64;
+            ends.push(total);
+        }
+        let width = |ch: &crate::source::ChannelInfo| match ch.kind {
+            ChannelKind::Lowdim => ch.width(),
+            ChannelKind::Image => 0,
+        };
+        let channels = &manifest.channels;
+        RateState {
+            conversion,
+            ends,
+            lowdim: channels
+                .iter()
+                .enumerate()
+                .map(|(c, ch)| {
+                    let dir = staging.scratch_dir().join(format!("rate{r}-channel{c}"));
+                    Arc::new(LowdimStore::new(width(ch), budget, dir, total as usize))
+                })
+                .collect(),
+            high: channels
+                .iter()
+                .map(|ch| {
+                    let w = width(ch);
+                    (w <= COUNT_AHEAD_COLUMNS).then(|| (0..w).map(|_| HighCounts::new()).collect())
+                })
+                .collect(),
+            partials: channels
+                .iter()
+                .map(|c| match c.kind {
+                    ChannelKind::Lowdim => Partial::Lowdim(stats::Moments::new(c.width())),
+                    ChannelKind::Image => {
+                        Partial::Image(ImagePartial::new(*c.shape.last().unwrap_or(&1)))
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    /// Where episode `e`'s rows start in the converted per-step arrays.
+    pub fn start(&self, e: usize) -> usize {
+        if e == 0 {
+            0
+        } else {
+            self.ends[e - 1] as usize
+        }
+    }
+
+    /// The statistics of every channel at this rate: low-dim percentiles from the store (moments
+    /// were merged while reading), image statistics from their partials.
+    pub fn stats(
+        &self,
+        manifest: &Manifest,
+        train_mask: &[bool],
+    ) -> Result<BTreeMap<String, ChannelStats>> {
+        let mut by_channel = BTreeMap::new();
+        for (c, ch) in manifest.channels.iter().enumerate() {
+            let s = match (&self.partials[c], ch.kind) {
+                (Partial::Lowdim(m), ChannelKind::Lowdim) => {
+                    let values = &self.lowdim[c];
+                    let train: Vec<(usize, usize)> = (0..self.ends.len())
+                        .filter(|&e| train_mask[e])
+                        .map(|e| (self.start(e), self.ends[e] as usize))
+                        .collect();
+                    // The first percentile pass was counted as the rows arrived; the second
+                    // reads the training rows once, for every column.
+                    let high = self.high[c].as_deref();
+                    stats::lowdim_from_rows(m.clone(), ch.width(), high, |f| {
+                        values.for_rows(&train, f)
+                    })?
+                }
+                (Partial::Image(p), ChannelKind::Image) => p.clone().finish(),
+                _ => unreachable!("a channel's partial has its kind"),
+            };
+            by_channel.insert(ch.name.clone(), s);
+        }
+        Ok(by_channel)
+    }
+}
+
+/// The part of a channel's statistics reduced while the source is read: moments of low-dim
+/// channels (their percentiles need every value, and are taken from the store at the end), and
+/// moments + histograms of images.
+pub(super) enum Partial {
+    Lowdim(stats::Moments),
+    Image(ImagePartial),
+}
+
+impl Partial {
+    pub fn merge(&mut self, other: &Partial) {
+        match (self, other) {
+            (Partial::Lowdim(a), Partial::Lowdim(b)) => a.merge(b),
+            (Partial::Image(a), Partial::Image(b)) => a.merge(b),
+            _ => unreachable!("partials of one channel have one kind"),
+        }
+    }
+}

@@ -1,0 +1,230 @@
+//! The one pass over the source: episodes decoded in batches, in parallel (rayon), consumed in
+//! episode order, so memory stays bounded by the batch and every write and every statistics
+//! merge happens in the same order whatever the thread count.
+
+use std::ops::Range;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use super::guard::episode_job;
+use super::process::{process, Prepared, Processed};
+use super::rate::RateState;
+use super::{progress, Excluded};
+use crate::error::Result;
+use crate::plan::{Conversion, Plan};
+use crate::sink::{FrameEncoding, Sink};
+use crate::source::{self, ChannelKind, Manifest, Source};
+use crate::spec::NonFinite;
+use crate::stats::HighCounts;
+use crate::store::LowdimStore;
+use crate::timings;
+
+/// Bytes of decoded values a batch of episodes may hold, beyond its minimum size.
+const BATCH_BYTES: usize = 8 << 20;
+
+/// What the pass reads and how.
+pub(super) struct Pass<'a> {
+    pub plan: &'a Plan,
+    pub source: &'a dyn Source,
+    /// `[audit] non_finite`: what a NaN or infinity in an episode does.
+    pub non_finite: NonFinite,
+    /// The source as the spec names it, for messages.
+    pub source_path: &'a str,
+    /// Per rate (in `RateState` order): its conversion and the frame encodings its sinks use.
+    pub jobs: &'a [(Conversion, Vec<FrameEncoding>)],
+    /// How many times each episode was read (the tests check "once").
+    pub reads: &'a [AtomicUsize],
+    pub progress: bool,
+}
+
+/// One episode after the parallel part.
+enum Read {
+    Kept(Processed),
+    /// Checked only: an earlier episode was excluded, so this attempt is thrown away.
+    Checked,
+    Excluded(String),
+}
+
+/// Low-dim rows waiting for their store, with whether they are a training episode's.
+type Rows = (Vec<f32>, bool);
+
+/// Reads every episode once into `rates` and `sinks` (rate position, sink). Returns the
+/// episodes `[audit] non_finite = "exclude_episode"` leaves out: when there are any, nothing
+/// this pass wrote is to be kept.
+pub(super) fn read_all(
+    pass: &Pass,
+    rates: &mut [RateState],
+    sinks: &mut [(usize, Box<dyn Sink>)],
+) -> Result<Excluded> {
+    let manifest = pass.source.manifest();
+    let mut excluded = Excluded::new();
+    let bar = progress::bar(
+        pass.progress,
+        manifest.episodes.len() as u64,
+        "reading episodes",
+    );
+    let _reading = timings::phase("read episodes");
+    for batch in batches(manifest) {
+        let read = read_batch(pass, batch.clone(), !excluded.is_empty())?;
+        let mut kept = Vec::with_capacity(read.len());
+        for (i, r) in batch.clone().zip(read) {
+            match r {
+                Read::Kept(p) => kept.push(p),
+                Read::Checked => {}
+                Read::Excluded(reason) => {
+                    excluded.insert(manifest.episodes[i].id, reason);
+                }
+            }
+        }
+        if !excluded.is_empty() {
+            bar.inc(batch.len() as u64);
+            continue;
+        }
+        let pending = consume(pass, batch, kept, rates, sinks, &bar)?;
+        push_rows(rates, pending)?;
+    }
+    bar.finish_and_clear();
+    Ok(excluded)
+}
+
+/// Episodes decoded at once, in order: at least two per thread (to keep every thread busy), and
+/// more while their decoded values stay under [`BATCH_BYTES`] (short low-dim episodes: fewer
+/// pauses between batches). Memory stays bounded by the batch.
+fn batches(manifest: &Manifest) -> Vec<Range<usize>> {
+    let min = 2 * rayon::current_num_threads();
+    let step_bytes: usize = manifest
+        .channels
+        .iter()
+        .map(|c| match c.kind {
+            ChannelKind::Lowdim => 4 * c.width(),
+            ChannelKind::Image => c.width(),
+        })
+        .sum();
+    let mut out = Vec::new();
+    let (mut start, mut bytes) = (0, 0);
+    for (i, e) in manifest.episodes.iter().enumerate() {
+        bytes += e.len * step_bytes;
+        if i + 1 - start >= min && bytes >= BATCH_BYTES {
+            out.push(start..i + 1);
+            (start, bytes) = (i + 1, 0);
+        }
+    }
+    if start < manifest.episodes.len() {
+        out.push(start..manifest.episodes.len());
+    }
+    out
+}
+
+/// The parallel part of a batch: read, check and (unless `checking_only`) process each episode.
+fn read_batch(pass: &Pass, batch: Range<usize>, checking_only: bool) -> Result<Vec<Read>> {
+    let manifest = pass.source.manifest();
+    // Test hook: the tests prove that a panicking episode job becomes an error naming it.
+    let panic_on: Option<u64> = std::env::var("CHUNKC_TEST_PANIC_EPISODE")
+        .ok()
+        .and_then(|v| v.parse().ok());
+    let positions: Vec<usize> = batch.collect();
+    // Storage chunks the batch's episodes share are decoded side by side first.
+    pass.source.prefetch(&positions);
+    positions
+        .par_iter()
+        .map(|&i| {
+            let id = manifest.episodes[i].id;
+            let train = pass.plan.split.is_train(id);
+            pass.reads[i].fetch_add(1, Ordering::Relaxed);
+            episode_job(id, || {
+                let ep = pass.source.read_episode(i)?;
+                if panic_on == Some(id) {
+                    panic!("CHUNKC_TEST_PANIC_EPISODE={id}");
+                }
+                let place = format!("{}: episode {id}", pass.source_path);
+                Ok(
+                    match source::check::episode(&ep, manifest, pass.non_finite, &place)? {
+                        source::check::Verdict::Exclude(reason) => Read::Excluded(reason),
+                        source::check::Verdict::Keep if checking_only => Read::Checked,
+                        source::check::Verdict::Keep => {
+                            Read::Kept(process(ep, pass.source, pass.jobs, train))
+                        }
+                    },
+                )
+            })
+        })
+        // Collect every episode's result before looking at any: when several episodes of a
+        // batch fail, the error reported is the first in episode order, whatever finished
+        // first (rayon's `collect::<Result<_>>` would return whichever failure it met).
+        .collect::<Vec<Result<_>>>()
+        .into_iter()
+        .collect()
+}
+
+/// The sequential part of a batch, in episode order: statistics partials merged, frames written
+/// to every sink of their rate; returns the low-dim rows per (rate, channel) for [`push_rows`].
+fn consume(
+    pass: &Pass,
+    batch: Range<usize>,
+    processed: Vec<Processed>,
+    rates: &mut [RateState],
+    sinks: &mut [(usize, Box<dyn Sink>)],
+    bar: &indicatif::ProgressBar,
+) -> Result<Vec<Vec<Vec<Rows>>>> {
+    let manifest = pass.source.manifest();
+    let mut pending: Vec<Vec<Vec<Rows>>> = rates
+        .iter()
+        .map(|r| vec![Vec::new(); r.lowdim.len()])
+        .collect();
+    for (i, episode) in batch.zip(processed) {
+        let train = pass.plan.split.is_train(manifest.episodes[i].id);
+        for (r, (rate, (data, partials))) in rates
+            .iter_mut()
+            .zip(episode.data.into_iter().zip(episode.partials))
+            .enumerate()
+        {
+            let row = rate.start(i);
+            for (c, (values, partial)) in data.into_iter().zip(partials).enumerate() {
+                if let Some(p) = partial {
+                    rate.partials[c].merge(&p);
+                }
+                match values {
+                    Prepared::Lowdim(v) => pending[r][c].push((v, train)),
+                    Prepared::Frames(encoded) => {
+                        for (_, sink) in sinks.iter_mut().filter(|(sr, _)| *sr == r) {
+                            let enc = sink.frame_encoding();
+                            let (_, frames) = encoded
+                                .iter()
+                                .find(|(e, _)| *e == enc)
+                                .expect("frames encoded for every sink");
+                            sink.write_frames(c, row, frames)?;
+                        }
+                    }
+                }
+            }
+        }
+        bar.inc(1);
+    }
+    Ok(pending)
+}
+
+/// Each store takes its episodes' rows in order, counting the training rows' first percentile
+/// pass; stores are independent, so they fill (and spill) side by side.
+fn push_rows(rates: &mut [RateState], pending: Vec<Vec<Vec<Rows>>>) -> Result<()> {
+    type Channel<'r> = (&'r mut Arc<LowdimStore>, &'r mut Option<Vec<HighCounts>>);
+    let channels: Vec<Channel> = rates
+        .iter_mut()
+        .flat_map(|r| r.lowdim.iter_mut().zip(r.high.iter_mut()))
+        .collect();
+    let pushed: Vec<Result<()>> = channels
+        .into_par_iter()
+        .zip(pending.into_iter().flatten().collect::<Vec<_>>())
+        .map(|((store, high), episodes)| {
+            let store = Arc::get_mut(store).expect("no reader while the source is read");
+            episodes.iter().try_for_each(|(v, train)| {
+                if let Some(high) = high.as_mut().filter(|_| *train && store.width() > 0) {
+                    HighCounts::add_rows(high, v);
+                }
+                store.push(v)
+            })
+        })
+        .collect();
+    pushed.into_iter().collect()
+}
