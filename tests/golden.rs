@@ -160,7 +160,8 @@ fn canonical(out_dir: &Path, shared: &BTreeMap<&str, String>) -> BTreeMap<PathBu
     files
 }
 
-/// The first lines where `got` differs from `want`, with a few lines of context, numbered.
+/// The first lines where `got` differs from `want`, with a few lines of context, numbered;
+/// `>` marks the lines that differ.
 fn first_difference(want: &str, got: &str) -> String {
     const BEFORE: usize = 3;
     const SHOWN: usize = 12;
@@ -178,7 +179,7 @@ fn first_difference(want: &str, got: &str) -> String {
     for (label, lines) in [("golden", &w), ("built", &g)] {
         out.push_str(&format!("--- {label}\n"));
         for (i, line) in lines.iter().enumerate().skip(from).take(BEFORE + SHOWN) {
-            let mark = if i < first { ' ' } else { '>' };
+            let mark = if w.get(i) == g.get(i) { ' ' } else { '>' };
             out.push_str(&format!("{mark}{:>6} {line}\n", i + 1));
         }
     }
@@ -252,8 +253,8 @@ fn check_golden(stem: &str) {
         .collect();
     assert!(
         missing.is_empty() && extra.is_empty(),
-        "{stem}: the set of output files differs from golden/{stem}: not built {missing:?}, \
-         not in golden {extra:?}; rerun with CHUNKC_BLESS=1 if the change is intended"
+        "{stem}: the set of output files differs from golden/{stem}: in golden but not built \
+         {missing:?}, built but not in golden {extra:?}; rerun with CHUNKC_BLESS=1 if the change is intended"
     );
     let mut failures = Vec::new();
     for (rel, text) in &got {

@@ -17,13 +17,13 @@
 //! `camera_names` expect. Values are raw: ACT normalizes with `dataset_stats.pkl`, written beside
 //! the episodes (the `act` statistics format is always on for this format).
 
-use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 
 use hdf5::File;
 
 use super::hdf5_native::{
     create_file, frames_dataset, group, new_dataset, FrameTarget, NativeHdf5Writer, NativeLayout,
+    Rows, Run,
 };
 use super::SinkContext;
 use crate::error::Result;
@@ -80,14 +80,8 @@ impl NativeLayout for ActEpisodes {
         episode_file(&self.dir, e)
     }
 
-    fn frame_targets(
-        &self,
-        ch: &ProfileChannel,
-        _: usize,
-        lo: usize,
-        n: usize,
-        _: usize,
-    ) -> Vec<FrameTarget> {
+    fn frame_targets(&self, ch: &ProfileChannel, _: usize, run: Run) -> Vec<FrameTarget> {
+        let Run { lo, n, .. } = run;
         vec![FrameTarget {
             path: ch.array.clone(),
             at: lo,
@@ -97,13 +91,7 @@ impl NativeLayout for ActEpisodes {
     }
 
     /// Raw float32 values; `qvel` zeros beside `qpos` when no channel is exported as `qvel`.
-    fn finish_episode(
-        &self,
-        file: &File,
-        _: usize,
-        len: usize,
-        lowdim: &[(&ProfileChannel, Cow<'_, [f32]>)],
-    ) -> Result<()> {
+    fn finish_episode(&self, file: &File, _: usize, len: usize, lowdim: &[Rows]) -> Result<()> {
         for (ch, values) in lowdim {
             let mut dims = vec![len];
             dims.extend(&ch.shape);

@@ -31,31 +31,27 @@ pub(super) struct FrameTarget {
     pub to: usize,
 }
 
+/// A run of frames of one episode: rows `lo..lo + n` of an episode of `len` steps.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Run {
+    pub lo: usize,
+    pub n: usize,
+    pub len: usize,
+}
+
+/// One low-dim channel of an episode with its raw rows.
+pub(super) type Rows<'a> = (&'a ProfileChannel, Cow<'a, [f32]>);
+
 /// What differs between the native HDF5 exports.
 pub(super) trait NativeLayout: Send {
     /// The file `meta.json` names as the data.
     fn data_file(&self) -> &str;
     /// The file holding episode `e`.
     fn file_of(&self, e: usize) -> PathBuf;
-    /// Where frames `0..n` of channel `ch`, rows `lo..lo + n` of episode `e` (of `len` steps),
-    /// are written.
-    fn frame_targets(
-        &self,
-        ch: &ProfileChannel,
-        e: usize,
-        lo: usize,
-        n: usize,
-        len: usize,
-    ) -> Vec<FrameTarget>;
-    /// Writes episode `e` (of `len` steps) once every value is in: `lowdim` holds each low-dim
-    /// channel with its raw rows.
-    fn finish_episode(
-        &self,
-        file: &File,
-        e: usize,
-        len: usize,
-        lowdim: &[(&ProfileChannel, Cow<'_, [f32]>)],
-    ) -> Result<()>;
+    /// Where a run of frames (`0..run.n`) of channel `ch` in episode `e` is written.
+    fn frame_targets(&self, ch: &ProfileChannel, e: usize, run: Run) -> Vec<FrameTarget>;
+    /// Writes episode `e` (of `len` steps) once every value is in.
+    fn finish_episode(&self, file: &File, e: usize, len: usize, lowdim: &[Rows]) -> Result<()>;
 }
 
 /// A native HDF5 export being written: the shared [`Sink`] of every [`NativeLayout`].
@@ -154,10 +150,12 @@ impl<L: NativeLayout> Sink for NativeHdf5Writer<L> {
         let (start, end) = episode_span(&self.ends, e);
         let file = open_rw(&self.layout.file_of(e))?;
         let ch = &self.channels[channel];
-        for t in self
-            .layout
-            .frame_targets(ch, e, row - start, frames.len(), end - start)
-        {
+        let run = Run {
+            lo: row - start,
+            n: frames.len(),
+            len: end - start,
+        };
+        for t in self.layout.frame_targets(ch, e, run) {
             if t.from < t.to {
                 write_rows(&file.dataset(&t.path)?, t.at, frames.span(t.from, t.to))?;
             }

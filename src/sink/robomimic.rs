@@ -20,7 +20,6 @@
 //! robomimic's own image datasets do. chunkc's loader does not read this format (there is no
 //! window index in it).
 
-use std::borrow::Cow;
 use std::path::PathBuf;
 
 use hdf5::types::{FixedAscii, VarLenUnicode};
@@ -28,6 +27,7 @@ use hdf5::File;
 
 use super::hdf5_native::{
     create_file, frames_dataset, group, new_dataset, FrameTarget, NativeHdf5Writer, NativeLayout,
+    Rows, Run,
 };
 use super::SinkContext;
 use crate::error::{Error, Result};
@@ -123,14 +123,8 @@ impl NativeLayout for Robomimic {
 
     /// `obs`, and `next_obs` one step earlier: step s is the next observation of step s - 1;
     /// the last step is its own.
-    fn frame_targets(
-        &self,
-        ch: &ProfileChannel,
-        e: usize,
-        lo: usize,
-        n: usize,
-        len: usize,
-    ) -> Vec<FrameTarget> {
+    fn frame_targets(&self, ch: &ProfileChannel, e: usize, run: Run) -> Vec<FrameTarget> {
+        let Run { lo, n, len } = run;
         let target = |path: String, at, from, to| FrameTarget { path, at, from, to };
         let mut out = vec![target(ch.array_of(e), lo, 0, n)];
         if let Some(next) = next_obs(ch, e) {
@@ -146,13 +140,7 @@ impl NativeLayout for Robomimic {
     }
 
     /// Raw float64 values, `next_obs` shifted by one step, `dones` and zero `rewards`.
-    fn finish_episode(
-        &self,
-        file: &File,
-        e: usize,
-        len: usize,
-        lowdim: &[(&ProfileChannel, Cow<'_, [f32]>)],
-    ) -> Result<()> {
+    fn finish_episode(&self, file: &File, e: usize, len: usize, lowdim: &[Rows]) -> Result<()> {
         let g = file.group(&format!("data/{}", demo(e)))?;
         for (ch, raw) in lowdim {
             let values: Vec<f64> = raw.iter().map(|&v| f64::from(v)).collect();
