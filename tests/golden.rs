@@ -1,10 +1,15 @@
 //! Every example spec in `specs/` is built, and its outputs are compared with `golden/<spec>/`:
-//! text files verbatim, HDF5 files and Zarr directories as canonical dumps (`<file>.txt`), other
-//! binary files as
-//! size and hash. A missing or an extra file
-//! fails. The same builds with 1 and 2 threads must give byte-identical files.
+//! text files verbatim (JSON with each array of numbers on one line: `dump::json_text`), HDF5
+//! files and Zarr directories as canonical dumps (`<file>.txt`), other binary files as size and
+//! hash. The generated scripts, the same file in every profile directory, are kept once in
+//! `golden/_generated/`; a profile's `<script>.txt` says that its copy is that file. A missing or
+//! an extra file fails. The same builds with 1 and 2 threads, and with low-dim values spilled to
+//! disk, must give byte-identical files.
 //!
-//! Regenerate after an intended change with `CHUNKC_BLESS=1 cargo test --release --test golden`.
+//! Each spec is its own test case (`golden::<spec>::matches_golden`, `::thread_counts`,
+//! `::spilled`), so that one failure does not hide the others; a mismatch shows the first lines
+//! that differ. Regenerate after an intended change with
+//! `CHUNKC_BLESS=1 cargo test --release --test golden`.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -87,8 +92,20 @@ fn build_with(spec: &Path, threads: &str, env: &[(&str, &str)]) -> (tempfile::Te
     (scratch, out_dir)
 }
 
+/// Where the one copy of each generated script lives.
+const GENERATED: &str = "_generated";
+
+/// The generated scripts as the embedded templates render them (the same for every profile).
+fn shared_scripts() -> BTreeMap<&'static str, String> {
+    let r = chunkc::render::Renderer::new(None).unwrap();
+    chunkc::render::SHARED_SCRIPTS
+        .iter()
+        .map(|&name| (name, chunkc::render::shared_script(&r, name).unwrap()))
+        .collect()
+}
+
 /// What the golden directory should hold for a built output directory.
-fn canonical(out_dir: &Path) -> BTreeMap<PathBuf, String> {
+fn canonical(out_dir: &Path, shared: &BTreeMap<&str, String>) -> BTreeMap<PathBuf, String> {
     let mut files = BTreeMap::new();
     for rel in files_under_opt(out_dir, true) {
         // The build lock is chunkc's bookkeeping (empty), not an output.
@@ -96,17 +113,33 @@ fn canonical(out_dir: &Path) -> BTreeMap<PathBuf, String> {
             continue;
         }
         let path = out_dir.join(&rel);
+        let with_txt = |rel: &Path| {
+            let mut name = rel.as_os_str().to_owned();
+            name.push(".txt");
+            PathBuf::from(name)
+        };
+        let file_name = rel.file_name().unwrap().to_string_lossy().into_owned();
         if rel.extension().is_some_and(|e| e == "zarr") {
-            let mut name = rel.clone().into_os_string();
-            name.push(".txt");
-            files.insert(PathBuf::from(name), dump::zarr_text(&path).unwrap());
+            files.insert(with_txt(&rel), dump::zarr_text(&path).unwrap());
         } else if rel.extension().is_some_and(|e| e == "h5" || e == "hdf5") {
-            let mut name = rel.clone().into_os_string();
-            name.push(".txt");
-            files.insert(PathBuf::from(name), dump::hdf5_text(&path).unwrap());
+            files.insert(with_txt(&rel), dump::hdf5_text(&path).unwrap());
+        } else if let Some(want) = shared.get(file_name.as_str()) {
+            let got = std::fs::read_to_string(&path).unwrap();
+            let text = if got == *want {
+                format!("same as golden/{GENERATED}/{file_name}\n")
+            } else {
+                format!(
+                    "differs from golden/{GENERATED}/{file_name}:\n{}",
+                    first_difference(want, &got)
+                )
+            };
+            files.insert(with_txt(&rel), text);
         } else {
             let bytes = std::fs::read(&path).unwrap();
             match String::from_utf8(bytes) {
+                Ok(text) if rel.extension().is_some_and(|e| e == "json") => {
+                    files.insert(rel, dump::json_text(&text));
+                }
                 Ok(text) => {
                     files.insert(rel, text);
                 }
@@ -114,14 +147,12 @@ fn canonical(out_dir: &Path) -> BTreeMap<PathBuf, String> {
                     // Other binary files (ACT's pickle): size and hash; their JSON twins carry
                     // the numbers.
                     let bytes = e.into_bytes();
-                    let mut name = rel.clone().into_os_string();
-                    name.push(".txt");
                     let text = format!(
                         "binary {} bytes blake3 {}\n",
                         bytes.len(),
                         blake3::hash(&bytes)
                     );
-                    files.insert(PathBuf::from(name), text);
+                    files.insert(with_txt(&rel), text);
                 }
             }
         }
@@ -129,102 +160,246 @@ fn canonical(out_dir: &Path) -> BTreeMap<PathBuf, String> {
     files
 }
 
-fn example_specs() -> Vec<PathBuf> {
-    let mut specs: Vec<PathBuf> = std::fs::read_dir(Path::new(REPO).join("specs"))
+/// The first lines where `got` differs from `want`, with a few lines of context, numbered;
+/// `>` marks the lines that differ.
+fn first_difference(want: &str, got: &str) -> String {
+    const BEFORE: usize = 3;
+    const SHOWN: usize = 12;
+    let (w, g): (Vec<&str>, Vec<&str>) = (want.lines().collect(), got.lines().collect());
+    let first = (0..w.len().max(g.len()))
+        .find(|&i| w.get(i) != g.get(i))
+        .unwrap_or(w.len());
+    let from = first.saturating_sub(BEFORE);
+    let mut out = format!(
+        "first difference at line {} ({} lines golden, {} built)\n",
+        first + 1,
+        w.len(),
+        g.len()
+    );
+    for (label, lines) in [("golden", &w), ("built", &g)] {
+        out.push_str(&format!("--- {label}\n"));
+        for (i, line) in lines.iter().enumerate().skip(from).take(BEFORE + SHOWN) {
+            let mark = if w.get(i) == g.get(i) { ' ' } else { '>' };
+            out.push_str(&format!("{mark}{:>6} {line}\n", i + 1));
+        }
+    }
+    out
+}
+
+/// Writes `text` to `path` unless it holds it already (several test cases bless at once).
+fn bless_file(path: &Path, text: &str) {
+    if std::fs::read_to_string(path).is_ok_and(|old| old == text) {
+        return;
+    }
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    std::fs::write(&tmp, text).unwrap();
+    std::fs::rename(tmp, path).unwrap();
+}
+
+fn blessing() -> bool {
+    std::env::var_os("CHUNKC_BLESS").is_some()
+}
+
+fn spec_path(stem: &str) -> PathBuf {
+    Path::new(REPO).join("specs").join(format!("{stem}.toml"))
+}
+
+fn example_specs() -> Vec<String> {
+    let mut specs: Vec<String> = std::fs::read_dir(Path::new(REPO).join("specs"))
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
         .collect();
     specs.sort();
     assert!(!specs.is_empty());
     specs
 }
 
-#[test]
-fn example_specs_match_golden() {
-    let bless = std::env::var_os("CHUNKC_BLESS").is_some();
-    for spec in example_specs() {
-        let stem = spec.file_stem().unwrap().to_string_lossy().into_owned();
-        let (_scratch, out_dir) = build(&spec, "2");
-        let got = canonical(&out_dir);
-        let golden_dir = Path::new(REPO).join("golden").join(&stem);
-        if bless {
-            let _ = std::fs::remove_dir_all(&golden_dir);
-            for (rel, text) in &got {
-                let path = golden_dir.join(rel);
-                std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-                std::fs::write(path, text).unwrap();
-            }
-            continue;
-        }
-        let want: Vec<PathBuf> = if golden_dir.exists() {
+/// Builds `stem` and compares its outputs with `golden/<stem>/` (or rewrites it when blessing).
+fn check_golden(stem: &str) {
+    let (_scratch, out_dir) = build(&spec_path(stem), "2");
+    let got = canonical(&out_dir, &shared_scripts());
+    let golden_dir = Path::new(REPO).join("golden").join(stem);
+    if blessing() {
+        let stale: Vec<PathBuf> = if golden_dir.exists() {
             files_under(&golden_dir)
         } else {
             vec![]
         };
-        let got_names: Vec<PathBuf> = got.keys().cloned().collect();
-        assert_eq!(
-            got_names, want,
-            "{stem}: the set of output files differs from golden/{stem} (missing or extra files); \
-             rerun with CHUNKC_BLESS=1 if the change is intended"
-        );
+        for rel in stale.iter().filter(|r| !got.contains_key(*r)) {
+            std::fs::remove_file(golden_dir.join(rel)).unwrap();
+        }
         for (rel, text) in &got {
-            let expected = std::fs::read_to_string(golden_dir.join(rel)).unwrap();
-            assert!(
-                *text == expected,
-                "{stem}: {} differs from golden; rerun with CHUNKC_BLESS=1 if intended\n--- golden\n{expected}\n--- built\n{text}",
-                rel.display()
-            );
+            bless_file(&golden_dir.join(rel), text);
+        }
+        return;
+    }
+    let want: Vec<PathBuf> = if golden_dir.exists() {
+        files_under(&golden_dir)
+    } else {
+        vec![]
+    };
+    let missing: Vec<String> = want
+        .iter()
+        .filter(|r| !got.contains_key(*r))
+        .map(|r| r.display().to_string())
+        .collect();
+    let extra: Vec<String> = got
+        .keys()
+        .filter(|r| !want.contains(r))
+        .map(|r| r.display().to_string())
+        .collect();
+    assert!(
+        missing.is_empty() && extra.is_empty(),
+        "{stem}: the set of output files differs from golden/{stem}: in golden but not built \
+         {missing:?}, built but not in golden {extra:?}; rerun with CHUNKC_BLESS=1 if the change is intended"
+    );
+    let mut failures = Vec::new();
+    for (rel, text) in &got {
+        let expected = std::fs::read_to_string(golden_dir.join(rel)).unwrap();
+        if *text != expected {
+            failures.push(format!(
+                "golden/{stem}/{}: {}",
+                rel.display(),
+                first_difference(&expected, text)
+            ));
         }
     }
+    assert!(
+        failures.is_empty(),
+        "{stem}: {} file(s) differ from golden; rerun with CHUNKC_BLESS=1 if intended\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
-#[test]
-fn outputs_are_byte_identical_across_thread_counts() {
-    for spec in example_specs() {
-        let (_a, one) = build(&spec, "1");
-        let (_b, two) = build(&spec, "2");
-        let names = files_under(&one);
-        assert_eq!(names, files_under(&two));
-        for rel in names {
-            let a = blake3::hash(&std::fs::read(one.join(&rel)).unwrap());
-            let b = blake3::hash(&std::fs::read(two.join(&rel)).unwrap());
-            assert_eq!(
-                a,
-                b,
-                "{}: {} differs between 1 and 2 threads",
-                spec.display(),
-                rel.display()
-            );
-        }
+/// The same files, byte for byte, with 1 and 2 threads.
+fn check_thread_counts(stem: &str) {
+    let spec = spec_path(stem);
+    let (_a, one) = build(&spec, "1");
+    let (_b, two) = build(&spec, "2");
+    let names = files_under(&one);
+    assert_eq!(names, files_under(&two));
+    for rel in names {
+        let a = blake3::hash(&std::fs::read(one.join(&rel)).unwrap());
+        let b = blake3::hash(&std::fs::read(two.join(&rel)).unwrap());
+        assert_eq!(
+            a,
+            b,
+            "{stem}: {} differs between 1 and 2 threads",
+            rel.display()
+        );
     }
 }
 
 /// Low-dim values spilled to disk (a budget of 256 bytes: every store spills after a few rows,
 /// and keeps a few in memory at the end) give the same files, byte for byte, as values kept in
 /// memory, in every output format of the example specs.
+fn check_spilled(stem: &str) {
+    let spec = spec_path(stem);
+    let (_a, memory) = build(&spec, "2");
+    let (_b, spilled) = build_with(&spec, "2", &[("CHUNKC_SPILL_BYTES", "256")]);
+    let names = files_under(&memory);
+    assert_eq!(names, files_under(&spilled), "{stem}");
+    for rel in names {
+        let a = blake3::hash(&std::fs::read(memory.join(&rel)).unwrap());
+        let b = blake3::hash(&std::fs::read(spilled.join(&rel)).unwrap());
+        assert_eq!(
+            a,
+            b,
+            "{stem}: {} differs when low-dim values spill to disk",
+            rel.display()
+        );
+    }
+    assert!(
+        !spilled.join(chunkc::exec::STAGING_DIR).exists(),
+        "{stem}: the staging directory (and the spilled values) must be gone"
+    );
+}
+
+/// One module of test cases per example spec: `<spec>::matches_golden`, `::thread_counts`,
+/// `::spilled`.
+macro_rules! example_specs {
+    ($($stem:ident),* $(,)?) => {
+        const LISTED: &[&str] = &[$(stringify!($stem)),*];
+        $(
+            mod $stem {
+                #[test]
+                fn matches_golden() {
+                    super::check_golden(stringify!($stem));
+                }
+
+                #[test]
+                fn thread_counts() {
+                    super::check_thread_counts(stringify!($stem));
+                }
+
+                #[test]
+                fn spilled() {
+                    super::check_spilled(stringify!($stem));
+                }
+            }
+        )*
+    };
+}
+
+example_specs!(
+    aloha_sim,
+    lerobot_g1,
+    lerobot_v3,
+    multi_arch,
+    pusht,
+    pusht_formats,
+    robosuite_panda,
+    robosuite_sawyer,
+);
+
+/// Every spec in `specs/` has its test cases above, and `golden/` holds no other spec.
 #[test]
-fn spilled_lowdim_values_give_byte_identical_outputs() {
-    for spec in example_specs() {
-        let (_a, memory) = build(&spec, "2");
-        let (_b, spilled) = build_with(&spec, "2", &[("CHUNKC_SPILL_BYTES", "256")]);
-        let names = files_under(&memory);
-        assert_eq!(names, files_under(&spilled), "{}", spec.display());
-        for rel in names {
-            let a = blake3::hash(&std::fs::read(memory.join(&rel)).unwrap());
-            let b = blake3::hash(&std::fs::read(spilled.join(&rel)).unwrap());
-            assert_eq!(
-                a,
-                b,
-                "{}: {} differs when low-dim values spill to disk",
-                spec.display(),
-                rel.display()
-            );
+fn every_example_spec_is_listed() {
+    assert_eq!(
+        LISTED,
+        example_specs(),
+        "add the spec to `example_specs!` in tests/golden.rs"
+    );
+    let mut dirs: Vec<String> = std::fs::read_dir(Path::new(REPO).join("golden"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|name| name != GENERATED)
+        .collect();
+    dirs.sort();
+    assert_eq!(
+        dirs,
+        example_specs(),
+        "golden/ holds a spec that specs/ does not"
+    );
+}
+
+/// `golden/_generated/` holds exactly the generated scripts, as the embedded templates render
+/// them.
+#[test]
+fn generated_scripts_match_golden() {
+    let dir = Path::new(REPO).join("golden").join(GENERATED);
+    let shared = shared_scripts();
+    if blessing() {
+        for (name, text) in &shared {
+            bless_file(&dir.join(name), text);
         }
+    }
+    let names: Vec<PathBuf> = shared.keys().map(PathBuf::from).collect();
+    assert_eq!(
+        files_under(&dir),
+        names,
+        "golden/{GENERATED} holds other files than the generated scripts"
+    );
+    for (name, text) in &shared {
+        let expected = std::fs::read_to_string(dir.join(name)).unwrap();
         assert!(
-            !spilled.join(chunkc::exec::STAGING_DIR).exists(),
-            "{}: the staging directory (and the spilled values) must be gone",
-            spec.display()
+            *text == expected,
+            "golden/{GENERATED}/{name}: {}; rerun with CHUNKC_BLESS=1 if intended",
+            first_difference(&expected, text)
         );
     }
 }

@@ -170,10 +170,7 @@ fn diffusion_policy(inputs: &Inputs) -> crate::Result<Vec<File>> {
         };
         params.insert(dp_key(&ch.name).to_string(), entry);
     }
-    let helper = inputs.renderer.render(
-        "dp_normalizer.py",
-        minijinja::context! { profile => inputs.profile.name },
-    )?;
+    let helper = super::shared_script(inputs.renderer, "dp_normalizer.py")?;
     Ok(vec![
         file(
             "dp_normalizer.json",

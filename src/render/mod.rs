@@ -2,6 +2,11 @@
 //! overridable by a file of the same name (plus `.j2`) in the spec's `[output] templates`
 //! directory.
 //!
+//! The generated scripts (`loader.py`, `validate.py`, `smoke_train.py`, `dp_normalizer.py`) are
+//! one static library per chunkc version: identical bytes in every profile directory, reading
+//! the profile from `meta.json` at run time ([`SHARED_SCRIPTS`]). What differs per profile is in
+//! `meta.json`, the statistics files and the dataset card.
+//!
 //! - `codebase`: statistics files in each target codebase's own format.
 //! - `pickle`: the minimal pickle writer behind ACT's `dataset_stats.pkl`.
 
@@ -83,6 +88,25 @@ impl Renderer {
     }
 }
 
+/// The generated scripts that are the same file for every profile of a chunkc version: they
+/// read what they need of the profile from its `meta.json` at run time, so their templates see
+/// only `version`.
+pub const SHARED_SCRIPTS: &[&str] = &[
+    "loader.py",
+    "validate.py",
+    "smoke_train.py",
+    "dp_normalizer.py",
+];
+
+/// One of [`SHARED_SCRIPTS`], as `r` renders it.
+pub fn shared_script(r: &Renderer, name: &str) -> Result<String> {
+    debug_assert!(
+        SHARED_SCRIPTS.contains(&name),
+        "{name} is not a shared script"
+    );
+    r.render(name, context! { version => TOOL_VERSION })
+}
+
 /// What the generated files of one profile are rendered from.
 pub struct ProfileContext<'a> {
     pub plan: &'a Plan,
@@ -95,25 +119,11 @@ pub struct ProfileContext<'a> {
     pub stats_files: &'a [(String, String)],
 }
 
-/// `loader.py`, `validate.py`, `smoke_train.py` and the dataset card `README.md`.
+/// `loader.py`, `validate.py`, `smoke_train.py` (the same for every profile) and the dataset
+/// card `README.md`.
 pub fn profile_files(r: &Renderer, c: &ProfileContext) -> Result<Vec<(&'static str, String)>> {
     let p = c.profile;
     let v = &p.values;
-    let channels_py = format!(
-        "[{}]",
-        p.channels
-            .iter()
-            .map(|ch| format!("{:?}", ch.name))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    let base = context! {
-        profile => p.name,
-        version => TOOL_VERSION,
-        alignment => v.alignment.name(),
-        output_hint => c.output_hint,
-        channels => channels_py,
-    };
     let values: Vec<Value> = p
         .resolved_values()
         .into_iter()
@@ -179,9 +189,9 @@ pub fn profile_files(r: &Renderer, c: &ProfileContext) -> Result<Vec<(&'static s
         chunk => p.window().chunk,
     };
     Ok(vec![
-        ("loader.py", r.render("loader.py", base.clone())?),
-        ("validate.py", r.render("validate.py", base.clone())?),
-        ("smoke_train.py", r.render("smoke_train.py", base)?),
+        ("loader.py", shared_script(r, "loader.py")?),
+        ("validate.py", shared_script(r, "validate.py")?),
+        ("smoke_train.py", shared_script(r, "smoke_train.py")?),
         ("README.md", r.render("README.md", card)?),
     ])
 }

@@ -17,41 +17,34 @@
 //! `camera_names` expect. Values are raw: ACT normalizes with `dataset_stats.pkl`, written beside
 //! the episodes (the `act` statistics format is always on for this format).
 
-use std::path::PathBuf;
-use std::sync::Arc;
+use std::path::{Path, PathBuf};
 
-use hdf5::{File, Group};
+use hdf5::File;
 
-use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
-use crate::error::{Error, Result};
+use super::hdf5_native::{
+    create_file, frames_dataset, group, new_dataset, FrameTarget, NativeHdf5Writer, NativeLayout,
+    Rows, Run,
+};
+use super::SinkContext;
+use crate::error::Result;
 use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
-use crate::stats::normalize::Normalizer;
-use crate::store::LowdimStore;
 
 const QPOS: &str = "observations/qpos";
 const QVEL: &str = "observations/qvel";
 
-pub struct ActEpisodesWriter {
+/// The `act_episodes` sink.
+pub type ActEpisodesWriter = NativeHdf5Writer<ActEpisodes>;
+
+/// ACT's layout: one file per episode.
+pub struct ActEpisodes {
     dir: PathBuf,
-    ends: Vec<u64>,
-    channels: Vec<ProfileChannel>,
-    raw: Vec<Option<Arc<LowdimStore>>>,
+    /// A channel is exported as `qvel`: no zeros are written in its place.
+    has_qvel: bool,
 }
 
-fn episode_file(dir: &std::path::Path, e: usize) -> PathBuf {
+fn episode_file(dir: &Path, e: usize) -> PathBuf {
     dir.join(format!("episode_{e}.hdf5"))
-}
-
-fn group(parent: &Group, name: &str) -> Result<Group> {
-    Ok(parent
-        .create_group_builder()
-        .obj_track_times(false)
-        .create(name)?)
-}
-
-fn open_rw(path: &std::path::Path) -> Result<File> {
-    File::open_rw(path).map_err(|e| Error::output(format!("cannot open {}: {e}", path.display())))
 }
 
 impl ActEpisodesWriter {
@@ -61,118 +54,51 @@ impl ActEpisodesWriter {
         for (e, &end) in ctx.episode_ends.iter().enumerate() {
             let len = end as usize - start;
             start = end as usize;
-            let path = episode_file(ctx.dir, e);
-            let file = File::with_options()
-                .with_fcpl(|p| p.obj_track_times(false))
-                .create(&path)
-                .map_err(|err| Error::output(format!("cannot create {}: {err}", path.display())))?;
+            let file = create_file(&episode_file(ctx.dir, e))?;
             file.new_attr::<bool>().create("sim")?.write_scalar(&true)?;
             let obs = group(&file, "observations")?;
             group(&obs, "images")?;
             for ch in channels.iter().filter(|c| c.kind == ChannelKind::Image) {
-                let mut full = vec![len];
-                full.extend(&ch.shape);
-                let mut chunk = vec![1];
-                chunk.extend(&ch.shape);
-                file.new_dataset::<u8>()
-                    .shape(full)
-                    .chunk(chunk)
-                    .obj_track_times(false)
-                    .create(ch.array.as_str())?;
+                frames_dataset(&file, &ch.array, len, &ch.shape)?;
             }
             file.close()?;
         }
-        Ok(ActEpisodesWriter {
+        let layout = ActEpisodes {
             dir: ctx.dir.to_path_buf(),
-            ends: ctx.episode_ends.to_vec(),
-            raw: channels.iter().map(|_| None).collect(),
-            channels,
-        })
-    }
-
-    fn episode_of(&self, row: usize) -> (usize, usize) {
-        let e = self.ends.partition_point(|&end| end as usize <= row);
-        let start = if e == 0 { 0 } else { self.ends[e - 1] as usize };
-        (e, start)
+            has_qvel: channels.iter().any(|c| c.array == QVEL),
+        };
+        Ok(NativeHdf5Writer::new(layout, ctx.episode_ends, channels))
     }
 }
 
-impl Sink for ActEpisodesWriter {
+impl NativeLayout for ActEpisodes {
     fn data_file(&self) -> &str {
         crate::spec::OutputFormat::ActEpisodes.files().data
     }
 
-    fn frame_encoding(&self) -> FrameEncoding {
-        FrameEncoding::Raw
+    fn file_of(&self, e: usize) -> PathBuf {
+        episode_file(&self.dir, e)
     }
 
-    fn stores_normalized(&self) -> bool {
-        false
+    fn frame_targets(&self, ch: &ProfileChannel, _: usize, run: Run) -> Vec<FrameTarget> {
+        let Run { lo, n, .. } = run;
+        vec![FrameTarget {
+            path: ch.array.clone(),
+            at: lo,
+            from: 0,
+            to: n,
+        }]
     }
 
-    fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
-        if frames.is_empty() {
-            return Ok(());
-        }
-        let (e, start) = self.episode_of(row);
-        let file = open_rw(&episode_file(&self.dir, e))?;
-        let ch = &self.channels[channel];
-        let ds = file.dataset(&ch.array)?;
-        let mut dims = vec![frames.len()];
-        dims.extend(&ch.shape);
-        let view = ndarray::ArrayViewD::from_shape(ndarray::IxDyn(&dims), frames.bytes())
-            .map_err(|err| Error::Internal(format!("frames of {}: {err}", ch.name)))?;
-        let mut sel: Vec<hdf5::SliceOrIndex> =
-            vec![(row - start..row - start + frames.len()).into()];
-        sel.extend(ch.shape.iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
-        ds.write_slice(view, hdf5::Hyperslab::from(sel))?;
-        file.close()?;
-        Ok(())
-    }
-
-    /// Raw values: ACT normalizes with `dataset_stats.pkl`.
-    fn write_lowdim(
-        &mut self,
-        channel: usize,
-        raw: &Arc<LowdimStore>,
-        _: &Normalizer,
-    ) -> Result<()> {
-        self.raw[channel] = Some(Arc::clone(raw));
-        Ok(())
-    }
-
-    fn write_index(&mut self, _: &dyn WindowIndex) -> Result<()> {
-        Ok(())
-    }
-
-    fn finish(self: Box<Self>) -> Result<()> {
-        let has_qvel = self.channels.iter().any(|c| c.array == QVEL);
-        let mut start = 0usize;
-        for (e, &end) in self.ends.iter().enumerate() {
-            let (lo, hi) = (start, end as usize);
-            start = hi;
-            let file = open_rw(&episode_file(&self.dir, e))?;
-            for (ch, raw) in self.channels.iter().zip(&self.raw) {
-                let (ChannelKind::Lowdim, Some(raw)) = (ch.kind, raw) else {
-                    continue;
-                };
-                let values = raw.rows(lo, hi)?;
-                let mut dims = vec![hi - lo];
-                dims.extend(&ch.shape);
-                let write = |path: &str, values: &[f32]| -> Result<()> {
-                    file.new_dataset::<f32>()
-                        .shape(dims.clone())
-                        .obj_track_times(false)
-                        .create(path)?
-                        .write_raw(values)?;
-                    Ok(())
-                };
-                write(&ch.array, &values)?;
-                if ch.array == QPOS && !has_qvel {
-                    write(QVEL, &vec![0.0; values.len()])?;
-                }
+    /// Raw float32 values; `qvel` zeros beside `qpos` when no channel is exported as `qvel`.
+    fn finish_episode(&self, file: &File, _: usize, len: usize, lowdim: &[Rows]) -> Result<()> {
+        for (ch, values) in lowdim {
+            let mut dims = vec![len];
+            dims.extend(&ch.shape);
+            new_dataset(file, &ch.array, &dims, values)?;
+            if ch.array == QPOS && !self.has_qvel {
+                new_dataset(file, QVEL, &dims, &vec![0.0f32; values.len()])?;
             }
-            file.close()?;
         }
         Ok(())
     }

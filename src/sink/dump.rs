@@ -189,3 +189,102 @@ pub fn zarr_text(root: &Path) -> Result<String> {
     }
     Ok(out)
 }
+
+/// A JSON document as the golden files keep it: every array of numbers on one line (a
+/// statistics vector, one row of `example_qpos`), everything else as written. Only a document
+/// exactly as chunkc pretty-prints it is folded, so the folded text still determines the file's
+/// bytes; any other text is returned as it is.
+pub fn json_text(text: &str) -> String {
+    let canonical = serde_json::from_str::<serde_json::Value>(text)
+        .ok()
+        .and_then(|v| serde_json::to_string_pretty(&v).ok())
+        .is_some_and(|pretty| text.strip_suffix('\n') == Some(pretty.as_str()));
+    if !canonical {
+        return text.to_string();
+    }
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = String::with_capacity(text.len());
+    let mut i = 0;
+    while i < lines.len() {
+        match fold_array(&lines[i..]) {
+            Some((line, used)) => {
+                out.push_str(&line);
+                i += used;
+            }
+            None => {
+                out.push_str(lines[i]);
+                i += 1;
+            }
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// `lines[0]` opening an array whose elements are all scalars, one per line, folded onto one
+/// line, with the number of lines it took.
+fn fold_array(lines: &[&str]) -> Option<(String, usize)> {
+    let open = lines[0].strip_suffix('[')?;
+    let indent = open.len() - open.trim_start().len();
+    let inner = " ".repeat(indent + 2);
+    let close = format!("{}]", " ".repeat(indent));
+    let scalar = |s: &str| {
+        matches!(s, "null" | "true" | "false")
+            || (!s.is_empty() && s.bytes().all(|b| b"0123456789+-.eE".contains(&b)))
+    };
+    let mut items = Vec::new();
+    for (n, line) in lines.iter().enumerate().skip(1) {
+        if let Some(rest) = line.strip_prefix(close.as_str()) {
+            let ended = items.len() == n - 1 && (rest.is_empty() || rest == ",");
+            return (ended && !items.is_empty())
+                .then(|| (format!("{open}[{}]{rest}", items.join(", ")), n + 1));
+        }
+        let item = line.strip_prefix(inner.as_str())?;
+        let (value, comma) = match item.strip_suffix(',') {
+            Some(v) => (v, true),
+            None => (item, false),
+        };
+        // Every element but the last ends with a comma.
+        let last = lines
+            .get(n + 1)
+            .is_some_and(|l| l.starts_with(close.as_str()));
+        if !scalar(value) || comma == last {
+            return None;
+        }
+        items.push(value);
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::json_text;
+
+    #[test]
+    fn arrays_of_numbers_fold_onto_one_line() {
+        let doc = serde_json::json!({"a": [1.0, -2.5e-7, 3], "b": [[1, 2], [3, 4]], "c": {"d": []},
+            "e": ["x", "y"], "f": [null, true]});
+        let text = serde_json::to_string_pretty(&doc).unwrap() + "\n";
+        let folded = json_text(&text);
+        assert_eq!(
+            folded,
+            "{\n  \"a\": [1.0, -2.5e-7, 3],\n  \"b\": [\n    [1, 2],\n    [3, 4]\n  ],\n  \
+             \"c\": {\n    \"d\": []\n  },\n  \"e\": [\n    \"x\",\n    \"y\"\n  ],\n  \
+             \"f\": [null, true]\n}\n"
+        );
+        // Still the same document.
+        let back: serde_json::Value = serde_json::from_str(&folded).unwrap();
+        assert_eq!(back, doc);
+    }
+
+    #[test]
+    fn text_not_pretty_printed_by_chunkc_stays_as_it_is() {
+        for text in [
+            "{\"a\": [1, 2]}\n",
+            "{\n  \"a\": [\n    1,\n    2\n  ]\n}",
+            "not json",
+        ] {
+            assert_eq!(json_text(text), text);
+        }
+    }
+}

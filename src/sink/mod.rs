@@ -9,6 +9,7 @@
 //! - `zarr` (+ `zarr_store`): a Diffusion Policy replay buffer (raw values) + the window index.
 //! - `windows`: the rows of one window, as the loader resolves them.
 //! - `act_episodes`: ACT's `episode_<i>.hdf5` files (raw values).
+//! - `hdf5_native`: the writer path `act_episodes` and `robomimic` share.
 //! - `lerobot`: a LeRobot v3.0 parquet dataset + the window index (raw values).
 //! - `png`: the PNG encoding of frames that `lerobot` stores.
 //! - `robomimic`: robomimic's `data.hdf5` with `data/demo_<i>` (raw values).
@@ -20,6 +21,7 @@ pub mod documents;
 pub mod dump;
 pub mod hdf5;
 mod hdf5_chunks;
+mod hdf5_native;
 pub mod lerobot;
 pub mod png;
 pub mod robomimic;

@@ -20,61 +20,37 @@
 //! robomimic's own image datasets do. chunkc's loader does not read this format (there is no
 //! window index in it).
 
-use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::path::PathBuf;
 
 use hdf5::types::{FixedAscii, VarLenUnicode};
-use hdf5::{File, Group};
+use hdf5::File;
 
-use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
+use super::hdf5_native::{
+    create_file, frames_dataset, group, new_dataset, FrameTarget, NativeHdf5Writer, NativeLayout,
+    Rows, Run,
+};
+use super::SinkContext;
 use crate::error::{Error, Result};
 use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
-use crate::stats::normalize::Normalizer;
-use crate::store::LowdimStore;
 
 pub const ROBOMIMIC_FILE: &str = crate::spec::OutputFormat::RobomimicHdf5.files().data;
 const ENV_ARGS: &str = r#"{"env_name": "", "type": 1, "env_kwargs": {}}"#;
 
-pub struct RobomimicWriter {
+/// The `robomimic_hdf5` sink.
+pub type RobomimicWriter = NativeHdf5Writer<Robomimic>;
+
+/// robomimic's layout: every episode a `data/demo_<i>` group of one file.
+pub struct Robomimic {
     path: PathBuf,
-    ends: Vec<u64>,
-    channels: Vec<Channel>,
-    raw: Vec<Option<Arc<LowdimStore>>>,
 }
 
-fn group(parent: &Group, name: &str) -> Result<Group> {
-    Ok(parent
-        .create_group_builder()
-        .obj_track_times(false)
-        .create(name)?)
-}
-
-fn open_rw(path: &Path) -> Result<File> {
-    File::open_rw(path).map_err(|e| Error::output(format!("cannot open {}: {e}", path.display())))
-}
-
-/// What the writer needs of a channel.
-struct Channel {
-    name: String,
-    /// `data/demo_<i>/obs/<key>` or `data/demo_<i>/actions` (see `ProfileChannel::array`).
-    array: ProfileChannel,
-    /// The export name, when the channel is an observation (it then has `next_obs`).
-    next_obs: Option<String>,
-    shape: Vec<usize>,
-    kind: ChannelKind,
-}
-
-impl Channel {
-    fn obs(&self, e: usize) -> String {
-        self.array.array_of(e)
-    }
-
-    fn next_obs(&self, e: usize) -> Option<String> {
-        self.next_obs
-            .as_ref()
-            .map(|key| format!("data/{}/next_obs/{key}", demo(e)))
-    }
+/// `data/demo_<i>/next_obs/<key>` of an observation channel (`None` for the action).
+fn next_obs(ch: &ProfileChannel, e: usize) -> Option<String> {
+    ch.export
+        .as_ref()
+        .filter(|_| ch.name != "action")
+        .map(|key| format!("data/{}/next_obs/{key}", demo(e)))
 }
 
 fn demo(e: usize) -> String {
@@ -83,23 +59,9 @@ fn demo(e: usize) -> String {
 
 impl RobomimicWriter {
     pub fn create(ctx: &SinkContext) -> Result<Self> {
-        let channels: Vec<Channel> = ctx
-            .profile
-            .channels
-            .iter()
-            .map(|c| Channel {
-                name: c.name.clone(),
-                array: c.clone(),
-                next_obs: c.export.clone().filter(|_| c.name != "action"),
-                shape: c.shape.clone(),
-                kind: c.kind,
-            })
-            .collect();
+        let channels = ctx.profile.channels.clone();
         let path = ctx.dir.join(ROBOMIMIC_FILE);
-        let file = File::with_options()
-            .with_fcpl(|p| p.obj_track_times(false))
-            .create(&path)
-            .map_err(|err| Error::output(format!("cannot create {}: {err}", path.display())))?;
+        let file = create_file(&path)?;
         let data = group(&file, "data")?;
         let total = *ctx.episode_ends.last().unwrap_or(&0) as i64;
         data.new_attr::<i64>()
@@ -123,16 +85,11 @@ impl RobomimicWriter {
             group(&g, "obs")?;
             group(&g, "next_obs")?;
             for ch in channels.iter().filter(|c| c.kind == ChannelKind::Image) {
-                let mut full = vec![len];
-                full.extend(&ch.shape);
-                let mut chunk = vec![1];
-                chunk.extend(&ch.shape);
-                for path in [Some(ch.obs(e)), ch.next_obs(e)].into_iter().flatten() {
-                    file.new_dataset::<u8>()
-                        .shape(full.clone())
-                        .chunk(chunk.clone())
-                        .obj_track_times(false)
-                        .create(path.as_str())?;
+                for path in [Some(ch.array_of(e)), next_obs(ch, e)]
+                    .into_iter()
+                    .flatten()
+                {
+                    frames_dataset(&file, &path, len, &ch.shape)?;
                 }
             }
             let name = FixedAscii::<32>::from_ascii(demo(e).as_bytes())
@@ -144,142 +101,65 @@ impl RobomimicWriter {
         }
         let mask = group(&file, "mask")?;
         for (key, names) in [("train", &train), ("valid", &valid)] {
-            mask.new_dataset::<FixedAscii<32>>()
-                .shape([names.len()])
-                .obj_track_times(false)
-                .create(key)?
-                .write_raw(names)?;
+            new_dataset(&mask, key, &[names.len()], names)?;
         }
         file.close()?;
-        Ok(RobomimicWriter {
-            path,
-            ends: ctx.episode_ends.to_vec(),
-            raw: channels.iter().map(|_| None).collect(),
+        Ok(NativeHdf5Writer::new(
+            Robomimic { path },
+            ctx.episode_ends,
             channels,
-        })
-    }
-
-    fn episode_of(&self, row: usize) -> (usize, usize) {
-        let e = self.ends.partition_point(|&end| end as usize <= row);
-        let start = if e == 0 { 0 } else { self.ends[e - 1] as usize };
-        (e, start)
+        ))
     }
 }
 
-impl Sink for RobomimicWriter {
+impl NativeLayout for Robomimic {
     fn data_file(&self) -> &str {
         ROBOMIMIC_FILE
     }
 
-    fn frame_encoding(&self) -> FrameEncoding {
-        FrameEncoding::Raw
+    fn file_of(&self, _: usize) -> PathBuf {
+        self.path.clone()
     }
 
-    fn stores_normalized(&self) -> bool {
-        false
-    }
-
-    fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
-        if frames.is_empty() {
-            return Ok(());
-        }
-        let (e, start) = self.episode_of(row);
-        let len = self.ends[e] as usize - start;
-        let file = open_rw(&self.path)?;
-        let ch = &self.channels[channel];
-        let (lo, n) = (row - start, frames.len());
-        let write = |path: &str, at: usize, from: usize, to: usize| -> Result<()> {
-            if from == to {
-                return Ok(());
-            }
-            let ds = file.dataset(path)?;
-            let mut dims = vec![to - from];
-            dims.extend(&ch.shape);
-            let view =
-                ndarray::ArrayViewD::from_shape(ndarray::IxDyn(&dims), frames.span(from, to))
-                    .map_err(|err| Error::Internal(format!("frames of {}: {err}", ch.name)))?;
-            let mut sel: Vec<hdf5::SliceOrIndex> = vec![(at..at + to - from).into()];
-            sel.extend(ch.shape.iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
-            ds.write_slice(view, hdf5::Hyperslab::from(sel))?;
-            Ok(())
-        };
-        write(&ch.obs(e), lo, 0, n)?;
-        if let Some(next) = ch.next_obs(e) {
-            // Step s is the next observation of step s - 1; the last step is its own.
-            match lo {
-                0 => write(&next, 0, 1, n)?,
-                _ => write(&next, lo - 1, 0, n)?,
-            }
+    /// `obs`, and `next_obs` one step earlier: step s is the next observation of step s - 1;
+    /// the last step is its own.
+    fn frame_targets(&self, ch: &ProfileChannel, e: usize, run: Run) -> Vec<FrameTarget> {
+        let Run { lo, n, len } = run;
+        let target = |path: String, at, from, to| FrameTarget { path, at, from, to };
+        let mut out = vec![target(ch.array_of(e), lo, 0, n)];
+        if let Some(next) = next_obs(ch, e) {
+            out.push(match lo {
+                0 => target(next.clone(), 0, 1, n),
+                _ => target(next.clone(), lo - 1, 0, n),
+            });
             if lo + n == len {
-                write(&next, len - 1, n - 1, n)?;
+                out.push(target(next, len - 1, n - 1, n));
             }
         }
-        file.close()?;
-        Ok(())
+        out
     }
 
-    /// Raw values: robomimic normalizes in its own code.
-    fn write_lowdim(
-        &mut self,
-        channel: usize,
-        raw: &Arc<LowdimStore>,
-        _: &Normalizer,
-    ) -> Result<()> {
-        self.raw[channel] = Some(Arc::clone(raw));
-        Ok(())
-    }
-
-    fn write_index(&mut self, _: &dyn WindowIndex) -> Result<()> {
-        Ok(())
-    }
-
-    fn finish(self: Box<Self>) -> Result<()> {
-        let file = open_rw(&self.path)?;
-        let mut start = 0usize;
-        for (e, &end) in self.ends.iter().enumerate() {
-            let (lo, hi) = (start, end as usize);
-            start = hi;
-            let g = file.group(&format!("data/{}", demo(e)))?;
-            for (ch, raw) in self.channels.iter().zip(&self.raw) {
-                let (ChannelKind::Lowdim, Some(raw)) = (ch.kind, raw) else {
-                    continue;
-                };
-                let values: Vec<f64> = raw.rows(lo, hi)?.iter().map(|&v| f64::from(v)).collect();
-                let mut dims = vec![hi - lo];
-                dims.extend(&ch.shape);
-                let write = |path: &str, values: &[f64]| -> Result<()> {
-                    file.new_dataset::<f64>()
-                        .shape(dims.clone())
-                        .obj_track_times(false)
-                        .create(path)?
-                        .write_raw(values)?;
-                    Ok(())
-                };
-                write(&ch.obs(e), &values)?;
-                if let Some(next) = ch.next_obs(e) {
-                    let width = values.len() / (hi - lo).max(1);
-                    let mut shifted = values[width.min(values.len())..].to_vec();
-                    shifted.extend_from_slice(&values[values.len() - width..]);
-                    write(&next, &shifted)?;
-                }
+    /// Raw float64 values, `next_obs` shifted by one step, `dones` and zero `rewards`.
+    fn finish_episode(&self, file: &File, e: usize, len: usize, lowdim: &[Rows]) -> Result<()> {
+        let g = file.group(&format!("data/{}", demo(e)))?;
+        for (ch, raw) in lowdim {
+            let values: Vec<f64> = raw.iter().map(|&v| f64::from(v)).collect();
+            let mut dims = vec![len];
+            dims.extend(&ch.shape);
+            new_dataset(file, &ch.array_of(e), &dims, &values)?;
+            if let Some(next) = next_obs(ch, e) {
+                let width = values.len() / len.max(1);
+                let mut shifted = values[width.min(values.len())..].to_vec();
+                shifted.extend_from_slice(&values[values.len() - width..]);
+                new_dataset(file, &next, &dims, &shifted)?;
             }
-            let len = hi - lo;
-            let mut dones = vec![0u8; len];
-            if let Some(last) = dones.last_mut() {
-                *last = 1;
-            }
-            g.new_dataset::<u8>()
-                .shape([len])
-                .obj_track_times(false)
-                .create("dones")?
-                .write_raw(&dones)?;
-            g.new_dataset::<f64>()
-                .shape([len])
-                .obj_track_times(false)
-                .create("rewards")?
-                .write_raw(&vec![0.0f64; len])?;
         }
-        file.close()?;
+        let mut dones = vec![0u8; len];
+        if let Some(last) = dones.last_mut() {
+            *last = 1;
+        }
+        new_dataset(&g, "dones", &[len], &dones)?;
+        new_dataset(&g, "rewards", &[len], &vec![0.0f64; len])?;
         Ok(())
     }
 }
