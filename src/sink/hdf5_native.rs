@@ -17,10 +17,10 @@ use hdf5::{Dataset, File, Group};
 use super::hdf5::write_rows;
 use super::{FrameEncoding, Frames, Sink, WindowIndex};
 use crate::error::{Error, Result};
-use crate::store::LowdimStore;
 use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
 use crate::stats::normalize::Normalizer;
+use crate::store::LowdimStore;
 
 /// Where frames of one channel go: `rows` of dataset `path`, from row `at`, are frames
 /// `from..to` of the run being written.
