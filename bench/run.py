@@ -88,20 +88,26 @@ def du(path):
     return sum(p.stat().st_size for p in Path(path).rglob("*") if p.is_file())
 
 
-def synth(work, name, episodes, steps, cameras):
-    params = dict(DIMS, episodes=episodes, steps=steps, cameras=cameras)
+def synthesized(work, name, params, args):
+    """`chunkc synth` into work/data/<name>-<params>, once: later calls with the same parameters
+    reuse it."""
     key = "-".join(f"{k}{v}" for k, v in sorted(params.items()))
     root = work / "data" / f"{name}-{key}"
     if not (root / "spec.toml").exists():
         if root.exists():
             shutil.rmtree(root)
         log(f"generating {root.name}")
-        cmd = [BIN, "synth", root, "--format", "aloha-hdf5", "--episodes", episodes,
-               "--steps", steps, "--action-dim", DIMS["action_dim"], "--state-dim",
-               DIMS["state_dim"], "--cameras", cameras, "--resolution", "96x96", "--fps",
-               DIMS["fps"], "--seed", DIMS["seed"]]
+        cmd = [BIN, "synth", root, "--action-dim", DIMS["action_dim"], "--state-dim",
+               DIMS["state_dim"], "--fps", DIMS["fps"], "--seed", DIMS["seed"], *args]
         subprocess.run([str(c) for c in cmd], check=True)
     return root
+
+
+def synth(work, name, episodes, steps, cameras):
+    params = dict(DIMS, episodes=episodes, steps=steps, cameras=cameras)
+    return synthesized(work, name, params, [
+        "--format", "aloha-hdf5", "--episodes", episodes, "--steps", steps, "--cameras", cameras,
+        "--resolution", "96x96"])
 
 
 ZARR_LAYOUTS = {"episode": dict(rows=400), "dp": dict(rows=36000),
@@ -111,21 +117,12 @@ ZARR_LAYOUTS = {"episode": dict(rows=400), "dp": dict(rows=36000),
 def synth_zarr(work, layout, episodes, steps):
     """A Diffusion Policy zarr replay buffer in one of ZARR_LAYOUTS (cached by parameters)."""
     chunking = ZARR_LAYOUTS[layout]
-    params = dict(DIMS, episodes=episodes, steps=steps, **chunking)
-    key = "-".join(f"{k}{v}" for k, v in sorted(params.items()))
-    root = work / "data" / f"zarr-{layout}-{key}"
-    if not (root / "spec.toml").exists():
-        if root.exists():
-            shutil.rmtree(root)
-        log(f"generating {root.name}")
-        cmd = [BIN, "synth", root, "--format", "diffusion-policy-zarr", "--episodes", episodes,
-               "--steps", steps, "--action-dim", DIMS["action_dim"], "--state-dim",
-               DIMS["state_dim"], "--fps", DIMS["fps"], "--seed", DIMS["seed"],
-               "--zarr-chunk-rows", chunking["rows"]]
-        if "cols" in chunking:
-            cmd += ["--zarr-chunk-cols", chunking["cols"]]
-        subprocess.run([str(c) for c in cmd], check=True)
-    return root
+    args = ["--format", "diffusion-policy-zarr", "--episodes", episodes, "--steps", steps,
+            "--zarr-chunk-rows", chunking["rows"]]
+    if "cols" in chunking:
+        args += ["--zarr-chunk-cols", chunking["cols"]]
+    return synthesized(work, f"zarr-{layout}", dict(DIMS, episodes=episodes, steps=steps, **chunking),
+                       args)
 
 
 def zarr_spec(root, out):
