@@ -32,7 +32,7 @@
 //! Beside the pipeline, [`analyze`] (`chunkc analyze`) reads the action channel and suggests a
 //! chunk length K from its autocorrelation, checking every profile's K against it.
 //!
-//! Supporting pieces: [`chunk`] decides which rows every window reads (the invariants "never
+//! Supporting pieces: [`window`] decides which rows every window reads (the invariants "never
 //! across an episode" and "the observation belongs to the chunk's first step" live there);
 //! [`error`] holds the error type and exit codes; [`bytes`] views `f32` values as the
 //! little-endian bytes of files; [`synth`] writes synthetic sources in every
@@ -42,7 +42,6 @@
 pub mod analyze;
 pub mod audit;
 pub mod bytes;
-pub mod chunk;
 pub mod error;
 pub mod exec;
 pub mod fuzzing;
@@ -55,5 +54,6 @@ pub mod source;
 pub mod spec;
 pub mod stats;
 pub mod synth;
+pub mod window;
 
 pub use error::{Error, Result};

@@ -58,7 +58,7 @@ pub struct BuildReport {
     /// built, whatever the number of profiles and rates; empty when nothing was.
     pub episode_reads: Vec<usize>,
     /// How many times each storage chunk of the source was decoded (array, then chunk index;
-    /// see [`source::chunk_cache`]): 1 each when anything was built, whatever the source's
+    /// see [`source::block_cache`]): 1 each when anything was built, whatever the source's
     /// chunking; empty when nothing was.
     pub chunk_decodes: source::DecodeCounts,
 }

@@ -23,12 +23,12 @@ pub use split::Split;
 pub use text::render_text;
 
 use crate::audit::{AuditReport, Verdict};
-use crate::chunk::segment::SegmentParams;
-use crate::chunk::{decimated_len, Sampling, Window};
 use crate::error::Result;
 use crate::lock::{self, SpecLock};
 use crate::source::{ChannelInfo, ChannelKind, Manifest};
 use crate::spec::{LoadedSpec, NormalizeMode, Profile, ResampleMethod, SplitFrom};
+use crate::window::segment::SegmentParams;
+use crate::window::{decimated_len, Sampling, Window};
 
 pub const PLAN_VERSION: u32 = 1;
 pub const TOOL_VERSION: &str = env!("CARGO_PKG_VERSION");

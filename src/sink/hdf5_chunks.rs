@@ -19,10 +19,10 @@ use hdf5_sys::h5i::hid_t;
 
 use super::hdf5::write_rows;
 use super::windows::{action_steps, obs_steps, pad_row, Step};
-use crate::chunk::Window;
 use crate::error::{Error, Result};
 use crate::spec::Padding;
 use crate::stats::normalize::Normalizer;
+use crate::window::Window;
 
 /// A stored low-dimensional channel, normalized as in `/data`.
 pub struct Stored<'a> {

@@ -2,9 +2,9 @@
 //! each action step reads, and what fills the padded steps. The `materialized` and `virtual`
 //! HDF5 layouts use it, so their chunks equal the loader's bit for bit.
 
-use crate::chunk::Window;
 use crate::spec::Padding;
 use crate::stats::normalize::Normalizer;
+use crate::window::Window;
 
 /// Where one action step of a window comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -22,7 +22,7 @@ use arrow_array::types::Int64Type;
 use arrow_array::Array;
 use serde_json::Value;
 
-use super::chunk_cache::{self, ChunkCache, DecodeCounts};
+use super::block_cache::{self, BlockCache, DecodeCounts};
 use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::parquet_read::{self, num_rows, read_columns};
 use super::{fingerprint, Episode, EpisodeInfo, Manifest, Source, SourceSplit};
@@ -50,7 +50,7 @@ pub struct LerobotSource {
     /// the episodes that overlap each row group; v2: `None`, the file is the episode's alone).
     footers: Vec<Option<Arc<FileRowGroups>>>,
     /// Decoded column chunks, keyed by (data file, row group, column), each decoded once.
-    cache: ChunkCache<(PathBuf, usize, String), Vec<f64>>,
+    cache: BlockCache<(PathBuf, usize, String), Vec<f64>>,
     /// Per episode: timestamps the audit read, kept for the episode read (8 bytes a step), so
     /// that the `timestamp` column is decoded once.
     stamps: Vec<OnceLock<Vec<f64>>>,
@@ -525,7 +525,7 @@ impl LerobotSource {
         for (rel, mut ranges) in by_file {
             let footer = parquet_read::footer(&root.join(rel))?;
             ranges.sort_by_key(|r| r.start);
-            let users = chunk_cache::users_per_chunk(&ranges, &footer.starts, footer.rows);
+            let users = block_cache::users_per_block(&ranges, &footer.starts, footer.rows);
             shared.insert(rel, Arc::new((footer, users)));
         }
         let footers = locations
@@ -549,7 +549,7 @@ impl LerobotSource {
             locations,
             has_timestamp,
             footers,
-            cache: ChunkCache::new(chunk_cache::budget_from_env()),
+            cache: BlockCache::new(block_cache::budget_from_env()),
             stamps,
         })
     }
@@ -690,7 +690,7 @@ impl Source for LerobotSource {
             let updated = done.entry(rel.clone()).or_insert_with(|| {
                 let mut ranges = by_file.remove(rel).unwrap_or_default();
                 ranges.sort_by_key(|r| r.start);
-                let users = chunk_cache::users_per_chunk(&ranges, &f.0.starts, f.0.rows);
+                let users = block_cache::users_per_block(&ranges, &f.0.starts, f.0.rows);
                 Arc::new((f.0.clone(), users))
             });
             self.footers[i] = Some(updated.clone());
