@@ -130,12 +130,12 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let stale: Vec<&ProfilePlan> = plan
         .profiles
         .iter()
-        .filter(|p| !p.status.up_to_date)
+        .filter(|p| !p.status.is_up_to_date())
         .collect();
     let up_to_date: Vec<String> = plan
         .profiles
         .iter()
-        .filter(|p| p.status.up_to_date)
+        .filter(|p| p.status.is_up_to_date())
         .map(|p| p.name.clone())
         .collect();
     if stale.is_empty() {
@@ -150,7 +150,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     if opts.locked {
         let reasons: Vec<String> = stale
             .iter()
-            .map(|p| format!("  {}: {}", p.name, p.status.reason))
+            .filter_map(|p| Some(format!("  {}: {}", p.name, p.status.reason()?)))
             .collect();
         return Err(Error::Locked(format!(
             "--locked: these profiles would be rebuilt:\n{}",
@@ -240,6 +240,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
             Some(files) => LockedProfile {
                 fingerprint: p.fingerprint.clone(),
                 files: files.clone(),
+                inputs: p.inputs.clone(),
             },
             None => previous.profiles.get(&p.name).cloned().unwrap_or_default(),
         };
@@ -251,6 +252,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
             tool_version: plan::TOOL_VERSION.to_string(),
             spec_hash: plan.spec_hash.clone(),
             source_fingerprint: plan.source.fingerprint.clone(),
+            source_files: plan.source.files.clone(),
             profiles,
         },
     );

@@ -46,6 +46,8 @@ pub use block_cache::DecodeCounts;
 pub use lerobot::Info as LerobotInfo;
 pub use subset::Subset;
 
+use std::collections::BTreeMap;
+
 use serde::Serialize;
 
 use crate::error::{Error, Result};
@@ -100,6 +102,9 @@ pub struct Manifest {
     pub channels: Vec<ChannelInfo>,
     /// BLAKE3 over the bytes of everything the adapter reads.
     pub fingerprint: String,
+    /// BLAKE3 of each file the fingerprint covers, by path in the source (the lock keeps them,
+    /// so that a changed source names the file).
+    pub files: BTreeMap<String, String>,
     /// Whether episodes carry timestamps read from the source.
     pub timestamps: bool,
     /// The split the source itself stores, if any (used with `[split] from = "source"`).
