@@ -121,9 +121,12 @@ pub(super) fn profile(
                 let c = p.channels.iter().position(|ch| ch.name == state.name)?;
                 let e = p.episodes.iter().position(|ep| ep.split == "train")?;
                 let width = manifest.channels[c].width();
-                let start = if e == 0 { 0 } else { rate.ends[e - 1] as usize };
-                let end = rate.ends[e] as usize;
-                Some(rate.lowdim[c].rows(start, end).map(|v| (v, width)))
+                let rows = rate.ends.range(e);
+                Some(
+                    rate.lowdim[c]
+                        .rows(rows.start, rows.end)
+                        .map(|v| (v, width)),
+                )
             })
             .transpose()?;
         let inputs = render::codebase::Inputs {
@@ -213,11 +216,7 @@ impl Index<'_> {
     /// The samples of episode `e`.
     fn samples(&self, e: usize) -> Result<Vec<crate::window::Sample>> {
         let ep = &self.p.episodes[e];
-        let start = if e == 0 {
-            0
-        } else {
-            self.rate.ends[e - 1] as usize
-        };
+        let start = self.rate.ends.start(e);
         Ok(match &self.p.sampling {
             Sampling::Segment { channel, .. } => {
                 let width = self.manifest.channels[*channel].width();

@@ -37,6 +37,7 @@ use crate::sink::{self, FrameEncoding, Frames, Sink, SinkContext};
 use crate::source::{self, ChannelData, ChannelKind, Episode, Source};
 use crate::spec::{LoadedSpec, SplitFrom};
 use crate::stats::{self, ChannelStats, ImagePartial};
+use crate::window::EpisodeEnds;
 
 pub use staging::{BUILD_LOCK_FILE, STAGING_DIR};
 pub use store::{budget_from_env as spill_budget, LowdimStore};
@@ -300,7 +301,7 @@ fn run_staged(
 struct RateState {
     conversion: Conversion,
     /// Exclusive ends of each episode in the decimated per-step arrays.
-    ends: Vec<u64>,
+    ends: EpisodeEnds,
     /// Per channel (manifest order): concatenated low-dim values; empty for images. Shared with
     /// the sinks that export episode by episode once reading is over.
     lowdim: Vec<Arc<LowdimStore>>,
@@ -499,7 +500,7 @@ fn run(
             }
             RateState {
                 conversion,
-                ends,
+                ends: EpisodeEnds::new(ends),
                 lowdim: manifest
                     .channels
                     .iter()
@@ -637,7 +638,7 @@ fn run(
                 .zip(episode.data.into_iter().zip(episode.partials))
                 .enumerate()
             {
-                let row = if i == 0 { 0 } else { rate.ends[i - 1] as usize };
+                let row = rate.ends.start(i);
                 let train = plan.split.is_train(manifest.episodes[i].id);
                 for (c, (values, partial)) in data.into_iter().zip(partials).enumerate() {
                     if let Some(p) = partial {
@@ -749,8 +750,8 @@ fn rate_stats(
                 let train: Vec<(usize, usize)> = (0..ends.len())
                     .filter(|&e| train_mask[e])
                     .map(|e| {
-                        let start = if e == 0 { 0 } else { ends[e - 1] as usize };
-                        (start, ends[e] as usize)
+                        let r = ends.range(e);
+                        (r.start, r.end)
                     })
                     .collect();
                 // The store counted the first percentile pass as the rows arrived; the second

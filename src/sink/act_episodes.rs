@@ -28,13 +28,14 @@ use crate::exec::LowdimStore;
 use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
 use crate::stats::normalize::Normalizer;
+use crate::window::EpisodeEnds;
 
 const QPOS: &str = "observations/qpos";
 const QVEL: &str = "observations/qvel";
 
 pub struct ActEpisodesWriter {
     dir: PathBuf,
-    ends: Vec<u64>,
+    ends: EpisodeEnds,
     channels: Vec<ProfileChannel>,
     raw: Vec<Option<Arc<LowdimStore>>>,
 }
@@ -84,7 +85,7 @@ impl ActEpisodesWriter {
         }
         Ok(ActEpisodesWriter {
             dir: ctx.dir.to_path_buf(),
-            ends: ctx.episode_ends.to_vec(),
+            ends: ctx.episode_ends.into(),
             raw: channels.iter().map(|_| None).collect(),
             channels,
         })
@@ -92,8 +93,7 @@ impl ActEpisodesWriter {
 
     fn episode_of(&self, row: usize) -> (usize, usize) {
         let e = self.ends.partition_point(|&end| end as usize <= row);
-        let start = if e == 0 { 0 } else { self.ends[e - 1] as usize };
-        (e, start)
+        (e, self.ends.start(e))
     }
 }
 

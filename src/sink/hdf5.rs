@@ -28,7 +28,7 @@ use crate::source::block_map::{self, BlockMap};
 use crate::source::ChannelKind;
 use crate::spec::{Compression, ImageCompression, Layout, Padding};
 use crate::stats::normalize::Normalizer;
-use crate::window::Window;
+use crate::window::{EpisodeEnds, Window};
 
 /// Chunks of low-dimensional data hold about this many bytes (a few windows' worth).
 const LOWDIM_CHUNK_BYTES: usize = 64 * 1024;
@@ -57,7 +57,7 @@ pub struct Hdf5Writer {
     layout: Layout,
     window: Window,
     padding: Padding,
-    episode_ends: Vec<u64>,
+    episode_ends: EpisodeEnds,
     /// Normalized low-dim values and normalizers, kept for `/chunks` (not for `index`).
     kept: Vec<Option<(Vec<f32>, Normalizer)>>,
 }
@@ -260,7 +260,7 @@ impl Hdf5Writer {
             layout: v.layout,
             window: *plan.window(),
             padding: v.padding,
-            episode_ends: episode_ends.to_vec(),
+            episode_ends: episode_ends.into(),
             kept: plan.channels.iter().map(|_| None).collect(),
         })
     }

@@ -32,13 +32,14 @@ use crate::exec::LowdimStore;
 use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
 use crate::stats::normalize::Normalizer;
+use crate::window::EpisodeEnds;
 
 pub const ROBOMIMIC_FILE: &str = "data.hdf5";
 const ENV_ARGS: &str = r#"{"env_name": "", "type": 1, "env_kwargs": {}}"#;
 
 pub struct RobomimicWriter {
     path: PathBuf,
-    ends: Vec<u64>,
+    ends: EpisodeEnds,
     channels: Vec<Channel>,
     raw: Vec<Option<Arc<LowdimStore>>>,
 }
@@ -153,7 +154,7 @@ impl RobomimicWriter {
         file.close()?;
         Ok(RobomimicWriter {
             path,
-            ends: ctx.episode_ends.to_vec(),
+            ends: ctx.episode_ends.into(),
             raw: channels.iter().map(|_| None).collect(),
             channels,
         })
@@ -161,8 +162,7 @@ impl RobomimicWriter {
 
     fn episode_of(&self, row: usize) -> (usize, usize) {
         let e = self.ends.partition_point(|&end| end as usize <= row);
-        let start = if e == 0 { 0 } else { self.ends[e - 1] as usize };
-        (e, start)
+        (e, self.ends.start(e))
     }
 }
 
@@ -184,7 +184,7 @@ impl Sink for RobomimicWriter {
             return Ok(());
         }
         let (e, start) = self.episode_of(row);
-        let len = self.ends[e] as usize - start;
+        let len = self.ends.len_of(e);
         let file = open_rw(&self.path)?;
         let ch = &self.channels[channel];
         let (lo, n) = (row - start, frames.len());
