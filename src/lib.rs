@@ -38,6 +38,15 @@
 //! little-endian bytes of files; [`synth`] writes synthetic sources in every
 //! input layout (`chunkc synth`, for the benchmarks and tests); [`fuzzing`] has the fuzz targets'
 //! bodies (one per input parser; see `fuzz/`).
+//!
+//! # Words
+//!
+//! - **chunk**: the action chunk, the K steps of actions a sample holds (`profiles.*.chunk`, the
+//!   `/chunks` datasets of the materialized and virtual HDF5 layouts); nothing else.
+//! - **window**: the rows one sample reads, actions and observations ([`window`]).
+//! - **block**: one storage chunk of a source file, an HDF5 or zarr chunk or a parquet row group
+//!   (`source::block_map`, `source::block_cache`). Spec keys and book text about zarr
+//!   "chunking" keep the formats' own word.
 
 pub mod analyze;
 pub mod audit;

@@ -11,30 +11,42 @@
 //! Every frame row has `timestamp` (seconds), which becomes the episode's timestamps; the rate is
 //! info.json's `fps`. Video features live in mp4 files: a channel mapped to one needs the files
 //! to exist (decoding them comes later).
+//!
+//! - `info`: parsing `meta/info.json` (version, rate, features, path templates, splits).
+//! - `v2`, `v3`: each layout's episode listing and where each episode's rows are.
+//! - here: opening (the checks common to both layouts) and reading episodes.
 
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
 
-use arrow_array::cast::AsArray;
-use arrow_array::types::Int64Type;
-use arrow_array::Array;
-use serde_json::Value;
-
 use super::block_cache::{self, BlockCache, DecodeCounts};
 use super::mapping::{self, KeyInfo, Mapped, Raw};
-use super::parquet_read::{self, num_rows, read_columns};
+use super::parquet_read::{self, read_columns};
 use super::{fingerprint, Episode, EpisodeInfo, Manifest, Source, SourceSplit};
 use crate::error::{Error, Result};
 use crate::spec::{LoadedSpec, SourceFormat};
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Version {
-    /// v2.0 and v2.1: one file per episode.
-    V2,
-    /// v3.0: many episodes per file.
-    V3,
+mod info;
+mod v2;
+mod v3;
+
+pub use info::Info;
+use info::Version;
+#[cfg(test)]
+use info::{fill, split_range};
+
+/// What a layout's episode listing finds: the episodes, where each one's rows are, its videos,
+/// and the files read for the fingerprint.
+#[derive(Default)]
+struct Listing {
+    episodes: Vec<EpisodeInfo>,
+    /// Per episode: the data file (relative to the root) and its rows there (`None`: all).
+    locations: Vec<(PathBuf, Option<Range<usize>>)>,
+    /// Per episode, the video file of each media feature.
+    video_files: Vec<BTreeMap<String, PathBuf>>,
+    read_files: Vec<PathBuf>,
 }
 
 pub struct LerobotSource {
@@ -58,163 +70,6 @@ pub struct LerobotSource {
 
 /// A v3.0 data file's footer, and the episodes that take rows from each of its row groups.
 type FileRowGroups = (parquet_read::Footer, Vec<u32>);
-
-/// One row of v3.0's `meta/episodes`: the episode, its length, its data file and its videos.
-struct EpisodeRow {
-    id: u64,
-    len: usize,
-    chunk: u64,
-    file: u64,
-    videos: BTreeMap<String, PathBuf>,
-}
-
-/// The widest zero-padded field a path template may ask for: a `u64` has 20 digits.
-const MAX_WIDTH: usize = 20;
-
-/// The `{name}` / `{name:spec}` fields of a path template: each one's byte range, name and spec.
-fn fields(template: &str) -> Vec<(Range<usize>, &str, &str)> {
-    let mut out = Vec::new();
-    let mut from = 0;
-    while let Some(open) = template[from..].find('{').map(|i| from + i) {
-        let Some(close) = template[open..].find('}').map(|i| open + i) else {
-            break;
-        };
-        let inner = &template[open + 1..close];
-        let (name, spec) = inner.split_once(':').unwrap_or((inner, ""));
-        out.push((open..close + 1, name, spec));
-        from = close + 1;
-    }
-    out
-}
-
-/// The zero-padded width a field's spec asks for (`03d` → 3; `` → 0).
-fn width(spec: &str) -> usize {
-    spec.trim_start_matches('0')
-        .trim_end_matches('d')
-        .parse()
-        .unwrap_or(0)
-}
-
-/// Python-style `{name}` / `{name:03d}` formatting of info.json's path templates, in one pass
-/// (a value is never searched for fields again). A field whose name is not among `values` stays
-/// as written. Widths are at most [`MAX_WIDTH`] ([`Info::parse`] refuses wider ones).
-fn fill(template: &str, values: &[(&str, String)]) -> String {
-    let mut out = String::with_capacity(template.len());
-    let mut from = 0;
-    for (range, name, spec) in fields(template) {
-        let Some((_, value)) = values.iter().find(|(n, _)| *n == name) else {
-            continue;
-        };
-        out.push_str(&template[from..range.start]);
-        let width = width(spec).min(MAX_WIDTH);
-        out.push_str(&format!("{value:0>width$}"));
-        from = range.end;
-    }
-    out.push_str(&template[from..]);
-    out
-}
-
-/// One feature's per-step shape from info.json (`[]` and `[1]` both mean one value).
-fn feature_shape(feature: &Value) -> Vec<usize> {
-    let shape: Vec<usize> = feature["shape"]
-        .as_array()
-        .map(|a| {
-            a.iter()
-                .filter_map(|d| d.as_u64())
-                .map(|d| d as usize)
-                .collect()
-        })
-        .unwrap_or_default();
-    if shape.is_empty() {
-        vec![1]
-    } else {
-        shape
-    }
-}
-
-/// `"0:100"` → 0..100 (info.json's `splits` values).
-fn split_range(text: &str) -> Option<Range<u64>> {
-    let (a, b) = text.split_once(':')?;
-    Some(a.trim().parse().ok()?..b.trim().parse().ok()?)
-}
-
-/// What chunkc reads from `meta/info.json`, before any other file is looked at.
-#[derive(Debug, Clone)]
-pub struct Info {
-    version: Version,
-    /// `fps`, when the file stores it.
-    pub fps: Option<f64>,
-    /// Every feature, in the file's order, with its per-step shape and dtype.
-    pub features: Vec<KeyInfo>,
-    /// How many episodes share a `chunk-XXX` directory (v2 paths); at least 1.
-    pub chunks_size: u64,
-    /// The data file template (`data_path`, or the version's default).
-    pub data_path: String,
-    /// The video file template, when there is one.
-    pub video_path: Option<String>,
-    /// `splits` as (name, episode range) pairs; `None` when the file has no `splits` table.
-    /// Values that are not `"a:b"` are left out.
-    pub splits: Option<Vec<(String, Range<u64>)>>,
-}
-
-impl Info {
-    /// Parses the bytes of an `info.json`; `shown` names the file in errors. Only the metadata is
-    /// checked here: whether the files the templates name exist is the adapter's business.
-    pub fn parse(bytes: &[u8], shown: &str) -> Result<Info> {
-        let info: Value = serde_json::from_slice(bytes)
-            .map_err(|e| Error::source(format!("{shown}: invalid JSON: {e}")))?;
-        let at_info = |what: &str| Error::source(format!("{shown}: {what}"));
-        let version = match info["codebase_version"].as_str() {
-            Some("v2.0" | "v2.1") => Version::V2,
-            Some("v3.0") => Version::V3,
-            Some(other) => {
-                return Err(at_info(&format!(
-                    "codebase_version `{other}` is not one chunkc reads (v2.0, v2.1, v3.0)"
-                )))
-            }
-            None => return Err(at_info("no `codebase_version`")),
-        };
-        let features = info["features"]
-            .as_object()
-            .ok_or_else(|| at_info("no `features` table"))?
-            .iter()
-            .map(|(key, f)| KeyInfo {
-                key: key.clone(),
-                shape: feature_shape(f),
-                dtype: f["dtype"].as_str().unwrap_or("unknown").to_string(),
-            })
-            .collect();
-        let data_path = info["data_path"].as_str().unwrap_or(match version {
-            Version::V2 => "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet",
-            Version::V3 => "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
-        });
-        let video_path = info["video_path"].as_str();
-        for (key, template) in [("data_path", Some(data_path)), ("video_path", video_path)] {
-            let fields = template.map(fields).unwrap_or_default();
-            if let Some((_, name, spec)) = fields.iter().find(|(_, _, s)| width(s) > MAX_WIDTH) {
-                return Err(at_info(&format!(
-                    "`{key}` pads `{{{name}:{spec}}}` to {} digits; at most {MAX_WIDTH} make sense",
-                    width(spec)
-                )));
-            }
-        }
-        let splits = info["splits"].as_object().map(|splits| {
-            splits
-                .iter()
-                .filter_map(|(k, v)| Some((k.clone(), split_range(v.as_str()?)?)))
-                .collect()
-        });
-        Ok(Info {
-            version,
-            fps: info["fps"].as_f64(),
-            features,
-            chunks_size: info["chunks_size"].as_u64().unwrap_or(1000).max(1),
-            data_path: data_path.to_string(),
-            video_path: video_path.map(str::to_string),
-            splits,
-        })
-    }
-}
 
 impl LerobotSource {
     pub fn open(spec: &LoadedSpec, root: &Path) -> Result<Self> {
@@ -255,196 +110,17 @@ impl LerobotSource {
             .filter(|k| k.dtype == "video" || k.dtype == "image")
             .collect();
 
-        let mut read_files = vec![PathBuf::from("meta/info.json")];
-        let (chunks_size, data_path) = (info.chunks_size, info.data_path.as_str());
-        let mut episodes = Vec::new();
-        let mut locations = Vec::new();
-        // Per episode, the values a video path template needs.
-        let mut video_files: Vec<BTreeMap<String, PathBuf>> = Vec::new();
-        match version {
-            Version::V2 => {
-                let list = root.join("meta/episodes.jsonl");
-                read_files.push(PathBuf::from("meta/episodes.jsonl"));
-                let text = std::fs::read_to_string(&list)
-                    .map_err(|e| Error::source(format!("{}: cannot read: {e}", list.display())))?;
-                let mut rows: Vec<(u64, usize)> = Vec::new();
-                for (n, line) in text
-                    .lines()
-                    .enumerate()
-                    .filter(|(_, l)| !l.trim().is_empty())
-                {
-                    let v: Value = serde_json::from_str(line).map_err(|e| {
-                        Error::source(format!("{}:{}: invalid JSON: {e}", list.display(), n + 1))
-                    })?;
-                    match (v["episode_index"].as_u64(), v["length"].as_u64()) {
-                        (Some(e), Some(len)) => rows.push((e, len as usize)),
-                        _ => {
-                            return Err(Error::source(format!(
-                                "{}:{}: needs `episode_index` and `length`",
-                                list.display(),
-                                n + 1
-                            )))
-                        }
-                    }
-                }
-                rows.sort();
-                for (e, len) in rows {
-                    let values = [
-                        ("episode_chunk", (e / chunks_size).to_string()),
-                        ("episode_index", e.to_string()),
-                    ];
-                    let rel = PathBuf::from(fill(data_path, &values));
-                    let file = root.join(&rel);
-                    if !file.exists() {
-                        return Err(Error::source(format!(
-                            "{shown}: episode {e}: data file {} is missing",
-                            rel.display()
-                        )));
-                    }
-                    let n = num_rows(&file)?;
-                    if n != len {
-                        return Err(Error::source(format!(
-                            "{}: {n} rows, but meta/episodes.jsonl gives episode {e} length {len}",
-                            file.display()
-                        )));
-                    }
-                    let mut videos = BTreeMap::new();
-                    if let Some(template) = &info.video_path {
-                        for m in &media {
-                            let mut v = values.to_vec();
-                            v.push(("video_key", m.key.clone()));
-                            videos.insert(m.key.clone(), PathBuf::from(fill(template, &v)));
-                        }
-                    }
-                    video_files.push(videos);
-                    read_files.push(rel.clone());
-                    episodes.push(EpisodeInfo { id: e, len });
-                    locations.push((rel, None));
-                }
-            }
-            Version::V3 => {
-                let meta_dir = root.join("meta/episodes");
-                let metas: Vec<PathBuf> = fingerprint::list_files(&meta_dir)?
-                    .into_iter()
-                    .filter(|p| p.extension().is_some_and(|e| e == "parquet"))
-                    .collect();
-                if metas.is_empty() {
-                    return Err(Error::source(format!(
-                        "{}: no parquet files; a v3.0 dataset lists its episodes there",
-                        meta_dir.display()
-                    )));
-                }
-                let mut rows: Vec<EpisodeRow> = Vec::new();
-                for rel in &metas {
-                    let path = meta_dir.join(rel);
-                    read_files.push(Path::new("meta/episodes").join(rel));
-                    let mut names = vec![
-                        "episode_index",
-                        "length",
-                        "data/chunk_index",
-                        "data/file_index",
-                    ];
-                    let video_cols: Vec<(String, String, String)> = media
-                        .iter()
-                        .map(|m| {
-                            (
-                                m.key.clone(),
-                                format!("videos/{}/chunk_index", m.key),
-                                format!("videos/{}/file_index", m.key),
-                            )
-                        })
-                        .collect();
-                    for (_, c, f) in &video_cols {
-                        names.push(c);
-                        names.push(f);
-                    }
-                    let cols = read_columns(&path, &names, None)?;
-                    let ints = |i: usize| -> Result<Vec<u64>> {
-                        parquet_read::to_f64_rows(
-                            &cols[i],
-                            1,
-                            &format!("{}: `{}`", path.display(), names[i]),
-                        )
-                        .map(|v| v.into_iter().map(|x| x as u64).collect())
-                    };
-                    let (ids, lens, chunk, file) = (ints(0)?, ints(1)?, ints(2)?, ints(3)?);
-                    let video_ints: Vec<(Vec<u64>, Vec<u64>)> = (0..video_cols.len())
-                        .map(|j| Ok((ints(4 + 2 * j)?, ints(5 + 2 * j)?)))
-                        .collect::<Result<_>>()?;
-                    for r in 0..ids.len() {
-                        let mut videos = BTreeMap::new();
-                        if let Some(template) = &info.video_path {
-                            for (j, (key, _, _)) in video_cols.iter().enumerate() {
-                                let v = [
-                                    ("video_key", key.clone()),
-                                    ("chunk_index", video_ints[j].0[r].to_string()),
-                                    ("file_index", video_ints[j].1[r].to_string()),
-                                ];
-                                videos.insert(key.clone(), PathBuf::from(fill(template, &v)));
-                            }
-                        }
-                        rows.push(EpisodeRow {
-                            id: ids[r],
-                            len: lens[r] as usize,
-                            chunk: chunk[r],
-                            file: file[r],
-                            videos,
-                        });
-                    }
-                }
-                rows.sort_by_key(|r| r.id);
-                if let Some(w) = rows.windows(2).find(|w| w[0].id == w[1].id) {
-                    return Err(Error::source(format!(
-                        "{}: episode {} is listed twice",
-                        meta_dir.display(),
-                        w[0].id
-                    )));
-                }
-                // Each data file once: where each episode's rows are in it.
-                let mut ranges: BTreeMap<PathBuf, BTreeMap<u64, Range<usize>>> = BTreeMap::new();
-                for EpisodeRow {
-                    id: e,
-                    len,
-                    chunk,
-                    file,
-                    videos,
-                } in rows
-                {
-                    let values = [
-                        ("chunk_index", chunk.to_string()),
-                        ("file_index", file.to_string()),
-                    ];
-                    let rel = PathBuf::from(fill(data_path, &values));
-                    if !ranges.contains_key(&rel) {
-                        let path = root.join(&rel);
-                        if !path.exists() {
-                            return Err(Error::source(format!(
-                                "{shown}: episode {e}: data file {} is missing",
-                                rel.display()
-                            )));
-                        }
-                        ranges.insert(rel.clone(), episode_ranges(&path)?);
-                        read_files.push(rel.clone());
-                    }
-                    let range = ranges[&rel].get(&e).cloned().ok_or_else(|| {
-                        Error::source(format!(
-                            "{}: no rows of episode {e}, which meta/episodes places there",
-                            root.join(&rel).display()
-                        ))
-                    })?;
-                    if range.len() != len {
-                        return Err(Error::source(format!(
-                            "{}: episode {e} has {} rows, but meta/episodes gives length {len}",
-                            root.join(&rel).display(),
-                            range.len()
-                        )));
-                    }
-                    video_files.push(videos);
-                    episodes.push(EpisodeInfo { id: e, len });
-                    locations.push((rel, Some(range)));
-                }
-            }
-        }
+        let listing = match version {
+            Version::V2 => v2::list(root, &info, &media)?,
+            Version::V3 => v3::list(root, &info, &media)?,
+        };
+        let Listing {
+            mut read_files,
+            episodes,
+            locations,
+            video_files,
+        } = listing;
+        read_files.push(PathBuf::from("meta/info.json"));
         if episodes.is_empty() {
             return Err(Error::source(format!(
                 "{shown}: the dataset lists no episodes"
@@ -554,44 +230,6 @@ impl LerobotSource {
             stamps,
         })
     }
-}
-
-/// Where each episode's rows are in a v3.0 data file, from its `episode_index` column. An
-/// episode whose rows are not contiguous is an error.
-fn episode_ranges(path: &Path) -> Result<BTreeMap<u64, Range<usize>>> {
-    let cols = read_columns(path, &["episode_index"], None)?;
-    let mut out: BTreeMap<u64, Range<usize>> = BTreeMap::new();
-    let mut row = 0usize;
-    let mut previous: Option<u64> = None;
-    for batch in &cols[0] {
-        let values: Vec<u64> = match batch.data_type() {
-            arrow_schema::DataType::Int64 => batch
-                .as_primitive::<Int64Type>()
-                .values()
-                .iter()
-                .map(|&v| v as u64)
-                .collect(),
-            _ => parquet_read::to_f64_rows(std::slice::from_ref(batch), 1, "episode_index")?
-                .into_iter()
-                .map(|v| v as u64)
-                .collect(),
-        };
-        for e in values {
-            if previous != Some(e) {
-                if out.contains_key(&e) {
-                    return Err(Error::source(format!(
-                        "{}: the rows of episode {e} are not contiguous (again at row {row})",
-                        path.display()
-                    )));
-                }
-                out.insert(e, row..row);
-            }
-            out.get_mut(&e).expect("inserted").end = row + 1;
-            previous = Some(e);
-            row += 1;
-        }
-    }
-    Ok(out)
 }
 
 impl Source for LerobotSource {
