@@ -36,7 +36,7 @@
 //!    Fourier or linear resampling) applied right after the episode is read.
 //! 4. **Lock** ([`lock`]): `chunkc.lock`, what the last build recorded (spec hash, source
 //!    fingerprint, every output's hash), read by the plan and written after a build.
-//! 5. **Windows** ([`chunk`]): which rows every window reads; the invariants "never across an
+//! 5. **Windows** ([`window`]): which rows every window reads; the invariants "never across an
 //!    episode" and "the observation belongs to the chunk's first step" live there.
 //! 6. **Resolve** ([`plan`]): spec + audited manifest + audit + lock → [`plan::Plan`]: per
 //!    profile the episodes and split, repairs and exclusions, rate conversion, window count,
@@ -76,11 +76,19 @@
 //! - [`sink`]: frames compressed and normalized blocks prepared in parallel, while the previous
 //!   block is written (`rayon::join`).
 //! - [`synth`]: synthetic episodes generated in parallel.
+//!
+//! # Words
+//!
+//! - **chunk**: the action chunk, the K steps of actions a sample holds (`profiles.*.chunk`, the
+//!   `/chunks` datasets of the materialized and virtual HDF5 layouts); nothing else.
+//! - **window**: the rows one sample reads, actions and observations ([`window`]).
+//! - **block**: one storage chunk of a source file, an HDF5 or zarr chunk or a parquet row group
+//!   (`source::block_map`, `source::block_cache`). Spec keys and book text about zarr
+//!   "chunking" keep the formats' own word.
 
 pub mod analyze;
 pub mod audit;
 pub mod bytes;
-pub mod chunk;
 pub mod commands;
 pub mod error;
 pub mod exec;
@@ -97,5 +105,6 @@ pub mod stats;
 pub mod store;
 pub mod synth;
 pub mod timings;
+pub mod window;
 
 pub use error::{Error, Result};

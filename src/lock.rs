@@ -4,7 +4,10 @@
 //!
 //! JSON with sorted keys and no timestamps, so that it is itself reproducible and diffs well in
 //! code review. The plan compares it with the current spec, source and output files to decide
-//! which profiles are up to date.
+//! which profiles are up to date, and why not ([`crate::plan::freshness`]): for that it keeps the
+//! spec values each profile was built from and the hash of every source file. Both are optional
+//! when read, so locks written before them still read (their changes are then named less
+//! precisely).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -29,6 +32,10 @@ pub struct SpecLock {
     pub tool_version: String,
     pub spec_hash: String,
     pub source_fingerprint: String,
+    /// BLAKE3 of every source file, by path in the source, so that a changed source names the
+    /// file (absent from locks written before chunkc recorded it).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub source_files: BTreeMap<String, String>,
     pub profiles: BTreeMap<String, LockedProfile>,
 }
 
@@ -38,6 +45,10 @@ pub struct LockedProfile {
     pub fingerprint: String,
     /// BLAKE3 of every output file, by path relative to the profile directory.
     pub files: BTreeMap<String, String>,
+    /// The spec values the fingerprint covers, by dotted key as JSON text, so that a changed
+    /// fingerprint names the value (absent from locks written before chunkc recorded them).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub inputs: BTreeMap<String, String>,
 }
 
 /// Where the lock of a spec lives.

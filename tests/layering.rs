@@ -19,7 +19,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("source", 2),
     ("audit", 3),
     ("lock", 4),
-    ("chunk", 5),
+    ("window", 5),
     ("plan", 6),
     ("stats", 7),
     ("sink", 8),

@@ -34,7 +34,7 @@ pub struct BuildReport {
     /// built, whatever the number of profiles and rates; empty when nothing was.
     pub episode_reads: Vec<usize>,
     /// How many times each storage chunk of the source was decoded (array, then chunk index;
-    /// see [`source::chunk_cache`]): 1 each when anything was built, whatever the source's
+    /// see [`source::block_cache`]): 1 each when anything was built, whatever the source's
     /// chunking; empty when nothing was.
     pub chunk_decodes: source::DecodeCounts,
 }
@@ -56,8 +56,10 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     // Repair what an interrupted build left, before the plan compares outputs with the lock.
     Staging::recover(&out_dir)?;
     let (source, plan) = super::plan(spec)?;
-    let (stale, up_to_date): (Vec<&ProfilePlan>, Vec<&ProfilePlan>) =
-        plan.profiles.iter().partition(|p| !p.status.up_to_date);
+    let (stale, up_to_date): (Vec<&ProfilePlan>, Vec<&ProfilePlan>) = plan
+        .profiles
+        .iter()
+        .partition(|p| !p.status.is_up_to_date());
     let up_to_date: Vec<String> = up_to_date.iter().map(|p| p.name.clone()).collect();
     if stale.is_empty() {
         return Ok(BuildReport {
@@ -71,7 +73,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     if opts.locked {
         let reasons: Vec<String> = stale
             .iter()
-            .map(|p| format!("  {}: {}", p.name, p.status.reason))
+            .filter_map(|p| Some(format!("  {}: {}", p.name, p.status.reason()?)))
             .collect();
         return Err(Error::Locked(format!(
             "--locked: these profiles would be rebuilt:\n{}",
@@ -202,6 +204,7 @@ fn update_lock(spec: &LoadedSpec, plan: &Plan, hashes: &FileHashes) -> Result<()
             Some(files) => LockedProfile {
                 fingerprint: p.fingerprint.clone(),
                 files: files.clone(),
+                inputs: p.inputs.clone(),
             },
             None => previous.profiles.get(&p.name).cloned().unwrap_or_default(),
         };
@@ -213,6 +216,7 @@ fn update_lock(spec: &LoadedSpec, plan: &Plan, hashes: &FileHashes) -> Result<()
             tool_version: plan::TOOL_VERSION.to_string(),
             spec_hash: plan.spec_hash.clone(),
             source_fingerprint: plan.source.fingerprint.clone(),
+            source_files: plan.source.files.clone(),
             profiles,
         },
     );

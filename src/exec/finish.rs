@@ -10,7 +10,6 @@ use rayon::prelude::*;
 use super::rate::RateState;
 use super::staging::Staging;
 use super::FileHashes;
-use crate::chunk::Sampling;
 use crate::error::{Error, IoContext, Result};
 use crate::lock;
 use crate::plan::{Plan, ProfilePlan, META_FILE, STATS_FILE};
@@ -20,6 +19,7 @@ use crate::source::{self, ChannelKind, Manifest};
 use crate::spec::LoadedSpec;
 use crate::stats::{normalize::Normalizer, ChannelStats};
 use crate::timings;
+use crate::window::Sampling;
 
 /// Threads that fsync a profile's outputs while they are hashed (they mostly wait on the disk).
 const SYNC_THREADS: usize = 4;
@@ -327,7 +327,7 @@ struct Index<'a> {
 
 impl Index<'_> {
     /// The samples of episode `e`.
-    fn samples(&self, e: usize) -> Result<Vec<crate::chunk::Sample>> {
+    fn samples(&self, e: usize) -> Result<Vec<crate::window::Sample>> {
         let ep = &self.p.episodes[e];
         let start = if e == 0 {
             0

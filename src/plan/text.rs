@@ -105,10 +105,9 @@ pub fn render_text(plan: &Plan) -> String {
     for p in &plan.profiles {
         let v = &p.values;
         let _ = writeln!(s);
-        let state = if p.status.up_to_date {
-            "up to date".to_string()
-        } else {
-            format!("build: {}", p.status.reason)
+        let state = match p.status.reason() {
+            None => "up to date".to_string(),
+            Some(reason) => format!("build: {reason}"),
         };
         let _ = writeln!(s, "profile {}  [{}]", p.name, state);
         let _ = writeln!(s, "  rate   {}", p.rate);

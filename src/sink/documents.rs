@@ -8,12 +8,12 @@ use std::collections::BTreeMap;
 
 use serde_json::{json, Value};
 
-use crate::chunk::Sampling;
 use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
 use crate::source::ChannelKind;
 use crate::spec::OutputFormat;
 use crate::stats::normalize::Normalizer;
 use crate::stats::{shaped, ChannelStats};
+use crate::window::Sampling;
 
 pub const META_FORMAT_VERSION: u32 = 1;
 

@@ -21,13 +21,13 @@ use ndarray::{ArrayViewD, IxDyn};
 use super::hdf5_chunks::{self, Stored, Windows};
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::bytes::f32_bytes;
-use crate::chunk::Window;
 use crate::error::{Error, Result};
-use crate::source::chunk_map::{self, ChunkMap};
+use crate::source::block_map::{self, BlockMap};
 use crate::source::ChannelKind;
 use crate::spec::{Compression, ImageCompression, Layout, Padding};
 use crate::stats::normalize::Normalizer;
 use crate::store::LowdimStore;
+use crate::window::{EpisodeEnds, Window};
 
 /// chunkc's own container, where the format says.
 const DATA_FILE: &str = crate::spec::OutputFormat::Hdf5.files().data;
@@ -51,14 +51,14 @@ pub struct Hdf5Writer {
     /// The same file opened with std, for frames written with `pwrite` (uncompressed frames).
     raw: Option<std::fs::File>,
     /// Per channel: where each frame's chunk lies, for uncompressed image channels.
-    chunk_maps: Vec<Option<ChunkMap>>,
+    block_maps: Vec<Option<BlockMap>>,
     data: Vec<Dataset>,
     shapes: Vec<Vec<usize>>,
     names: Vec<String>,
     layout: Layout,
     window: Window,
     padding: Padding,
-    episode_ends: Vec<u64>,
+    episode_ends: EpisodeEnds,
     /// Normalized low-dim values and normalizers, kept for `/chunks` (not for `index`).
     kept: Vec<Option<(Vec<f32>, Normalizer)>>,
     /// The row store's memory budget (exec's), which bounds the index blocks too.
@@ -160,7 +160,7 @@ impl Hdf5Writer {
             ),
         };
         let data_group = group(root, "data")?;
-        let mut chunk_maps = Vec::new();
+        let mut block_maps = Vec::new();
         let mut data = Vec::new();
         let mut shapes = Vec::new();
         for ch in &plan.channels {
@@ -211,11 +211,11 @@ impl Hdf5Writer {
                     }
                 }
             };
-            chunk_maps.push(match (ch.kind, frames) {
+            block_maps.push(match (ch.kind, frames) {
                 // Low-dim channels whose chunks cannot be located go through HDF5.
-                (ChannelKind::Lowdim, _) => chunk_map::locate(&ds),
+                (ChannelKind::Lowdim, _) => block_map::locate(&ds),
                 (ChannelKind::Image, FrameEncoding::Raw) => {
-                    Some(chunk_map::locate(&ds).ok_or_else(|| {
+                    Some(block_map::locate(&ds).ok_or_else(|| {
                         Error::Internal(format!(
                             "{}: the frames' chunks of `{}` cannot be located",
                             path.display(),
@@ -240,7 +240,7 @@ impl Hdf5Writer {
                 .write_raw(values)?;
         }
         group(root, "index")?;
-        let raw = if chunk_maps.iter().any(Option::is_some) {
+        let raw = if block_maps.iter().any(Option::is_some) {
             // Metadata goes through HDF5 (it flushes it on close); uncompressed rows through
             // this handle, into chunks HDF5 allocated and never touches again.
             Some(
@@ -256,14 +256,14 @@ impl Hdf5Writer {
             file,
             frames,
             raw,
-            chunk_maps,
+            block_maps,
             data,
             shapes,
             names: plan.channels.iter().map(|c| c.name.clone()).collect(),
             layout: v.layout,
             window: *plan.window(),
             padding: v.padding,
-            episode_ends: episode_ends.to_vec(),
+            episode_ends: episode_ends.into(),
             kept: plan.channels.iter().map(|_| None).collect(),
             spill_budget: ctx.spill_budget,
         })
@@ -315,7 +315,7 @@ impl Hdf5Writer {
     }
 
     fn row_bytes(&self, channel: usize) -> usize {
-        self.chunk_maps[channel].as_ref().map_or(0, |m| m.row_bytes)
+        self.block_maps[channel].as_ref().map_or(0, |m| m.row_bytes)
     }
 
     /// Writes whole rows from `row` (`bytes`, as stored) into the chunks of a channel that has
@@ -324,7 +324,7 @@ impl Hdf5Writer {
     /// anyway (the inode lock).
     fn write_raw_rows(&self, channel: usize, row: usize, bytes: &[u8]) -> Result<()> {
         use std::os::unix::fs::FileExt;
-        let (Some(map), Some(file)) = (&self.chunk_maps[channel], &self.raw) else {
+        let (Some(map), Some(file)) = (&self.block_maps[channel], &self.raw) else {
             return Err(Error::Internal(format!(
                 "channel {channel}: no chunk map to write rows into"
             )));
@@ -364,7 +364,7 @@ impl Hdf5Writer {
     /// Writes rows of a low-dimensional channel from `row`: into its chunks directly when they
     /// are mapped, through HDF5 otherwise.
     fn write_lowdim_rows(&self, channel: usize, row: usize, values: &[f32]) -> Result<()> {
-        if self.chunk_maps[channel].is_some() {
+        if self.block_maps[channel].is_some() {
             return self.write_raw_rows(channel, row, f32_bytes(values));
         }
         write_rows(&self.data[channel], row, values)

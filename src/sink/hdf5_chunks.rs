@@ -18,11 +18,10 @@ use hdf5_sys::h5::hsize_t;
 use hdf5_sys::h5i::hid_t;
 
 use super::hdf5::write_rows;
-use super::windows::{action_steps, obs_steps, pad_row, Step};
-use crate::chunk::Window;
 use crate::error::{Error, Result};
 use crate::spec::Padding;
 use crate::stats::normalize::Normalizer;
+use crate::window::{EpisodeEnds, Step, Window};
 
 /// A stored low-dimensional channel, normalized as in `/data`.
 pub struct Stored<'a> {
@@ -36,24 +35,10 @@ pub struct Stored<'a> {
 pub struct Windows<'a> {
     pub window: &'a Window,
     pub padding: Padding,
-    pub episode_ends: &'a [u64],
+    pub episode_ends: &'a EpisodeEnds,
     /// Index rows, train then val.
     pub rows: Vec<[i64; 4]>,
     pub num_train: usize,
-}
-
-impl Windows<'_> {
-    fn start(&self, ep: usize) -> usize {
-        if ep == 0 {
-            0
-        } else {
-            self.episode_ends[ep - 1] as usize
-        }
-    }
-
-    fn len(&self, ep: usize) -> usize {
-        self.episode_ends[ep] as usize - self.start(ep)
-    }
 }
 
 fn chunks_group(file: &File, w: &Windows) -> Result<Group> {
@@ -144,10 +129,10 @@ pub fn materialize(file: &File, w: &Windows, channels: &[Stored]) -> Result<()> 
             let mut pads = Vec::with_capacity((hi - lo) * steps);
             for r in &w.rows[lo..hi] {
                 let (ep, t, limit) = (r[0] as usize, r[1] as usize, r[2] as usize);
-                let start = w.start(ep);
+                let start = w.episode_ends.start(ep);
                 let row = |i: usize| &ch.values[(start + i) * ch.width..(start + i + 1) * ch.width];
                 if is_action {
-                    for s in action_steps(w.window, t, limit, w.len(ep)) {
+                    for s in w.window.action_steps(t, limit, w.episode_ends.len_of(ep)) {
                         match s {
                             Step::Row(i) => values.extend_from_slice(row(i)),
                             Step::Pad(i) => {
@@ -157,7 +142,7 @@ pub fn materialize(file: &File, w: &Windows, channels: &[Stored]) -> Result<()> 
                         pads.push(matches!(s, Step::Pad(_)));
                     }
                 } else {
-                    for (i, pad) in obs_steps(w.window, t) {
+                    for (i, pad) in w.window.obs_steps(t) {
                         values.extend_from_slice(row(i));
                         pads.push(pad);
                     }
@@ -236,7 +221,7 @@ fn extend_runs(runs: &mut Vec<Run>, i: usize, r: usize) {
 pub fn virtual_action(file: &File, w: &Windows, action: &Stored) -> Result<()> {
     let g = chunks_group(file, w)?;
     let (n, k, a) = (w.rows.len(), w.window.chunk, action.width);
-    let steps = *w.episode_ends.last().unwrap_or(&0) as usize;
+    let steps = w.episode_ends.total();
     let (is_pad_ds, _) = dense::<bool>(&g, "action_is_pad", vec![n, k], true)?;
     // Deflated chunks written in part complete in HDF5's chunk cache: no alignment needed.
     let block = (block_bytes() / k.max(1)).max(1);
@@ -255,9 +240,12 @@ pub fn virtual_action(file: &File, w: &Windows, action: &Stored) -> Result<()> {
         let mut pads: Vec<Vec<f32>> = vec![Vec::new(); k];
         for i in lo..hi {
             let r = w.rows[i];
-            let start = w.start(r[0] as usize);
-            let resolved =
-                action_steps(w.window, r[1] as usize, r[2] as usize, w.len(r[0] as usize));
+            let start = w.episode_ends.start(r[0] as usize);
+            let resolved = w.window.action_steps(
+                r[1] as usize,
+                r[2] as usize,
+                w.episode_ends.len_of(r[0] as usize),
+            );
             for (step, s) in resolved.into_iter().enumerate() {
                 match s {
                     Step::Row(row) => {
@@ -359,4 +347,15 @@ pub fn virtual_action(file: &File, w: &Windows, action: &Stored) -> Result<()> {
     }
     hdf5::sync::sync(|| unsafe { hdf5_sys::h5p::H5Pclose(dcpl) });
     result
+}
+
+/// The stored (normalized) values of a padded step whose edge row is `edge`.
+fn pad_row(padding: Padding, normalizer: &Normalizer, edge: &[f32]) -> Vec<f32> {
+    match padding {
+        Padding::Zero => (0..edge.len())
+            .map(|d| normalizer.forward(d, 0.0) as f32)
+            .collect(),
+        Padding::Mask => vec![0.0; edge.len()],
+        Padding::Edge | Padding::Truncate => edge.to_vec(),
+    }
 }

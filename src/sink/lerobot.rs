@@ -42,6 +42,7 @@ use crate::source::ChannelKind;
 use crate::spec::Compression;
 use crate::stats::normalize::Normalizer;
 use crate::store::LowdimStore;
+use crate::window::Ends;
 
 pub const DATA_PATH: &str = crate::spec::OutputFormat::Parquet.files().data;
 pub const INDEX_FILE: &str = "chunkc_index.parquet";
@@ -119,7 +120,7 @@ impl FrameSpill {
         Ok(SpillReader {
             file: std::io::BufReader::with_capacity(1 << 20, file),
             path: self.path,
-            ends: self.ends,
+            ends: Ends::new(self.ends),
             row: 0,
         })
     }
@@ -128,7 +129,7 @@ impl FrameSpill {
 struct SpillReader {
     path: PathBuf,
     file: std::io::BufReader<File>,
-    ends: Vec<u64>,
+    ends: Ends,
     row: usize,
 }
 
@@ -139,8 +140,10 @@ impl SpillReader {
         if hi > self.ends.len() {
             return Err(Error::Internal(format!("missing frames of {name}")));
         }
-        let start = if lo == 0 { 0 } else { self.ends[lo - 1] };
-        let end = if hi == 0 { 0 } else { self.ends[hi - 1] };
+        let (start, end) = {
+            let r = self.ends.rows(lo..hi);
+            (r.start as u64, r.end as u64)
+        };
         let mut bytes = vec![0u8; (end - start) as usize];
         self.file.read_exact(&mut bytes).at("read", &self.path)?;
         let mut column = BinaryBuilder::with_capacity(n, bytes.len());

@@ -7,7 +7,6 @@
 //!
 //! - `hdf5` (+ `hdf5_chunks`): chunkc's own HDF5 layouts `index`, `materialized`, `virtual`.
 //! - `zarr` (+ `zarr_store`): a Diffusion Policy replay buffer (raw values) + the window index.
-//! - `windows`: the rows of one window, as the loader resolves them.
 //! - `act_episodes`: ACT's `episode_<i>.hdf5` files (raw values).
 //! - `hdf5_native`: the writer path `act_episodes` and `robomimic` share.
 //! - `lerobot`: a LeRobot v3.0 parquet dataset + the window index (raw values).
@@ -25,7 +24,6 @@ mod hdf5_native;
 pub mod lerobot;
 pub mod png;
 pub mod robomimic;
-pub mod windows;
 pub mod zarr;
 mod zarr_store;
 
@@ -37,6 +35,7 @@ use crate::plan::ProfilePlan;
 use crate::spec::OutputFormat;
 use crate::stats::normalize::Normalizer;
 use crate::store::LowdimStore;
+use crate::window::Ends;
 
 /// How a sink wants image frames handed to it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -72,7 +71,7 @@ pub fn encode_frame(encoding: FrameEncoding, frame: &[u8], shape: &[usize]) -> V
 pub struct Frames {
     bytes: Vec<u8>,
     /// Exclusive end of each frame in `bytes`.
-    ends: Vec<usize>,
+    ends: Ends,
 }
 
 impl Frames {
@@ -80,7 +79,7 @@ impl Frames {
     pub fn raw(pixels: Vec<u8>, frame_bytes: usize) -> Frames {
         let n = pixels.len() / frame_bytes.max(1);
         Frames {
-            ends: (1..=n).map(|i| i * frame_bytes).collect(),
+            ends: Ends::new((1..=n).map(|i| (i * frame_bytes) as u64).collect()),
             bytes: pixels,
         }
     }
@@ -98,11 +97,11 @@ impl Frames {
             .collect();
         let mut frames = Frames {
             bytes: Vec::with_capacity(encoded.iter().map(Vec::len).sum()),
-            ends: Vec::with_capacity(encoded.len()),
+            ends: Ends::default(),
         };
         for f in encoded {
+            frames.ends.push(f.len());
             frames.bytes.extend_from_slice(&f);
-            frames.ends.push(frames.bytes.len());
         }
         frames
     }
@@ -122,9 +121,7 @@ impl Frames {
 
     /// Frames `lo..hi`, back to back.
     pub fn span(&self, lo: usize, hi: usize) -> &[u8] {
-        let start = if lo == 0 { 0 } else { self.ends[lo - 1] };
-        let end = if hi == 0 { 0 } else { self.ends[hi - 1] };
-        &self.bytes[start..end]
+        &self.bytes[self.ends.rows(lo..hi)]
     }
 
     /// Every frame, in order.

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use hdf5::Dataset;
 use rayon::prelude::*;
 
-use super::chunk_cache::{self, ChunkCache, DecodeCounts};
+use super::block_cache::{self, BlockCache, DecodeCounts};
 use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::{fingerprint, h5, h5meta, jpeg, Episode, EpisodeInfo, Manifest, Source};
 use crate::error::{Error, Result};
@@ -33,7 +33,7 @@ pub struct AlohaSource {
     direct: Vec<Located>,
     /// Counts the datasets read (each belongs to one episode and is read whole, once), keyed
     /// by (file name/key, number of chunks).
-    decodes: ChunkCache<(String, u64), ()>,
+    decodes: BlockCache<(String, u64), ()>,
 }
 
 /// `episode_12.hdf5` → 12.
@@ -248,7 +248,8 @@ impl AlohaSource {
                 fps: spec.spec.source.fps.unwrap_or(DEFAULT_FPS),
                 episodes,
                 channels: mapped.channels.clone(),
-                fingerprint,
+                fingerprint: fingerprint.hash,
+                files: fingerprint.files,
                 timestamps: false,
                 source_split: None,
                 warnings,
@@ -256,7 +257,7 @@ impl AlohaSource {
             mapped,
             jpeg: jpeg_keys,
             direct,
-            decodes: ChunkCache::new(0),
+            decodes: BlockCache::new(0),
         })
     }
 }
@@ -316,7 +317,7 @@ impl Source for AlohaSource {
     }
 
     fn decode_counts(&self) -> DecodeCounts {
-        chunk_cache::whole_datasets(self.decodes.decodes())
+        block_cache::whole_datasets(self.decodes.decodes())
     }
 
     fn read_episode(&self, index: usize) -> Result<Episode> {

@@ -1,7 +1,7 @@
 //! Diffusion Policy's zarr ReplayBuffer: all episodes concatenated along axis 0 of `data/<key>`,
 //! with `meta/episode_ends` holding the exclusive cumulative ends.
 //!
-//! Episodes are read chunk by chunk through a [`ChunkCache`]: a chunk that spans several
+//! Episodes are read chunk by chunk through a [`BlockCache`]: a chunk that spans several
 //! episodes (Diffusion Policy's ~2 MB chunks, or zarr-python's default chunking, which also
 //! splits the columns) is decoded once, by the first episode that needs it, and each episode
 //! copies its rows out of the decoded chunks.
@@ -12,7 +12,7 @@ use std::sync::Arc;
 use zarrs::array::{Array, ArraySubset};
 use zarrs::filesystem::FilesystemStore;
 
-use super::chunk_cache::{self, ChunkCache, DecodeCounts};
+use super::block_cache::{self, BlockCache, DecodeCounts};
 use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::{fingerprint, Episode, EpisodeInfo, Manifest, Source};
 use crate::error::{Error, Result};
@@ -29,7 +29,7 @@ pub struct DpZarrSource {
     arrays: std::collections::BTreeMap<String, Chunked>,
     mapped: Mapped,
     /// Decoded chunks, keyed by (array position in `arrays`, chunk grid index).
-    cache: ChunkCache<(usize, Vec<u64>), Decoded>,
+    cache: BlockCache<(usize, Vec<u64>), Decoded>,
 }
 
 /// One array and where its chunks lie.
@@ -96,7 +96,7 @@ impl Chunked {
         let episodes: Vec<std::ops::Range<u64>> =
             reading.iter().map(|&i| bounds[i]..bounds[i + 1]).collect();
         let rows = self.shape.first().copied().unwrap_or(0) as u64;
-        self.users = chunk_cache::users_per_chunk(&episodes, &starts, rows);
+        self.users = block_cache::users_per_block(&episodes, &starts, rows);
     }
 
     /// Decodes chunk `idx` whole (its full chunk shape, edges included).
@@ -375,7 +375,8 @@ impl DpZarrSource {
                 fps,
                 episodes,
                 channels: mapped.channels.clone(),
-                fingerprint,
+                fingerprint: fingerprint.hash,
+                files: fingerprint.files,
                 timestamps: false,
                 source_split: None,
                 warnings: mapped.warnings.clone(),
@@ -383,7 +384,7 @@ impl DpZarrSource {
             bounds,
             arrays: chunked,
             mapped,
-            cache: ChunkCache::new(chunk_cache::budget_from_env()),
+            cache: BlockCache::new(block_cache::budget_from_env()),
         })
     }
 }

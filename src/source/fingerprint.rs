@@ -4,6 +4,7 @@
 //! file an adapter reads. File names are sorted bytewise so the result is independent of the
 //! directory listing order and of the thread count.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
@@ -31,8 +32,16 @@ pub fn list_files(root: &Path) -> Result<Vec<PathBuf>> {
     Ok(out)
 }
 
+/// A source's content fingerprint, and the hash of each file it covers.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Fingerprint {
+    pub hash: String,
+    /// BLAKE3 (hex) of each file, by its path relative to the source root with `/` separators.
+    pub files: BTreeMap<String, String>,
+}
+
 /// Fingerprint of the given files (relative to `root`).
-pub fn of_files(root: &Path, files: &[PathBuf]) -> Result<String> {
+pub fn of_files(root: &Path, files: &[PathBuf]) -> Result<Fingerprint> {
     let hashes = files
         .par_iter()
         .map(|rel| {
@@ -41,13 +50,18 @@ pub fn of_files(root: &Path, files: &[PathBuf]) -> Result<String> {
         })
         .collect::<Result<Vec<_>>>()?;
     let mut all = blake3::Hasher::new();
+    let mut each = BTreeMap::new();
     for (rel, h) in files.iter().zip(&hashes) {
         let name = rel.to_string_lossy().replace('\\', "/");
         all.update(&(name.len() as u64).to_le_bytes());
         all.update(name.as_bytes());
         all.update(h.as_bytes());
+        each.insert(name, h.to_hex().to_string());
     }
-    Ok(all.finalize().to_hex().to_string())
+    Ok(Fingerprint {
+        hash: all.finalize().to_hex().to_string(),
+        files: each,
+    })
 }
 
 /// BLAKE3 of a file's contents (sources for their fingerprint, outputs for the lock). Streams

@@ -7,7 +7,7 @@ use std::path::Path;
 use hdf5::types::TypeDescriptor;
 use hdf5::{Dataset, File, Group};
 
-use super::chunk_map::{self, ChunkMap, DeflatedMap};
+use super::block_map::{self, BlockMap, DeflatedMap};
 use super::mapping::Raw;
 use crate::error::{Error, Result};
 
@@ -135,7 +135,7 @@ pub struct Direct {
 pub enum Place {
     /// Byte offset of the first element in the file.
     Contiguous(u64),
-    Chunked(ChunkMap),
+    Chunked(BlockMap),
     /// Deflate-compressed chunks of whole rows.
     Deflated(DeflatedMap),
 }
@@ -160,9 +160,9 @@ impl DirectType {
 
 /// The dataset's location for [`read_direct`], when its layout allows it: f32, f64 or u8
 /// little-endian values, either in contiguous storage that is allocated and in the file itself
-/// (not external), or chunked as [`chunk_map::locate`] accepts (no filter, chunks of whole rows,
+/// (not external), or chunked as [`block_map::locate`] accepts (no filter, chunks of whole rows,
 /// all allocated: ALOHA's one-frame-per-chunk images), or in chunks of whole rows compressed
-/// with the deflate filter alone ([`chunk_map::locate_deflated`]: robomimic's gzip frames).
+/// with the deflate filter alone ([`block_map::locate_deflated`]: robomimic's gzip frames).
 /// `None` for anything else (other filters, compact, partly allocated, other types): those are
 /// read through HDF5.
 pub fn direct(ds: &Dataset) -> Option<Direct> {
@@ -193,9 +193,9 @@ pub fn direct(ds: &Dataset) -> Option<Direct> {
     let place = if offset != u64::MAX && storage == (elements * dtype.size()) as u64 {
         Place::Contiguous(offset)
     } else if ds.is_chunked() {
-        match chunk_map::locate(ds) {
+        match block_map::locate(ds) {
             Some(map) => Place::Chunked(map),
-            None => Place::Deflated(chunk_map::locate_deflated(ds)?),
+            None => Place::Deflated(block_map::locate_deflated(ds)?),
         }
     } else {
         return None;
@@ -211,8 +211,8 @@ pub fn direct(ds: &Dataset) -> Option<Direct> {
 pub fn direct_chunks(d: &Direct) -> u64 {
     match &d.place {
         Place::Contiguous(_) => 1,
-        Place::Chunked(map) => map.rows.div_ceil(map.rows_per_chunk.max(1)) as u64,
-        Place::Deflated(map) => map.rows.div_ceil(map.rows_per_chunk.max(1)) as u64,
+        Place::Chunked(map) => map.rows.div_ceil(map.rows_per_block.max(1)) as u64,
+        Place::Deflated(map) => map.rows.div_ceil(map.rows_per_block.max(1)) as u64,
     }
 }
 
@@ -233,8 +233,8 @@ pub fn read_direct(file: &std::fs::File, d: &Direct) -> std::io::Result<Raw> {
     let fill = |out: &mut [u8]| -> std::io::Result<()> {
         match &d.place {
             Place::Contiguous(offset) => file.read_exact_at(out, *offset),
-            Place::Chunked(map) => chunk_map::read_rows(file, map, 0, out),
-            Place::Deflated(map) => chunk_map::read_deflated(file, map, out),
+            Place::Chunked(map) => block_map::read_rows(file, map, 0, out),
+            Place::Deflated(map) => block_map::read_deflated(file, map, out),
         }
     };
     Ok(match d.dtype {
@@ -418,7 +418,7 @@ mod tests {
             panic!("not located as deflated chunks");
         };
         // Overwrite the middle of chunk 1's stored bytes.
-        let (offset, size) = map.chunk(1);
+        let (offset, size) = map.block(1);
         {
             use std::os::unix::fs::FileExt;
             let file = std::fs::OpenOptions::new().write(true).open(&path).unwrap();

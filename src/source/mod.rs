@@ -17,9 +17,10 @@
 //! - `h5`: HDF5 reading helpers (key listing, typed reads, clear errors, reads without HDF5).
 //! - `h5meta`: where contiguous datasets lie, read from a file's metadata without the HDF5
 //!   library (so that the headers of many episode files are read in parallel).
-//! - `chunk_cache`: decoded storage chunks shared by the episodes that overlap them (each chunk
-//!   decoded at most once per build), and the decode counts the build reports.
-//! - `chunk_map`: where a chunked, unfiltered HDF5 dataset's chunks lie in its file (read and
+//! - `block_cache`: decoded blocks (a *block* is a storage chunk of a source file: zarr or HDF5
+//!   chunk, parquet row group) shared by the episodes that overlap them (each block decoded at
+//!   most once per build), and the decode counts the build reports.
+//! - `block_map`: where a chunked, unfiltered HDF5 dataset's blocks lie in its file (read and
 //!   written with `pread`/`pwrite`, outside HDF5's lock; the HDF5 writer uses it too).
 //! - `jpeg`: decoding JPEG frames.
 //! - `parquet_read`: parquet columns (scalars, fixed- and variable-size lists) as rows of numbers.
@@ -27,9 +28,9 @@
 //! - `fingerprint`: the content hash that tells the plan whether a source changed.
 
 mod aloha;
+pub mod block_cache;
+pub mod block_map;
 pub mod check;
-pub mod chunk_cache;
-pub mod chunk_map;
 mod dp_zarr;
 pub mod fingerprint;
 mod h5;
@@ -41,9 +42,11 @@ mod parquet_read;
 mod robomimic;
 mod subset;
 
-pub use chunk_cache::DecodeCounts;
+pub use block_cache::DecodeCounts;
 pub use lerobot::Info as LerobotInfo;
 pub use subset::Subset;
+
+use std::collections::BTreeMap;
 
 use serde::Serialize;
 
@@ -99,6 +102,9 @@ pub struct Manifest {
     pub channels: Vec<ChannelInfo>,
     /// BLAKE3 over the bytes of everything the adapter reads.
     pub fingerprint: String,
+    /// BLAKE3 of each file the fingerprint covers, by path in the source (the lock keeps them,
+    /// so that a changed source names the file).
+    pub files: BTreeMap<String, String>,
     /// Whether episodes carry timestamps read from the source.
     pub timestamps: bool,
     /// The split the source itself stores, if any (used with `[split] from = "source"`).
@@ -144,7 +150,7 @@ pub trait Source: Send + Sync {
     fn read_timestamps(&self, index: usize) -> Result<Option<Vec<f64>>> {
         Ok(self.read_episode(index)?.timestamps)
     }
-    /// How many times each storage chunk was decoded so far (see [`chunk_cache`]); empty for
+    /// How many times each storage chunk was decoded so far (see [`block_cache`]); empty for
     /// sources that do not count.
     fn decode_counts(&self) -> DecodeCounts {
         DecodeCounts::new()

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use hdf5::File;
 
-use super::chunk_cache::{self, ChunkCache, DecodeCounts};
+use super::block_cache::{self, BlockCache, DecodeCounts};
 use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::{
     fingerprint, fps_from_timestamps, h5, Episode, EpisodeInfo, Manifest, Source, SourceSplit,
@@ -32,7 +32,7 @@ pub struct RobomimicSource {
     /// Datasets read, keyed by (path in the file, number of chunks). A robosuite `states`
     /// decoded at open for the timestamps waits here for the episode read (when it fits the
     /// budget), so that it is decoded once.
-    cache: ChunkCache<(String, u64), Raw>,
+    cache: BlockCache<(String, u64), Raw>,
 }
 
 /// `demo_12` → 12.
@@ -79,7 +79,7 @@ impl RobomimicSource {
         let mapped = mapping::resolve(spec, &place, &keys)?;
         let wanted = mapped.keys();
 
-        let cache = ChunkCache::new(chunk_cache::budget_from_env());
+        let cache = BlockCache::new(block_cache::budget_from_env());
         let states_mapped = wanted.iter().any(|k| k == "states");
         let mut episodes = Vec::with_capacity(demos.len());
         let mut timestamps = Vec::new();
@@ -214,7 +214,8 @@ impl RobomimicSource {
                 fps,
                 episodes,
                 channels: mapped.channels.clone(),
-                fingerprint,
+                fingerprint: fingerprint.hash,
+                files: fingerprint.files,
                 timestamps: timestamps.is_some(),
                 source_split,
                 warnings,
@@ -297,7 +298,7 @@ impl Source for RobomimicSource {
     }
 
     fn decode_counts(&self) -> DecodeCounts {
-        chunk_cache::whole_datasets(self.cache.decodes())
+        block_cache::whole_datasets(self.cache.decodes())
     }
 
     fn read_episode(&self, index: usize) -> Result<Episode> {

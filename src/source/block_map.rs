@@ -1,15 +1,19 @@
-//! Where the chunks of a chunked HDF5 dataset lie in its file, so that they can be read
+//! Where the blocks of a chunked HDF5 dataset lie in its file, so that they can be read
 //! (`pread`) or written (`pwrite`) without HDF5 and its global lock.
 //!
-//! The ALOHA and robomimic adapters read source frames stored one frame per chunk this way
-//! (episodes then read in parallel), and the HDF5 writer writes uncompressed frames into chunks
-//! it allocated at creation. Only datasets whose chunks are slabs of whole rows (a chunk shape
+//! A *block* is one storage chunk of a file (what HDF5 and zarr call a chunk, what parquet calls
+//! a row group); chunkc keeps the word *chunk* for the action chunk. Below, "chunk" appears only
+//! where HDF5's own API is meant.
+//!
+//! The ALOHA and robomimic adapters read source frames stored one frame per block this way
+//! (episodes then read in parallel), and the HDF5 writer writes uncompressed frames into blocks
+//! it allocated at creation. Only datasets whose blocks are slabs of whole rows (a chunk shape
 //! of `(k, rest of the shape)`), every one allocated, qualify: either unfiltered and full-sized
-//! ([`ChunkMap`]), or compressed with the deflate filter alone ([`DeflatedMap`], inflated here
+//! ([`BlockMap`]), or compressed with the deflate filter alone ([`DeflatedMap`], inflated here
 //! with zlib); anything else goes through HDF5.
 //!
-//! The map is compact: chunks that follow one another in the file form one run, so a dataset
-//! written in order costs a few dozen bytes however many chunks it has.
+//! The map is compact: blocks that follow one another in the file form one run, so a dataset
+//! written in order costs a few dozen bytes however many blocks it has.
 
 use hdf5::Dataset;
 use hdf5_sys::h5::{haddr_t, hsize_t};
@@ -25,10 +29,10 @@ pub struct Run {
 
 /// The chunk locations of one dataset.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ChunkMap {
+pub struct BlockMap {
     /// Rows (first axis) per chunk; the last chunk may hold fewer rows of the dataset, but its
     /// storage is full-sized.
-    pub rows_per_chunk: usize,
+    pub rows_per_block: usize,
     /// Bytes of one row (one step).
     pub row_bytes: usize,
     /// Rows of the dataset.
@@ -45,24 +49,24 @@ pub struct Extent {
     pub offset: u64,
 }
 
-impl ChunkMap {
+impl BlockMap {
     /// Builds a map from `(chunk index, file offset)` pairs in any order. `None` unless they
     /// are exactly chunks `0..n` (n chunks covering `rows` rows), each once.
-    pub fn from_chunks(
+    pub fn from_blocks(
         mut chunks: Vec<(u64, u64)>,
-        rows_per_chunk: usize,
+        rows_per_block: usize,
         row_bytes: usize,
         rows: usize,
-    ) -> Option<ChunkMap> {
-        if rows_per_chunk == 0 || row_bytes == 0 {
+    ) -> Option<BlockMap> {
+        if rows_per_block == 0 || row_bytes == 0 {
             return None;
         }
-        let expected = rows.div_ceil(rows_per_chunk) as u64;
+        let expected = rows.div_ceil(rows_per_block) as u64;
         if chunks.len() as u64 != expected {
             return None;
         }
         chunks.sort_unstable();
-        let chunk_bytes = (rows_per_chunk * row_bytes) as u64;
+        let chunk_bytes = (rows_per_block * row_bytes) as u64;
         let mut runs: Vec<Run> = Vec::new();
         for (i, &(index, offset)) in chunks.iter().enumerate() {
             if index != i as u64 {
@@ -77,8 +81,8 @@ impl ChunkMap {
                 }),
             }
         }
-        Some(ChunkMap {
-            rows_per_chunk,
+        Some(BlockMap {
+            rows_per_block,
             row_bytes,
             rows,
             runs,
@@ -91,8 +95,8 @@ impl ChunkMap {
     }
 
     /// Bytes of one chunk's storage.
-    pub fn chunk_bytes(&self) -> u64 {
-        (self.rows_per_chunk * self.row_bytes) as u64
+    pub fn block_bytes(&self) -> u64 {
+        (self.rows_per_block * self.row_bytes) as u64
     }
 
     /// The file extents holding rows `lo..hi` (clamped to the dataset), in row order; rows
@@ -103,7 +107,7 @@ impl ChunkMap {
         if lo >= hi {
             return out;
         }
-        let k = self.rows_per_chunk;
+        let k = self.rows_per_block;
         // The first run that may hold chunk `lo / k`.
         let start = self
             .runs
@@ -196,22 +200,22 @@ fn row_slabs(ds: &Dataset) -> Option<(usize, usize)> {
 
 /// The chunk map of `ds`, when it qualifies (see the module documentation): chunked, no
 /// filter, chunk shape `(k, rest of the shape)`, every chunk allocated and full-sized.
-pub fn locate(ds: &Dataset) -> Option<ChunkMap> {
+pub fn locate(ds: &Dataset) -> Option<BlockMap> {
     if !ds.filters().is_empty() {
         return None;
     }
-    let (rows_per_chunk, row_bytes) = row_slabs(ds)?;
+    let (rows_per_block, row_bytes) = row_slabs(ds)?;
     let rows = ds.shape()[0];
-    let chunk_bytes = (rows_per_chunk * row_bytes) as u64;
-    let all = chunks(ds, rows.div_ceil(rows_per_chunk))?;
+    let chunk_bytes = (rows_per_block * row_bytes) as u64;
+    let all = chunks(ds, rows.div_ceil(rows_per_block))?;
     let mut pairs = Vec::with_capacity(all.len());
     for c in all {
-        if c.filter_mask != 0 || c.size != chunk_bytes || c.first_row % rows_per_chunk as u64 != 0 {
+        if c.filter_mask != 0 || c.size != chunk_bytes || c.first_row % rows_per_block as u64 != 0 {
             return None;
         }
-        pairs.push((c.first_row / rows_per_chunk as u64, c.addr));
+        pairs.push((c.first_row / rows_per_block as u64, c.addr));
     }
-    ChunkMap::from_chunks(pairs, rows_per_chunk, row_bytes, rows)
+    BlockMap::from_blocks(pairs, rows_per_block, row_bytes, rows)
 }
 
 /// Where the chunks of a deflate-compressed dataset lie (robomimic's and compressed ALOHA
@@ -219,7 +223,7 @@ pub fn locate(ds: &Dataset) -> Option<ChunkMap> {
 /// in row order, so that they can be read and inflated on any thread.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DeflatedMap {
-    pub rows_per_chunk: usize,
+    pub rows_per_block: usize,
     pub row_bytes: usize,
     pub rows: usize,
     /// (file offset, stored bytes) of chunk `i`.
@@ -228,7 +232,7 @@ pub struct DeflatedMap {
 
 impl DeflatedMap {
     /// (file offset, stored bytes) of chunk `i`.
-    pub fn chunk(&self, i: usize) -> (u64, u64) {
+    pub fn block(&self, i: usize) -> (u64, u64) {
         self.chunks[i]
     }
 }
@@ -239,20 +243,20 @@ pub fn locate_deflated(ds: &Dataset) -> Option<DeflatedMap> {
     if !matches!(ds.filters().as_slice(), [hdf5::filters::Filter::Deflate(_)]) {
         return None;
     }
-    let (rows_per_chunk, row_bytes) = row_slabs(ds)?;
+    let (rows_per_block, row_bytes) = row_slabs(ds)?;
     let rows = ds.shape()[0];
-    let n = rows.div_ceil(rows_per_chunk);
+    let n = rows.div_ceil(rows_per_block);
     let mut slots: Vec<Option<(u64, u64)>> = vec![None; n];
     for c in chunks(ds, n)? {
-        let i = c.first_row / rows_per_chunk as u64;
+        let i = c.first_row / rows_per_block as u64;
         let slot = slots.get_mut(i as usize)?;
-        if c.filter_mask != 0 || c.first_row % rows_per_chunk as u64 != 0 || slot.is_some() {
+        if c.filter_mask != 0 || c.first_row % rows_per_block as u64 != 0 || slot.is_some() {
             return None;
         }
         *slot = Some((c.addr, c.size));
     }
     Some(DeflatedMap {
-        rows_per_chunk,
+        rows_per_block,
         row_bytes,
         rows,
         chunks: slots.into_iter().collect::<Option<_>>()?,
@@ -268,7 +272,7 @@ pub fn read_deflated(
     out: &mut [u8],
 ) -> std::io::Result<()> {
     use std::os::unix::fs::FileExt;
-    let chunk_bytes = map.rows_per_chunk * map.row_bytes;
+    let chunk_bytes = map.rows_per_block * map.row_bytes;
     let bad = |what: String| std::io::Error::new(std::io::ErrorKind::InvalidData, what);
     if out.len() != map.rows * map.row_bytes {
         return Err(bad(format!(
@@ -313,7 +317,7 @@ pub fn read_deflated(
 /// `(hi - lo) * row_bytes` bytes), one `pread` per extent.
 pub fn read_rows(
     file: &std::fs::File,
-    map: &ChunkMap,
+    map: &BlockMap,
     lo: usize,
     out: &mut [u8],
 ) -> std::io::Result<()> {
@@ -333,7 +337,7 @@ mod tests {
     #[test]
     fn adjacent_chunks_form_one_run() {
         let chunks = (0..10u64).rev().map(|i| (i, 1000 + i * 8)).collect();
-        let map = ChunkMap::from_chunks(chunks, 2, 4, 19).unwrap();
+        let map = BlockMap::from_blocks(chunks, 2, 4, 19).unwrap();
         assert_eq!(map.runs().len(), 1);
         assert_eq!(
             map.extents(3, 19),
@@ -349,7 +353,7 @@ mod tests {
     fn gaps_split_runs_and_extents() {
         // Chunk 2 lies elsewhere: rows 4..6.
         let chunks = vec![(0, 0), (1, 8), (2, 500), (3, 24)];
-        let map = ChunkMap::from_chunks(chunks, 2, 4, 8).unwrap();
+        let map = BlockMap::from_blocks(chunks, 2, 4, 8).unwrap();
         assert_eq!(map.runs().len(), 3);
         let e = map.extents(1, 8);
         assert_eq!(
@@ -377,8 +381,8 @@ mod tests {
 
     #[test]
     fn missing_or_repeated_chunks_are_refused() {
-        assert!(ChunkMap::from_chunks(vec![(0, 0), (2, 16)], 2, 4, 6).is_none());
-        assert!(ChunkMap::from_chunks(vec![(0, 0), (0, 8), (1, 16)], 2, 4, 6).is_none());
-        assert!(ChunkMap::from_chunks(vec![(0, 0), (1, 8)], 2, 4, 6).is_none());
+        assert!(BlockMap::from_blocks(vec![(0, 0), (2, 16)], 2, 4, 6).is_none());
+        assert!(BlockMap::from_blocks(vec![(0, 0), (0, 8), (1, 16)], 2, 4, 6).is_none());
+        assert!(BlockMap::from_blocks(vec![(0, 0), (1, 8)], 2, 4, 6).is_none());
     }
 }

@@ -1,5 +1,8 @@
-//! Decoded storage chunks shared by the episodes that overlap them, so that a chunk is decoded
-//! at most once per build whatever the source's chunking.
+//! Decoded blocks shared by the episodes that overlap them, so that a block is decoded at most
+//! once per build whatever the source's chunking.
+//!
+//! A *block* is one storage chunk of a source file (a zarr or HDF5 chunk, a parquet row group);
+//! chunkc keeps the word *chunk* for the action chunk, so "chunk" below means a block.
 //!
 //! A zarr chunk of 36,000 rows holds 90 episodes of 400 steps; a parquet row group may hold a
 //! whole LeRobot v3.0 file. Read one episode at a time, such a chunk would be decoded once per
@@ -19,7 +22,7 @@
 //!   the counts, and the tests prove each chunk is decoded exactly once.
 //!
 //! Decodes done outside the cache (an HDF5 dataset that belongs to one episode, read whole) are
-//! counted with [`ChunkCache::count`].
+//! counted with [`BlockCache::count`].
 
 use std::collections::{BTreeMap, HashMap};
 use std::hash::Hash;
@@ -63,15 +66,15 @@ struct State<K, V> {
 
 /// Decoded chunks keyed by `K`, each kept until its users have taken it (see the module
 /// documentation).
-pub struct ChunkCache<K, V> {
+pub struct BlockCache<K, V> {
     state: Mutex<State<K, V>>,
     decoded: Condvar,
     budget: usize,
 }
 
-impl<K: Hash + Eq + Clone, V> ChunkCache<K, V> {
+impl<K: Hash + Eq + Clone, V> BlockCache<K, V> {
     pub fn new(budget: usize) -> Self {
-        ChunkCache {
+        BlockCache {
             state: Mutex::new(State {
                 slots: HashMap::new(),
                 held: 0,
@@ -132,7 +135,7 @@ impl<K: Hash + Eq + Clone, V> ChunkCache<K, V> {
         // Whatever happens in `decode` (an error, a panic), the slot must not stay `Decoding`,
         // or the readers waiting for it would wait forever.
         struct Clear<'a, K: Hash + Eq + Clone, V> {
-            cache: &'a ChunkCache<K, V>,
+            cache: &'a BlockCache<K, V>,
             key: &'a K,
             armed: bool,
         }
@@ -245,7 +248,7 @@ impl<K: Hash + Eq + Clone, V> ChunkCache<K, V> {
 /// How many of the row ranges `episodes` (sorted, disjoint) overlap each chunk, for chunks that
 /// start at rows `chunk_starts` (sorted, the first 0) and together hold `rows` rows: each chunk's
 /// users.
-pub fn users_per_chunk(
+pub fn users_per_block(
     episodes: &[std::ops::Range<u64>],
     chunk_starts: &[u64],
     rows: u64,
@@ -284,9 +287,9 @@ pub fn whole_datasets(decodes: Vec<((String, u64), u32)>) -> DecodeCounts {
     out
 }
 
-/// The first rows of chunks of `rows_per_chunk` rows covering `rows` rows.
-pub fn regular_starts(rows_per_chunk: u64, rows: u64) -> Vec<u64> {
-    let k = rows_per_chunk.max(1);
+/// The first rows of chunks of `rows_per_block` rows covering `rows` rows.
+pub fn regular_starts(rows_per_block: u64, rows: u64) -> Vec<u64> {
+    let k = rows_per_block.max(1);
     (0..rows.div_ceil(k)).map(|i| i * k).collect()
 }
 
@@ -297,7 +300,7 @@ mod tests {
 
     #[test]
     fn a_chunk_is_decoded_once_and_dropped_after_its_last_user() {
-        let cache: ChunkCache<u32, Vec<u8>> = ChunkCache::new(1 << 20);
+        let cache: BlockCache<u32, Vec<u8>> = BlockCache::new(1 << 20);
         let calls = AtomicUsize::new(0);
         let decode = || {
             calls.fetch_add(1, Ordering::SeqCst);
@@ -315,7 +318,7 @@ mod tests {
 
     #[test]
     fn parallel_readers_wait_for_the_decoding_one() {
-        let cache: Arc<ChunkCache<u32, Vec<u8>>> = Arc::new(ChunkCache::new(1 << 20));
+        let cache: Arc<BlockCache<u32, Vec<u8>>> = Arc::new(BlockCache::new(1 << 20));
         let calls = Arc::new(AtomicUsize::new(0));
         let threads: Vec<_> = (0..8)
             .map(|_| {
@@ -341,7 +344,7 @@ mod tests {
 
     #[test]
     fn over_the_budget_a_chunk_is_not_kept() {
-        let cache: ChunkCache<u32, Vec<u8>> = ChunkCache::new(150);
+        let cache: BlockCache<u32, Vec<u8>> = BlockCache::new(150);
         let ok = |n: usize| move || Ok::<_, ()>((vec![0u8; n], n));
         cache.get(&1, 2, ok(100)).unwrap();
         assert_eq!(cache.held_bytes(), 100);
@@ -358,7 +361,7 @@ mod tests {
 
     #[test]
     fn a_failed_decode_leaves_the_chunk_to_the_next_reader() {
-        let cache: ChunkCache<u32, Vec<u8>> = ChunkCache::new(1 << 20);
+        let cache: BlockCache<u32, Vec<u8>> = BlockCache::new(1 << 20);
         assert_eq!(cache.get(&1, 2, || Err("broken")).unwrap_err(), "broken");
         assert_eq!(
             cache.get(&1, 2, || Ok::<_, &str>((vec![1], 1))).unwrap()[0],
@@ -392,11 +395,11 @@ mod tests {
         // Episodes of 4, 4 and 2 rows; chunks of 3 rows (the last one partial).
         let eps = [0..4, 4..8, 8..10];
         assert_eq!(
-            users_per_chunk(&eps, &regular_starts(3, 10), 10),
+            users_per_block(&eps, &regular_starts(3, 10), 10),
             vec![1, 2, 2, 1]
         );
-        assert_eq!(users_per_chunk(&eps, &regular_starts(100, 10), 10), vec![3]);
+        assert_eq!(users_per_block(&eps, &regular_starts(100, 10), 10), vec![3]);
         // Row groups of 5 and 5 rows.
-        assert_eq!(users_per_chunk(&eps, &[0, 5], 10), vec![2, 2]);
+        assert_eq!(users_per_block(&eps, &[0, 5], 10), vec![2, 2]);
     }
 }

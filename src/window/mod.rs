@@ -7,11 +7,16 @@
 //! observation frame). Action rows outside the episode, or at `k >= limit`, are padding.
 //! Segments and hierarchical chunks reuse the same row rules (`segment`, `hierarchy`).
 //!
-//! Every row index stays inside its episode: this module decides it, and the loader template
-//! mirrors it.
+//! Every row index stays inside its episode: this module decides it ([`Window::action_steps`],
+//! [`Window::obs_steps`]: the layouts that materialize windows use them, so their chunks equal the
+//! loader's bit for bit), and the loader template mirrors it. [`EpisodeEnds`] holds where each
+//! episode's rows lie in the stored arrays.
 
+mod ends;
 pub mod hierarchy;
 pub mod segment;
+
+pub use ends::{Ends, EpisodeEnds};
 
 use crate::spec::Padding;
 
@@ -81,20 +86,46 @@ impl Window {
         }
     }
 
-    /// Action rows (episode-relative) of the sample at `t`, `None` where padded.
-    pub fn action_rows(&self, t: usize, len: usize) -> impl Iterator<Item = Option<usize>> + '_ {
-        (0..self.chunk).map(move |k| {
-            let r = (t + k).checked_sub(self.lead)?;
-            (r < len).then_some(r)
-        })
+    /// The K action steps of the sample `(t, limit)` in an episode of `len` steps, as the
+    /// generated loader's `_actions` resolves them: at least one valid row, padding before the
+    /// episode start and after its end (or after `limit` steps).
+    pub fn action_steps(&self, t: usize, limit: usize, len: usize) -> Vec<Step> {
+        let k = self.chunk as i64;
+        let first = t as i64 - self.lead as i64;
+        let stop = first + limit as i64;
+        let len = len as i64;
+        let lo = first.clamp(0, (len - 1).max(0));
+        let hi = stop.min(len).max(lo + 1);
+        let n_before = (lo - first).min(k);
+        let n_valid = (hi - lo).min(k - n_before);
+        let mut steps = Vec::with_capacity(k as usize);
+        steps.extend((0..n_before).map(|_| Step::Pad(lo as usize)));
+        steps.extend((lo..lo + n_valid).map(|r| Step::Row(r as usize)));
+        let last = (lo + n_valid - 1).max(lo) as usize;
+        steps.extend((steps.len() as i64..k).map(|_| Step::Pad(last)));
+        steps
     }
 
-    /// Observation rows (episode-relative) for the sample at `t`, oldest first; the first
-    /// observation repeats before the episode start.
-    pub fn obs_rows(&self, t: usize) -> impl Iterator<Item = usize> + '_ {
-        let h = self.obs_history;
-        (0..h).map(move |j| (t + j).saturating_sub(h - 1))
+    /// Observation rows (episode-relative, oldest first) of the sample at `t`, each with whether
+    /// it is padding: the first observation repeats before the episode start.
+    pub fn obs_steps(&self, t: usize) -> Vec<(usize, bool)> {
+        let h = self.obs_history as i64;
+        (0..h)
+            .map(|j| {
+                let p = t as i64 - h + 1 + j;
+                (p.max(0) as usize, p < 0)
+            })
+            .collect()
     }
+}
+
+/// Where one action step of a window comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Step {
+    /// An episode-relative row.
+    Row(usize),
+    /// Padding; the episode-relative edge row it repeats (`edge`) or sits next to.
+    Pad(usize),
 }
 
 /// How a profile turns an episode into samples.
@@ -204,11 +235,15 @@ mod tests {
                                 assert_eq!(samples.len(), win.count(len), "{win:?} len {len}");
                                 for s in &samples {
                                     assert!(s.t < len);
-                                    let rows: Vec<_> = win.action_rows(s.t, len).collect();
-                                    assert!(rows.iter().flatten().all(|&r| r < len));
-                                    assert!(win.obs_rows(s.t).all(|r| r <= s.t));
+                                    let steps = win.action_steps(s.t, s.limit, len);
+                                    assert_eq!(steps.len(), chunk);
+                                    let row = |s: &Step| match *s {
+                                        Step::Row(r) | Step::Pad(r) => r,
+                                    };
+                                    assert!(steps.iter().all(|s| row(s) < len));
+                                    assert!(win.obs_steps(s.t).iter().all(|&(r, _)| r <= s.t));
                                     if padding == Padding::Truncate {
-                                        assert!(rows.iter().all(Option::is_some));
+                                        assert!(steps.iter().all(|s| matches!(s, Step::Row(_))));
                                         assert!(s.t + 1 >= obs);
                                     }
                                     if let Some(p) = pad_after {
@@ -237,8 +272,8 @@ mod tests {
             assert_eq!(win.count(len), len - 16 + 1 + 7 + 1, "len {len}");
         }
         assert_eq!(win.count(7), 0);
-        let rows: Vec<_> = win.action_rows(0, 50).take(2).collect();
-        assert_eq!(rows, vec![None, Some(0)]);
+        let steps = win.action_steps(0, 16, 50);
+        assert_eq!(steps[..2], [Step::Pad(0), Step::Row(0)]);
     }
 
     #[test]
@@ -250,9 +285,33 @@ mod tests {
     #[test]
     fn obs_history_repeats_first_frame() {
         let win = w(4, 3, Padding::Edge, 1);
-        assert_eq!(win.obs_rows(0).collect::<Vec<_>>(), vec![0, 0, 0]);
-        assert_eq!(win.obs_rows(1).collect::<Vec<_>>(), vec![0, 0, 1]);
-        assert_eq!(win.obs_rows(5).collect::<Vec<_>>(), vec![3, 4, 5]);
+        let rows = |t| {
+            win.obs_steps(t)
+                .into_iter()
+                .map(|(r, _)| r)
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(rows(0), vec![0, 0, 0]);
+        assert_eq!(rows(1), vec![0, 0, 1]);
+        assert_eq!(rows(5), vec![3, 4, 5]);
+        assert_eq!(win.obs_steps(1), vec![(0, true), (0, false), (1, false)]);
+    }
+
+    #[test]
+    fn pads_before_and_after() {
+        let win = Window {
+            lead: 1,
+            ..w(4, 2, Padding::Edge, 1)
+        };
+        assert_eq!(
+            win.action_steps(0, 4, 3),
+            vec![Step::Pad(0), Step::Row(0), Step::Row(1), Step::Row(2)]
+        );
+        assert_eq!(
+            win.action_steps(2, 4, 3),
+            vec![Step::Row(1), Step::Row(2), Step::Pad(2), Step::Pad(2)]
+        );
+        assert_eq!(win.obs_steps(0), vec![(0, true), (0, false)]);
     }
 
     #[test]

@@ -1,0 +1,220 @@
+//! The plan's data: what `chunkc plan --format json` prints and `build` executes. Plain,
+//! serializable types, sorted wherever they are collections; [`super::resolve`] fills them.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use super::{Conversion, Split, Status};
+use crate::audit::Verdict;
+use crate::source::{ChannelInfo, ChannelKind};
+use crate::spec::{NormalizeMode, Profile};
+use crate::window::{Sampling, Window};
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Plan {
+    pub version: u32,
+    pub tool_version: &'static str,
+    pub spec_hash: String,
+    pub source: SourcePlan,
+    pub split: Split,
+    /// One job per distinct profile rate: the source is read once and decimated per rate.
+    pub rates: Vec<RateJob>,
+    /// One job per (rate, channel): statistics over the training split, shared by the profiles
+    /// listed.
+    pub statistics: Vec<StatsJob>,
+    /// The temporal audit, summed up (`chunkc audit` writes the whole of it).
+    pub audit: AuditSummary,
+    pub profiles: Vec<ProfilePlan>,
+}
+
+/// What the temporal audit found and what `build` does about it.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct AuditSummary {
+    /// Seconds per step the episodes should have: `1 / source.fps`.
+    pub expected_interval: f64,
+    /// Whether the source stores timestamps (without them every episode is `ok`).
+    pub timestamps: bool,
+    /// Whether `build` applies the verdicts (`[audit] repair`).
+    pub applied: bool,
+    /// Episodes per verdict.
+    pub verdicts: BTreeMap<&'static str, usize>,
+    pub repaired_fraction: f64,
+    pub excluded_fraction: f64,
+    pub warnings: Vec<String>,
+}
+
+/// An episode the audit repaired before anything else happens to it.
+#[derive(Debug, Clone, Serialize)]
+pub struct RepairedEpisode {
+    pub id: u64,
+    pub verdict: Verdict,
+    /// Steps as recorded.
+    pub recorded_len: usize,
+    /// Steps after repair, at the source rate.
+    pub len: usize,
+    pub detail: String,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SourcePlan {
+    pub format: &'static str,
+    /// As written in the spec (relative to the spec file).
+    pub path: String,
+    pub fps: f64,
+    pub episodes: usize,
+    pub steps: usize,
+    pub fingerprint: String,
+    /// BLAKE3 of every file the fingerprint covers, by path in the source (kept in the lock).
+    #[serde(skip)]
+    pub files: BTreeMap<String, String>,
+    pub channels: Vec<ChannelInfo>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RateJob {
+    pub fps: f64,
+    pub conversion: Conversion,
+    pub steps: usize,
+    pub profiles: Vec<String>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct StatsJob {
+    pub fps: f64,
+    pub channel: String,
+    pub split: &'static str,
+    pub profiles: Vec<String>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ProfilePlan {
+    pub name: String,
+    /// Every value, fully resolved.
+    pub values: Profile,
+    pub fps: f64,
+    pub conversion: Conversion,
+    pub rate: String,
+    /// How episodes become samples (window parameters included).
+    pub sampling: Sampling,
+    pub channels: Vec<ProfileChannel>,
+    pub episodes: Vec<ProfileEpisode>,
+    pub excluded: Vec<Excluded>,
+    /// Episodes the audit repaired (re-gridded or resampled) before they were used.
+    pub repaired: Vec<RepairedEpisode>,
+    pub warnings: Vec<String>,
+    pub num_samples: SplitCounts,
+    pub steps: usize,
+    pub files: Vec<PlannedFile>,
+    pub fingerprint: String,
+    /// The spec values the fingerprint covers, by dotted key (kept in the lock, so that the next
+    /// plan can name the value that changed).
+    #[serde(skip)]
+    pub inputs: BTreeMap<String, String>,
+    pub status: Status,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ProfileChannel {
+    pub name: String,
+    pub kind: ChannelKind,
+    pub shape: Vec<usize>,
+    pub normalize: NormalizeMode,
+    /// The name a native export gives the channel (`None`: the format keeps chunkc's names).
+    pub export: Option<String>,
+    /// The channel's per-step array in the data container (see [`export`]): `data/img`,
+    /// `data/demo_<i>/obs/state`, `observations/qpos`; `<i>` is the stored episode position.
+    pub array: String,
+}
+
+impl ProfileChannel {
+    /// [`ProfileChannel::array`] of the episode stored at position `i`.
+    pub fn array_of(&self, i: usize) -> String {
+        self.array.replace("<i>", &i.to_string())
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ProfileEpisode {
+    pub id: u64,
+    pub split: &'static str,
+    pub source_len: usize,
+    /// Steps at the profile's rate.
+    pub len: usize,
+    /// `None` when it depends on the data (segments).
+    pub samples: Option<usize>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Excluded {
+    pub id: u64,
+    pub reason: String,
+}
+
+/// Sample counts per split; `None` when they depend on the data (segments).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct SplitCounts {
+    pub train: Option<usize>,
+    pub val: Option<usize>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct PlannedFile {
+    pub path: String,
+    /// An upper bound: image frames are counted before compression.
+    pub estimated_bytes: u64,
+}
+
+/// One resolved profile value and where it came from.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct ResolvedValue {
+    pub key: &'static str,
+    pub value: String,
+    /// `profiles.<name>`, `preset <name>`, `spec` or `default`.
+    pub origin: String,
+}
+
+impl ProfilePlan {
+    pub fn window(&self) -> &Window {
+        self.sampling.window()
+    }
+
+    /// The values that shape the dataset, as `chunkc plan` and the dataset card show them.
+    pub fn resolved_values(&self) -> Vec<ResolvedValue> {
+        let v = &self.values;
+        let opt = |x: Option<String>| x.unwrap_or_else(|| "none".into());
+        [
+            ("preset", opt(v.preset.map(|p| p.name().to_string()))),
+            ("fps", self.fps.to_string()),
+            ("chunk", self.window().chunk.to_string()),
+            ("obs_history", v.obs_history.to_string()),
+            ("executes", opt(v.executes.map(|e| e.to_string()))),
+            ("alignment", v.alignment.name().to_string()),
+            ("padding", v.padding.name().to_string()),
+            ("stride", v.stride.to_string()),
+            ("format", v.format.name().to_string()),
+            ("sampling", self.sampling.name().to_string()),
+        ]
+        .into_iter()
+        .map(|(key, value)| {
+            let origin = v.origins.get(key).cloned().unwrap_or_else(|| {
+                let from_spec = key == "sampling" && (v.segment.is_some() || v.hierarchy.is_some());
+                if from_spec { "spec" } else { "default" }.to_string()
+            });
+            ResolvedValue { key, value, origin }
+        })
+        .collect()
+    }
+}
+
+impl Plan {
+    pub fn to_json(&self) -> String {
+        let mut s = serde_json::to_string_pretty(self).expect("plan serializes");
+        s.push('\n');
+        s
+    }
+
+    pub fn up_to_date(&self) -> bool {
+        self.profiles.iter().all(|p| p.status.is_up_to_date())
+    }
+}

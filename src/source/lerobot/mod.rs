@@ -1,0 +1,469 @@
+//! LeRobot datasets: parquet frames plus `meta/info.json`, in two layouts told apart by
+//! `codebase_version`.
+//!
+//! - v2.0 / v2.1: one parquet file per episode (`data_path` in info.json), episodes listed in
+//!   `meta/episodes.jsonl` (`episode_index`, `length`).
+//! - v3.0: many episodes per `data/chunk-XXX/file-XXX.parquet`; `meta/episodes/**.parquet` has
+//!   one row per episode with its `length` and data file (`data/chunk_index`, `data/file_index`).
+//!   An episode's rows are found from the data file's `episode_index` column, and must be
+//!   contiguous.
+//!
+//! Every frame row has `timestamp` (seconds), which becomes the episode's timestamps; the rate is
+//! info.json's `fps`. Video features live in mp4 files: a channel mapped to one needs the files
+//! to exist (decoding them comes later).
+//!
+//! - `info`: parsing `meta/info.json` (version, rate, features, path templates, splits).
+//! - `v2`, `v3`: each layout's episode listing and where each episode's rows are.
+//! - here: opening (the checks common to both layouts) and reading episodes.
+
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
+
+use super::block_cache::{self, BlockCache, DecodeCounts};
+use super::mapping::{self, KeyInfo, Mapped, Raw};
+use super::parquet_read::{self, read_columns};
+use super::{fingerprint, Episode, EpisodeInfo, Manifest, Source, SourceSplit};
+use crate::error::{Error, Result};
+use crate::spec::{LoadedSpec, SourceFormat};
+
+mod info;
+mod v2;
+mod v3;
+
+pub use info::Info;
+use info::Version;
+#[cfg(test)]
+use info::{fill, split_range};
+
+/// What a layout's episode listing finds: the episodes, where each one's rows are, its videos,
+/// and the files read for the fingerprint.
+#[derive(Default)]
+struct Listing {
+    episodes: Vec<EpisodeInfo>,
+    /// Per episode: the data file (relative to the root) and its rows there (`None`: all).
+    locations: Vec<(PathBuf, Option<Range<usize>>)>,
+    /// Per episode, the video file of each media feature.
+    video_files: Vec<BTreeMap<String, PathBuf>>,
+    read_files: Vec<PathBuf>,
+}
+
+pub struct LerobotSource {
+    root: PathBuf,
+    manifest: Manifest,
+    mapped: Mapped,
+    /// Per episode: the data file (relative to the root) and the episode's rows in it.
+    /// (`None`: the whole file, as in v2).
+    locations: Vec<(PathBuf, Option<Range<usize>>)>,
+    /// Whether frames have a `timestamp` column.
+    has_timestamp: bool,
+    /// Per episode: its data file's footer and each row group's users (v3.0: read at open,
+    /// the episodes that overlap each row group; v2: `None`, the file is the episode's alone).
+    footers: Vec<Option<Arc<FileRowGroups>>>,
+    /// Decoded column chunks, keyed by (data file, row group, column), each decoded once.
+    cache: BlockCache<(PathBuf, usize, String), Vec<f64>>,
+    /// Per episode: timestamps the audit read, kept for the episode read (8 bytes a step), so
+    /// that the `timestamp` column is decoded once.
+    stamps: Vec<OnceLock<Vec<f64>>>,
+}
+
+/// A v3.0 data file's footer, and the episodes that take rows from each of its row groups.
+type FileRowGroups = (parquet_read::Footer, Vec<u32>);
+
+impl LerobotSource {
+    pub fn open(spec: &LoadedSpec, root: &Path) -> Result<Self> {
+        let shown = root.display().to_string();
+        let info_path = root.join("meta/info.json");
+        if !info_path.exists() {
+            return Err(Error::source(format!(
+                "{shown}: no meta/info.json; a LeRobot dataset has one"
+            )));
+        }
+        let bytes = std::fs::read(&info_path)
+            .map_err(|e| Error::source(format!("{}: cannot read: {e}", info_path.display())))?;
+        let info = Info::parse(&bytes, &info_path.display().to_string())?;
+        let version = info.version;
+        let fps = match (info.fps, spec.spec.source.fps) {
+            (Some(stored), Some(given)) if (stored - given).abs() > 1e-9 => {
+                return Err(spec.error_at(
+                    &["source", "fps"],
+                    format!(
+                        "`source.fps` is {given}, but {} says {stored}",
+                        info_path.display()
+                    ),
+                    Some("leave `source.fps` out: LeRobot datasets store their rate".into()),
+                ))
+            }
+            (Some(stored), _) => stored,
+            (None, Some(given)) => given,
+            (None, None) => {
+                return Err(Error::source(format!("{}: no `fps`", info_path.display())))
+            }
+        };
+        let keys = &info.features;
+        let mapped = mapping::resolve(spec, &info_path.display().to_string(), keys)?;
+        let media: Vec<&KeyInfo> = mapped
+            .keys()
+            .iter()
+            .filter_map(|k| keys.iter().find(|i| &i.key == k))
+            .filter(|k| k.dtype == "video" || k.dtype == "image")
+            .collect();
+
+        let listing = match version {
+            Version::V2 => v2::list(root, &info, &media)?,
+            Version::V3 => v3::list(root, &info, &media)?,
+        };
+        let Listing {
+            mut read_files,
+            episodes,
+            locations,
+            video_files,
+        } = listing;
+        read_files.push(PathBuf::from("meta/info.json"));
+        if episodes.is_empty() {
+            return Err(Error::source(format!(
+                "{shown}: the dataset lists no episodes"
+            )));
+        }
+        if let Some(e) = episodes.iter().find(|e| e.len == 0) {
+            return Err(Error::source(format!("{shown}: episode {} is empty", e.id)));
+        }
+
+        // Video and image features are not in the parquet files: first a missing file, which the
+        // user can fix, then the decoding that is not there yet.
+        let channel_of = |key: &str| {
+            mapped
+                .channels
+                .iter()
+                .find(|c| c.key == key)
+                .map(|c| c.name.clone())
+                .unwrap_or_default()
+        };
+        for m in &media {
+            for (e, videos) in episodes.iter().zip(&video_files) {
+                if let Some(rel) = videos.get(&m.key).filter(|rel| !root.join(rel).exists()) {
+                    return Err(Error::source(format!(
+                        "{shown}: channel `{}` maps to the video feature `{}`, but episode {}'s video {} is missing",
+                        channel_of(&m.key),
+                        m.key,
+                        e.id,
+                        rel.display()
+                    )));
+                }
+            }
+        }
+        if let Some(m) = media.first() {
+            return Err(Error::source(format!(
+                "{shown}: channel `{}` maps to `{}`, a {} feature; reading LeRobot {}s is not supported yet",
+                channel_of(&m.key),
+                m.key,
+                m.dtype,
+                m.dtype
+            )));
+        }
+
+        let source_split = info.splits.as_ref().map(|ranges| {
+            let in_split = |name: &str, id: u64| {
+                ranges
+                    .iter()
+                    .any(|(k, r)| k.as_str() == name && r.contains(&id))
+            };
+            let ids: Vec<u64> = episodes.iter().map(|e| e.id).collect();
+            let val: Vec<u64> = ids
+                .iter()
+                .copied()
+                .filter(|&id| !in_split("train", id) && ranges.iter().any(|(_, r)| r.contains(&id)))
+                .collect();
+            let train = ids.into_iter().filter(|id| !val.contains(id)).collect();
+            SourceSplit {
+                origin: format!("{}: splits", info_path.display()),
+                train,
+                val,
+            }
+        });
+
+        read_files.sort();
+        read_files.dedup();
+        let fingerprint = fingerprint::of_files(root, &read_files)?;
+        let has_timestamp = keys.iter().any(|k| k.key == "timestamp");
+        // v3.0: each data file's footer, and how many episodes take rows from each row group.
+        let mut by_file: BTreeMap<&PathBuf, Vec<Range<u64>>> = BTreeMap::new();
+        for (rel, rows) in &locations {
+            if let Some(r) = rows {
+                by_file
+                    .entry(rel)
+                    .or_default()
+                    .push(r.start as u64..r.end as u64);
+            }
+        }
+        let mut shared: BTreeMap<&PathBuf, Arc<FileRowGroups>> = BTreeMap::new();
+        for (rel, mut ranges) in by_file {
+            let footer = parquet_read::footer(&root.join(rel))?;
+            ranges.sort_by_key(|r| r.start);
+            let users = block_cache::users_per_block(&ranges, &footer.starts, footer.rows);
+            shared.insert(rel, Arc::new((footer, users)));
+        }
+        let footers = locations
+            .iter()
+            .map(|(rel, rows)| rows.as_ref().and_then(|_| shared.get(rel).cloned()))
+            .collect();
+        let stamps = (0..locations.len()).map(|_| OnceLock::new()).collect();
+        Ok(LerobotSource {
+            root: root.to_path_buf(),
+            manifest: Manifest {
+                format: SourceFormat::Lerobot,
+                fps,
+                episodes,
+                channels: mapped.channels.clone(),
+                fingerprint: fingerprint.hash,
+                files: fingerprint.files,
+                timestamps: has_timestamp,
+                source_split,
+                warnings: mapped.warnings.clone(),
+            },
+            mapped,
+            locations,
+            has_timestamp,
+            footers,
+            cache: BlockCache::new(block_cache::budget_from_env()),
+            stamps,
+        })
+    }
+}
+
+impl Source for LerobotSource {
+    fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    fn read_timestamps(&self, index: usize) -> Result<Option<Vec<f64>>> {
+        if !self.has_timestamp {
+            return Ok(None);
+        }
+        if let Some(t) = self.stamps[index].get() {
+            return Ok(Some(t.clone()));
+        }
+        let info = &self.manifest.episodes[index];
+        let path = self.root.join(&self.locations[index].0);
+        let place = format!("{}: episode {}", path.display(), info.id);
+        let t = match self.columns(index, &[("timestamp", 1)]) {
+            Ok(mut cols) => cols.pop().expect("timestamp was asked for"),
+            Err(_) => self
+                .columns_of_episode(index, &[("timestamp", 1)], &place)?
+                .remove(0),
+        };
+        Ok(Some(self.stamps[index].get_or_init(|| t).clone()))
+    }
+
+    fn read_episode(&self, index: usize) -> Result<Episode> {
+        let info = &self.manifest.episodes[index];
+        let (rel, _) = &self.locations[index];
+        let path = self.root.join(rel);
+        let place = format!("{}: episode {}", path.display(), info.id);
+        let keys = self.mapped.keys();
+        let widths: BTreeMap<&str, usize> = self
+            .mapped
+            .recipes
+            .iter()
+            .flat_map(|r| r.parts.iter().map(|p| (p.key.as_str(), p.width)))
+            .collect();
+        let mut wanted: Vec<(&str, usize)> = keys
+            .iter()
+            .map(|k| (k.as_str(), widths[k.as_str()]))
+            .collect();
+        let kept = self.stamps[index].get();
+        if self.has_timestamp && kept.is_none() {
+            wanted.push(("timestamp", 1));
+        }
+        // Through the decoded row groups; on a bad value, read the episode's own rows again the
+        // plain way, so that the message names the step in this episode (or, when the bad row
+        // is another episode's, this one reads fine).
+        let mut cols = match self.columns(index, &wanted) {
+            Ok(cols) => cols,
+            Err(_) => self.columns_of_episode(index, &wanted, &place)?,
+        };
+        let timestamps = match kept {
+            Some(t) => Some(t.clone()),
+            None if self.has_timestamp => cols.pop(),
+            None => None,
+        };
+        let mut by_key: BTreeMap<&str, Vec<f64>> =
+            keys.iter().map(String::as_str).zip(cols).collect();
+        let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
+            let values = by_key.remove(key).expect("every mapped key was read");
+            Ok(Raw::F32(values.into_iter().map(|v| v as f32).collect()))
+        })?;
+        Ok(Episode {
+            id: info.id,
+            len: info.len,
+            timestamps,
+            channels,
+        })
+    }
+
+    fn decode_counts(&self) -> DecodeCounts {
+        let mut out = DecodeCounts::new();
+        for ((file, rg, column), n) in self.cache.decodes() {
+            out.entry(format!("{}/{column}", file.display()))
+                .or_default()
+                .insert(vec![rg as u64], n);
+        }
+        out
+    }
+
+    fn only_reading(&mut self, positions: &[usize]) {
+        let mut by_file: BTreeMap<PathBuf, Vec<Range<u64>>> = BTreeMap::new();
+        for &i in positions {
+            if let (rel, Some(r)) = &self.locations[i] {
+                by_file
+                    .entry(rel.clone())
+                    .or_default()
+                    .push(r.start as u64..r.end as u64);
+            }
+        }
+        let mut done: BTreeMap<PathBuf, Arc<FileRowGroups>> = BTreeMap::new();
+        for i in 0..self.locations.len() {
+            let (rel, _) = &self.locations[i];
+            let Some(f) = &self.footers[i] else { continue };
+            let updated = done.entry(rel.clone()).or_insert_with(|| {
+                let mut ranges = by_file.remove(rel).unwrap_or_default();
+                ranges.sort_by_key(|r| r.start);
+                let users = block_cache::users_per_block(&ranges, &f.0.starts, f.0.rows);
+                Arc::new((f.0.clone(), users))
+            });
+            self.footers[i] = Some(updated.clone());
+        }
+    }
+}
+
+impl LerobotSource {
+    /// The columns `wanted` (name, values per step) of episode `index`, as `rows × width`
+    /// values each, from its data file's row groups: each row group's column decoded once
+    /// (through the cache), however many episodes it holds.
+    fn columns(&self, index: usize, wanted: &[(&str, usize)]) -> Result<Vec<Vec<f64>>> {
+        let (rel, rows) = &self.locations[index];
+        let path = self.root.join(rel);
+        let loaded;
+        let (footer, users): (&parquet_read::Footer, Option<&[u32]>) = match &self.footers[index] {
+            Some(f) => (&f.0, Some(&f.1)),
+            None => {
+                loaded = parquet_read::footer(&path)?;
+                (&loaded, None)
+            }
+        };
+        let rows = match rows {
+            Some(r) => r.start as u64..r.end as u64,
+            None => 0..footer.rows,
+        };
+        let mut out = Vec::with_capacity(wanted.len());
+        for &(name, width) in wanted {
+            let mut values = vec![0f64; (rows.end - rows.start) as usize * width];
+            let first = footer
+                .starts
+                .partition_point(|&s| s <= rows.start)
+                .saturating_sub(1);
+            for rg in first..footer.starts.len() {
+                let lo = footer.starts[rg];
+                if lo >= rows.end {
+                    break;
+                }
+                let hi = footer.starts.get(rg + 1).copied().unwrap_or(footer.rows);
+                let n = users.and_then(|u| u.get(rg).copied()).unwrap_or(1);
+                let what = format!("{}: `{name}`", path.display());
+                let decoded = self
+                    .cache
+                    .get(&(rel.clone(), rg, name.to_string()), n, || {
+                        let v =
+                            parquet_read::row_group_column(&path, footer, rg, name, width, &what)?;
+                        let bytes = v.len() * 8;
+                        Ok::<_, Error>((v, bytes))
+                    })?;
+                let (a, b) = (rows.start.max(lo), rows.end.min(hi));
+                if a < b {
+                    let src = &decoded[(a - lo) as usize * width..(b - lo) as usize * width];
+                    let at = (a - rows.start) as usize * width;
+                    values[at..at + src.len()].copy_from_slice(src);
+                }
+            }
+            out.push(values);
+        }
+        Ok(out)
+    }
+
+    /// The columns `wanted` of episode `index` read from its own rows alone (not cached): the
+    /// way to a message that names the bad step within the episode.
+    fn columns_of_episode(
+        &self,
+        index: usize,
+        wanted: &[(&str, usize)],
+        place: &str,
+    ) -> Result<Vec<Vec<f64>>> {
+        let (rel, rows) = &self.locations[index];
+        let names: Vec<&str> = wanted.iter().map(|(n, _)| *n).collect();
+        let cols = read_columns(&self.root.join(rel), &names, rows.clone())?;
+        cols.iter()
+            .zip(wanted)
+            .map(|(batches, (name, width))| {
+                parquet_read::to_f64_rows(batches, *width, &format!("{place}: `{name}`"))
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fills_python_templates() {
+        let t = "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet";
+        let v = [
+            ("episode_chunk", "0".into()),
+            ("episode_index", "42".into()),
+        ];
+        assert_eq!(fill(t, &v), "data/chunk-000/episode_000042.parquet");
+        let t = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4";
+        let v = [
+            ("video_key", "observation.images.top".into()),
+            ("chunk_index", "1".into()),
+            ("file_index", "12".into()),
+        ];
+        assert_eq!(
+            fill(t, &v),
+            "videos/observation.images.top/chunk-001/file-012.mp4"
+        );
+    }
+
+    #[test]
+    fn fills_in_one_pass() {
+        // A value that looks like a field is not filled again (this looped forever).
+        let v = [("video_key", "{video_key:3}".into())];
+        assert_eq!(fill("v/{video_key:3}/x", &v), "v/{video_key:3}/x");
+        // Unknown fields and a lone brace stay as written.
+        let v = [("episode_index", "7".into())];
+        assert_eq!(fill("{other}/{episode_index:03d}/{", &v), "{other}/007/{");
+    }
+
+    #[test]
+    fn refuses_absurd_widths() {
+        // Found while writing the `lerobot_info` fuzz target: a 12-digit width made `fill`
+        // build a 100 GB path.
+        let json = br#"{"codebase_version": "v2.1", "features": {},
+            "data_path": "data/episode_{episode_index:999999999999d}.parquet"}"#;
+        let err = Info::parse(json, "info.json").unwrap_err().to_string();
+        assert!(
+            err.contains("`data_path` pads `{episode_index:999999999999d}`"),
+            "{err}"
+        );
+        let json = br#"{"codebase_version": "v2.1", "features": {},
+            "data_path": "data/episode_{episode_index:020d}.parquet"}"#;
+        assert!(Info::parse(json, "info.json").is_ok());
+    }
+
+    #[test]
+    fn split_ranges() {
+        assert_eq!(split_range("0:100"), Some(0..100));
+        assert_eq!(split_range("x"), None);
+    }
+}

@@ -1,0 +1,196 @@
+//! LeRobot v3.0: many episodes per `data/chunk-XXX/file-XXX.parquet`; `meta/episodes/**.parquet`
+//! has one row per episode with its `length` and data file (`data/chunk_index`,
+//! `data/file_index`). An episode's rows are found from the data file's `episode_index` column,
+//! and must be contiguous.
+
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use arrow_array::cast::AsArray;
+use arrow_array::types::Int64Type;
+use arrow_array::Array;
+
+use super::info::{fill, Info};
+use super::Listing;
+use crate::error::{Error, Result};
+use crate::source::mapping::KeyInfo;
+use crate::source::parquet_read::{self, read_columns};
+use crate::source::{fingerprint, EpisodeInfo};
+
+/// One row of v3.0's `meta/episodes`: the episode, its length, its data file and its videos.
+struct EpisodeRow {
+    id: u64,
+    len: usize,
+    chunk: u64,
+    file: u64,
+    videos: BTreeMap<String, PathBuf>,
+}
+
+/// The episodes of a v3.0 dataset and where their rows are in the shared data files.
+pub(super) fn list(root: &Path, info: &Info, media: &[&KeyInfo]) -> Result<Listing> {
+    let shown = root.display().to_string();
+    let data_path = info.data_path.as_str();
+    let mut l = Listing::default();
+    let (read_files, episodes, locations, video_files) = (
+        &mut l.read_files,
+        &mut l.episodes,
+        &mut l.locations,
+        &mut l.video_files,
+    );
+    let meta_dir = root.join("meta/episodes");
+    let metas: Vec<PathBuf> = fingerprint::list_files(&meta_dir)?
+        .into_iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "parquet"))
+        .collect();
+    if metas.is_empty() {
+        return Err(Error::source(format!(
+            "{}: no parquet files; a v3.0 dataset lists its episodes there",
+            meta_dir.display()
+        )));
+    }
+    let mut rows: Vec<EpisodeRow> = Vec::new();
+    for rel in &metas {
+        let path = meta_dir.join(rel);
+        read_files.push(Path::new("meta/episodes").join(rel));
+        let mut names = vec![
+            "episode_index",
+            "length",
+            "data/chunk_index",
+            "data/file_index",
+        ];
+        let video_cols: Vec<(String, String, String)> = media
+            .iter()
+            .map(|m| {
+                (
+                    m.key.clone(),
+                    format!("videos/{}/chunk_index", m.key),
+                    format!("videos/{}/file_index", m.key),
+                )
+            })
+            .collect();
+        for (_, c, f) in &video_cols {
+            names.push(c);
+            names.push(f);
+        }
+        let cols = read_columns(&path, &names, None)?;
+        let ints = |i: usize| -> Result<Vec<u64>> {
+            parquet_read::to_f64_rows(&cols[i], 1, &format!("{}: `{}`", path.display(), names[i]))
+                .map(|v| v.into_iter().map(|x| x as u64).collect())
+        };
+        let (ids, lens, chunk, file) = (ints(0)?, ints(1)?, ints(2)?, ints(3)?);
+        let video_ints: Vec<(Vec<u64>, Vec<u64>)> = (0..video_cols.len())
+            .map(|j| Ok((ints(4 + 2 * j)?, ints(5 + 2 * j)?)))
+            .collect::<Result<_>>()?;
+        for r in 0..ids.len() {
+            let mut videos = BTreeMap::new();
+            if let Some(template) = &info.video_path {
+                for (j, (key, _, _)) in video_cols.iter().enumerate() {
+                    let v = [
+                        ("video_key", key.clone()),
+                        ("chunk_index", video_ints[j].0[r].to_string()),
+                        ("file_index", video_ints[j].1[r].to_string()),
+                    ];
+                    videos.insert(key.clone(), PathBuf::from(fill(template, &v)));
+                }
+            }
+            rows.push(EpisodeRow {
+                id: ids[r],
+                len: lens[r] as usize,
+                chunk: chunk[r],
+                file: file[r],
+                videos,
+            });
+        }
+    }
+    rows.sort_by_key(|r| r.id);
+    if let Some(w) = rows.windows(2).find(|w| w[0].id == w[1].id) {
+        return Err(Error::source(format!(
+            "{}: episode {} is listed twice",
+            meta_dir.display(),
+            w[0].id
+        )));
+    }
+    // Each data file once: where each episode's rows are in it.
+    let mut ranges: BTreeMap<PathBuf, BTreeMap<u64, Range<usize>>> = BTreeMap::new();
+    for EpisodeRow {
+        id: e,
+        len,
+        chunk,
+        file,
+        videos,
+    } in rows
+    {
+        let values = [
+            ("chunk_index", chunk.to_string()),
+            ("file_index", file.to_string()),
+        ];
+        let rel = PathBuf::from(fill(data_path, &values));
+        if !ranges.contains_key(&rel) {
+            let path = root.join(&rel);
+            if !path.exists() {
+                return Err(Error::source(format!(
+                    "{shown}: episode {e}: data file {} is missing",
+                    rel.display()
+                )));
+            }
+            ranges.insert(rel.clone(), episode_ranges(&path)?);
+            read_files.push(rel.clone());
+        }
+        let range = ranges[&rel].get(&e).cloned().ok_or_else(|| {
+            Error::source(format!(
+                "{}: no rows of episode {e}, which meta/episodes places there",
+                root.join(&rel).display()
+            ))
+        })?;
+        if range.len() != len {
+            return Err(Error::source(format!(
+                "{}: episode {e} has {} rows, but meta/episodes gives length {len}",
+                root.join(&rel).display(),
+                range.len()
+            )));
+        }
+        video_files.push(videos);
+        episodes.push(EpisodeInfo { id: e, len });
+        locations.push((rel, Some(range)));
+    }
+    Ok(l)
+}
+
+/// Where each episode's rows are in a v3.0 data file, from its `episode_index` column. An
+/// episode whose rows are not contiguous is an error.
+fn episode_ranges(path: &Path) -> Result<BTreeMap<u64, Range<usize>>> {
+    let cols = read_columns(path, &["episode_index"], None)?;
+    let mut out: BTreeMap<u64, Range<usize>> = BTreeMap::new();
+    let mut row = 0usize;
+    let mut previous: Option<u64> = None;
+    for batch in &cols[0] {
+        let values: Vec<u64> = match batch.data_type() {
+            arrow_schema::DataType::Int64 => batch
+                .as_primitive::<Int64Type>()
+                .values()
+                .iter()
+                .map(|&v| v as u64)
+                .collect(),
+            _ => parquet_read::to_f64_rows(std::slice::from_ref(batch), 1, "episode_index")?
+                .into_iter()
+                .map(|v| v as u64)
+                .collect(),
+        };
+        for e in values {
+            if previous != Some(e) {
+                if out.contains_key(&e) {
+                    return Err(Error::source(format!(
+                        "{}: the rows of episode {e} are not contiguous (again at row {row})",
+                        path.display()
+                    )));
+                }
+                out.insert(e, row..row);
+            }
+            out.get_mut(&e).expect("inserted").end = row + 1;
+            previous = Some(e);
+            row += 1;
+        }
+    }
+    Ok(out)
+}
