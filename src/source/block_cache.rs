@@ -371,7 +371,7 @@ mod tests {
 
     #[test]
     fn a_prefilled_chunk_serves_all_its_readers() {
-        let cache: ChunkCache<u32, Vec<u8>> = ChunkCache::new(1 << 20);
+        let cache: BlockCache<u32, Vec<u8>> = BlockCache::new(1 << 20);
         cache.prefill(&4, 2, || Ok::<_, ()>((vec![5u8; 10], 10)));
         cache.prefill(&4, 2, || -> Result<(Vec<u8>, usize), ()> {
             panic!("decoded twice")
