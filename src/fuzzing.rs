@@ -197,6 +197,7 @@ pub fn hdf5_attributes(data: &[u8]) -> bool {
     open_and_read(&spec)
 }
 
+// Long function: every group of a robomimic file the fuzzer may vary, written in file order.
 fn write_robomimic(path: &Path, input: &RobomimicInput) -> hdf5::Result<()> {
     use hdf5::types::{FixedAscii, VarLenUnicode};
     let file = hdf5::File::create(path)?;

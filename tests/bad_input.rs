@@ -9,8 +9,11 @@
 
 use std::collections::BTreeMap;
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
+
+mod common;
+use common::{copy_dir, file_hashes};
 
 const REPO: &str = env!("CARGO_MANIFEST_DIR");
 
@@ -101,19 +104,6 @@ preset = "diffusion_policy"
 chunk = 8
 format = "hdf5"
 "#;
-
-fn copy_dir(from: &Path, to: &Path) {
-    fs::create_dir_all(to).unwrap();
-    for entry in fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.file_type().unwrap().is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            fs::copy(entry.path(), target).unwrap();
-        }
-    }
-}
 
 fn truncate_half(path: &Path) {
     let bytes = fs::read(path).unwrap();
@@ -424,26 +414,6 @@ fn cases() -> Vec<Case> {
     ]
 }
 
-/// Every file under `dir` with its BLAKE3, or `None` when `dir` is absent.
-fn snapshot_of(dir: &Path) -> Option<BTreeMap<PathBuf, String>> {
-    fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<PathBuf, String>) {
-        for entry in fs::read_dir(dir).unwrap() {
-            let path = entry.unwrap().path();
-            if path.is_dir() {
-                walk(root, &path, out);
-            } else {
-                let hash = blake3::hash(&fs::read(&path).unwrap()).to_hex().to_string();
-                out.insert(path.strip_prefix(root).unwrap().to_path_buf(), hash);
-            }
-        }
-    }
-    let mut out = BTreeMap::new();
-    dir.exists().then(|| {
-        walk(dir, dir, &mut out);
-        out
-    })
-}
-
 fn build(dir: &Path) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_chunkc"))
         .args(["build", "-q", "spec.toml"])
@@ -467,7 +437,7 @@ fn bad_input_fails_cleanly() {
             assert!(first.status.success(), "{}: first build failed", case.name);
             damage(dir);
         }
-        let before = snapshot_of(&out);
+        let before = file_hashes(&out);
         let lock_before = fs::read(dir.join("chunkc.lock")).ok();
         let output = build(dir);
         let code = output.status.code();
@@ -481,7 +451,7 @@ fn bad_input_fails_cleanly() {
         );
         assert!(!stderr.contains("panicked"), "{}: {stderr}", case.name);
         assert_eq!(
-            snapshot_of(&out),
+            file_hashes(&out),
             before,
             "{}: the output directory changed",
             case.name
@@ -493,7 +463,7 @@ fn bad_input_fails_cleanly() {
             case.name
         );
         assert_eq!(
-            snapshot_of(&dir.join("elsewhere")).filter(|files| !files.is_empty()),
+            file_hashes(&dir.join("elsewhere")).filter(|files| !files.is_empty()),
             None,
             "{}: wrote through a symlink",
             case.name

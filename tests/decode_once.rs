@@ -22,7 +22,7 @@ fn build(spec_path: &Path) -> DecodeCounts {
     let spec = LoadedSpec::load(spec_path).unwrap();
     let report = commands::build(&spec, &BuildOptions::default()).unwrap();
     assert!(report.episode_reads.iter().all(|&n| n == 1));
-    report.chunk_decodes
+    report.block_decodes
 }
 
 /// Fails on any chunk decoded twice, and on any chunk of `expected` never decoded (or any

@@ -11,20 +11,10 @@ use std::process::{Command, Output};
 
 use serde_json::json;
 
-const REPO: &str = env!("CARGO_MANIFEST_DIR");
+mod common;
+use common::copy_dir;
 
-fn copy_dir(from: &Path, to: &Path) {
-    fs::create_dir_all(to).unwrap();
-    for entry in fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.file_type().unwrap().is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            fs::copy(entry.path(), target).unwrap();
-        }
-    }
-}
+const REPO: &str = env!("CARGO_MANIFEST_DIR");
 
 struct Scratch {
     _tmp: tempfile::TempDir,

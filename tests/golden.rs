@@ -17,20 +17,10 @@ use std::process::Command;
 
 use chunkc::sink::dump;
 
-const REPO: &str = env!("CARGO_MANIFEST_DIR");
+mod common;
+use common::copy_dir;
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.file_type().unwrap().is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), target).unwrap();
-        }
-    }
-}
+const REPO: &str = env!("CARGO_MANIFEST_DIR");
 
 fn files_under(root: &Path) -> Vec<PathBuf> {
     files_under_opt(root, false)

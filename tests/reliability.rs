@@ -15,6 +15,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
+mod common;
+use common::{copy_dir, file_hashes};
+
 const REPO: &str = env!("CARGO_MANIFEST_DIR");
 const PROFILES: [&str; 2] = ["act", "dp"];
 
@@ -30,19 +33,6 @@ fn pusht() -> (tempfile::TempDir, PathBuf, PathBuf) {
     fs::copy(Path::new(REPO).join("specs/pusht.toml"), &spec).unwrap();
     let out = tmp.path().join("out/pusht");
     (tmp, spec, out)
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    fs::create_dir_all(to).unwrap();
-    for entry in fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.file_type().unwrap().is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            fs::copy(entry.path(), target).unwrap();
-        }
-    }
 }
 
 fn chunkc(spec: &Path, args: &[&str], threads: &str) -> Command {
@@ -62,30 +52,10 @@ fn build(spec: &Path, threads: &str) -> Output {
     out
 }
 
-/// BLAKE3 of every file of a profile directory; `None` when it is absent.
-fn hashes(dir: &Path) -> Option<BTreeMap<PathBuf, String>> {
-    fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<PathBuf, String>) {
-        for entry in fs::read_dir(dir).unwrap() {
-            let path = entry.unwrap().path();
-            if path.is_dir() {
-                walk(root, &path, out);
-            } else {
-                let hash = blake3::hash(&fs::read(&path).unwrap()).to_hex().to_string();
-                out.insert(path.strip_prefix(root).unwrap().to_path_buf(), hash);
-            }
-        }
-    }
-    let mut out = BTreeMap::new();
-    dir.exists().then(|| {
-        walk(dir, dir, &mut out);
-        out
-    })
-}
-
 fn all_outputs(out: &Path) -> BTreeMap<&'static str, Option<BTreeMap<PathBuf, String>>> {
     PROFILES
         .iter()
-        .map(|p| (*p, hashes(&out.join(p))))
+        .map(|p| (*p, file_hashes(&out.join(p))))
         .collect()
 }
 
@@ -152,7 +122,7 @@ fn outputs_do_not_depend_on_thread_count() {
         let mut all = all_outputs(&out);
         all.insert(
             "chunkc.lock",
-            hashes(spec.parent().unwrap()).map(|mut files| {
+            file_hashes(spec.parent().unwrap()).map(|mut files| {
                 files.retain(|p, _| p == Path::new("chunkc.lock"));
                 files
             }),

@@ -55,6 +55,7 @@ impl Default for AnalyzeOptions {
 }
 
 /// Reads the channel of every episode and computes the report.
+// Long function: the read and the per-dimension autocorrelation share their buffers and progress bar.
 pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeReport> {
     let name = &options.channel;
     if !spec.spec.source.channels.contains_key(name) {

@@ -31,6 +31,7 @@ pub const REPAIR_WARNING: f64 = 0.1;
 
 /// Audits every episode of `source` from its timestamps (no other data is read). Sources without
 /// timestamps are judged at their declared rate: every episode `ok`.
+// Long function: the per-episode loop and the dataset summary share the running totals.
 pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<Repair>)> {
     let cfg = &spec.spec.audit;
     let manifest = source.manifest();

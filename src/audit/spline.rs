@@ -11,6 +11,7 @@
 
 /// Interpolates `y` (row-major, `x.len()` rows of `width` values), known at the strictly
 /// increasing `x`, at the times `at`. Returns `at.len()` rows of `width` values.
+// Long function: one numeric algorithm (the natural cubic spline's tridiagonal solve and evaluation).
 pub fn interpolate(x: &[f64], y: &[f64], width: usize, at: &[f64]) -> Vec<f64> {
     let n = x.len();
     assert!(n >= 2, "a spline needs two knots");

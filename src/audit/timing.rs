@@ -1,3 +1,4 @@
+// Long file: the per-episode judgement: interval statistics, flags and verdicts with their thresholds.
 //! Per-episode interval statistics, flags and verdicts (the dataset-wide histogram is in
 //! `histogram`).
 //!

@@ -36,7 +36,7 @@ pub struct BuildReport {
     /// How many times each storage chunk of the source was decoded (array, then chunk index;
     /// see [`source::block_cache`]): 1 each when anything was built, whatever the source's
     /// chunking; empty when nothing was.
-    pub chunk_decodes: source::DecodeCounts,
+    pub block_decodes: source::DecodeCounts,
 }
 
 /// A build that committed: the plan it followed, the profiles it built and their files' hashes.
@@ -44,7 +44,7 @@ struct Committed {
     plan: Plan,
     built: Vec<String>,
     hashes: FileHashes,
-    chunk_decodes: source::DecodeCounts,
+    block_decodes: source::DecodeCounts,
 }
 
 pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
@@ -67,7 +67,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
             built: Vec::new(),
             up_to_date,
             episode_reads: Vec::new(),
-            chunk_decodes: Default::default(),
+            block_decodes: Default::default(),
         });
     }
     if opts.locked {
@@ -87,7 +87,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let committed =
         match exec::execute(spec, &plan, &stale, source.as_ref(), opts.progress, &reads)? {
             Outcome::Built(staging, hashes) => {
-                let chunk_decodes = source.decode_counts();
+                let block_decodes = source.decode_counts();
                 build_lock.keep();
                 let _commit = timings::phase("commit (fsync)");
                 staging.commit(&names)?;
@@ -95,7 +95,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
                     plan,
                     built: names,
                     hashes,
-                    chunk_decodes,
+                    block_decodes,
                 }
             }
             Outcome::Exclude(excluded) => {
@@ -111,7 +111,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         built: committed.built,
         up_to_date,
         episode_reads: reads.into_iter().map(AtomicUsize::into_inner).collect(),
-        chunk_decodes: committed.chunk_decodes,
+        block_decodes: committed.block_decodes,
     })
 }
 
@@ -143,14 +143,14 @@ fn rebuild_without(
         &again,
     )? {
         Outcome::Built(staging, hashes) => {
-            let chunk_decodes = kept.decode_counts();
+            let block_decodes = kept.decode_counts();
             build_lock.keep();
             staging.commit(&names)?;
             Ok(Committed {
                 plan: replan,
                 built: names,
                 hashes,
-                chunk_decodes,
+                block_decodes,
             })
         }
         Outcome::Exclude(more) => Err(Error::Internal(format!(

@@ -253,7 +253,7 @@ fn codebase_files(
             let c = p.channels.iter().position(|ch| ch.name == state.name)?;
             let e = p.episodes.iter().position(|ep| ep.split == "train")?;
             let width = shared.manifest.channels[c].width();
-            let (start, end) = (rate.start(e), rate.ends[e] as usize);
+            let (start, end) = (rate.start(e), rate.ends.range(e).end);
             Some(rate.lowdim[c].rows(start, end).map(|v| (v, width)))
         })
         .transpose()?;
@@ -329,11 +329,7 @@ impl Index<'_> {
     /// The samples of episode `e`.
     fn samples(&self, e: usize) -> Result<Vec<crate::window::Sample>> {
         let ep = &self.p.episodes[e];
-        let start = if e == 0 {
-            0
-        } else {
-            self.rate.ends[e - 1] as usize
-        };
+        let start = self.rate.start(e);
         Ok(match &self.p.sampling {
             Sampling::Segment { channel, .. } => {
                 let width = self.manifest.channels[*channel].width();

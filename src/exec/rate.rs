@@ -12,6 +12,7 @@ use crate::plan::Conversion;
 use crate::source::{ChannelKind, Manifest};
 use crate::stats::{self, ChannelStats, HighCounts, ImagePartial};
 use crate::store::LowdimStore;
+use crate::window::EpisodeEnds;
 
 /// Channels up to this wide count their first percentile pass as rows are pushed (a 256 KiB
 /// table per column, 16 MiB at most a channel); wider ones (point clouds) leave both passes to
@@ -23,7 +24,7 @@ pub(super) const COUNT_AHEAD_COLUMNS: usize = 64;
 pub(super) struct RateState {
     pub conversion: Conversion,
     /// Exclusive ends of each episode in the converted per-step arrays.
-    pub ends: Vec<u64>,
+    pub ends: EpisodeEnds,
     /// Per channel (manifest order): concatenated low-dim values; empty for images. Shared with
     /// the sinks that export episode by episode once reading is over.
     pub lowdim: Vec<Arc<LowdimStore>>,
@@ -45,12 +46,11 @@ impl RateState {
         staging: &Staging,
         budget: usize,
     ) -> RateState {
-        let mut ends = Vec::with_capacity(manifest.episodes.len());
-        let mut total = 0u64;
+        let mut ends = EpisodeEnds::default();
         for e in &manifest.episodes {
-            total += conversion.len(e.len) as u64;
-            ends.push(total);
+            ends.push(conversion.len(e.len));
         }
+        let total = ends.total();
         let width = |ch: &crate::source::ChannelInfo| match ch.kind {
             ChannelKind::Lowdim => ch.width(),
             ChannelKind::Image => 0,
@@ -64,7 +64,7 @@ impl RateState {
                 .enumerate()
                 .map(|(c, ch)| {
                     let dir = staging.scratch_dir().join(format!("rate{r}-channel{c}"));
-                    Arc::new(LowdimStore::new(width(ch), budget, dir, total as usize))
+                    Arc::new(LowdimStore::new(width(ch), budget, dir, total))
                 })
                 .collect(),
             high: channels
@@ -88,11 +88,7 @@ impl RateState {
 
     /// Where episode `e`'s rows start in the converted per-step arrays.
     pub fn start(&self, e: usize) -> usize {
-        if e == 0 {
-            0
-        } else {
-            self.ends[e - 1] as usize
-        }
+        self.ends.start(e)
     }
 
     /// The statistics of every channel at this rate: low-dim percentiles from the store (moments
@@ -109,7 +105,7 @@ impl RateState {
                     let values = &self.lowdim[c];
                     let train: Vec<(usize, usize)> = (0..self.ends.len())
                         .filter(|&e| train_mask[e])
-                        .map(|e| (self.start(e), self.ends[e] as usize))
+                        .map(|e| (self.ends.start(e), self.ends.range(e).end))
                         .collect();
                     // The first percentile pass was counted as the rows arrived; the second
                     // reads the training rows once, for every column.

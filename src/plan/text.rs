@@ -19,6 +19,7 @@ fn human_bytes(n: u64) -> String {
     }
 }
 
+// Long function: one section per part of the plan, printed in order.
 pub fn render_text(plan: &Plan) -> String {
     let mut s = String::new();
     let src = &plan.source;

@@ -8,6 +8,7 @@ fn fixed(v: Option<f64>) -> String {
     v.map_or("–".into(), |v| format!("{v:.3}"))
 }
 
+// Long function: the page's HTML, top to bottom.
 pub fn render(r: &AnalyzeReport, title: &str) -> String {
     let mut page = Page::new(
         title,

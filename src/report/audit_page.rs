@@ -18,6 +18,7 @@ fn ms(seconds: f64) -> String {
     format!("{:.2}", seconds * 1000.0)
 }
 
+// Long function: the page's HTML, top to bottom.
 pub fn render(r: &AuditReport, title: &str) -> String {
     let n = r.episodes.len();
     let mut page = Page::new(

@@ -1,3 +1,4 @@
+// Long file: the report's charts share one drawing style; each chart is one function.
 //! The report's charts, drawn with `plotters` into SVG strings. Text is emitted as SVG `<text>`
 //! with a generic `sans-serif` family, so no font files are read and the viewer picks the font.
 
@@ -215,6 +216,7 @@ pub fn interval_histogram(h: &Histogram, expected: f64) -> String {
 
 /// Per episode in source order: the mean interval (dot) and the min–max range (bar), colored by
 /// verdict; the expected interval as a dashed line.
+// Long function: one chart: axes, series and annotations in drawing order.
 pub fn episode_timing(episodes: &[EpisodeAudit], expected: f64) -> String {
     svg(|root| {
         root.fill(&WHITE)?;
@@ -301,6 +303,7 @@ pub fn episode_timing(episodes: &[EpisodeAudit], expected: f64) -> String {
 
 /// The ACF per dimension (thin) and their mean (thick), the threshold as a dashed line, the
 /// suggested K and each profile's K (in source steps) as vertical lines.
+// Long function: one chart: axes, series and annotations in drawing order.
 pub fn acf_curves(r: &AnalyzeReport) -> String {
     svg(|root| {
         root.fill(&WHITE)?;

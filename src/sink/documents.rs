@@ -38,6 +38,7 @@ pub struct Built<'a> {
 /// `data_file` and `normalized` come from the sink: where the data is, and whether its
 /// low-dimensional values are stored normalized (chunkc's HDF5) or raw (Zarr, Parquet; the loader
 /// then normalizes on read).
+// Long function: meta.json's fields in document order.
 pub fn meta_json(
     plan: &Plan,
     profile: &ProfilePlan,

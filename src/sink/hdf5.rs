@@ -1,3 +1,4 @@
+// Long file: one writer: its three layouts share every dataset but `/chunks`.
 //! The HDF5 writer for chunkc's own layouts (`index`, and `materialized` / `virtual`, which add
 //! `/chunks`: see `hdf5_chunks`).
 //!
@@ -118,6 +119,7 @@ fn start_writeback(file: &std::fs::File, offset: u64, len: usize) {
 }
 
 impl Hdf5Writer {
+    // Long function: one dataset per layout element, created in file order.
     pub fn create(ctx: &SinkContext) -> Result<Self> {
         let path = &ctx.dir.join(DATA_FILE);
         let (plan, episode_ends, ids) = (ctx.profile, ctx.episode_ends, ctx.episode_ids);

@@ -218,6 +218,7 @@ fn extend_runs(runs: &mut Vec<Run>, i: usize, r: usize) {
 /// `/chunks` of the `virtual` layout (action only). One pass over the windows builds the
 /// mappings' row blocks directly and writes `action_is_pad` a block of windows at a time, so
 /// memory holds the blocks and the pad rows, not K entries per window.
+// Long function: the one pass over the windows that keeps memory bounded; split, it would be two passes.
 pub fn virtual_action(file: &File, w: &Windows, action: &Stored) -> Result<()> {
     let g = chunks_group(file, w)?;
     let (n, k, a) = (w.rows.len(), w.window.chunk, action.width);

@@ -21,6 +21,7 @@ use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
 use crate::stats::normalize::Normalizer;
 use crate::store::LowdimStore;
+use crate::window::EpisodeEnds;
 
 /// Where frames of one channel go: `rows` of dataset `path`, from row `at`, are frames
 /// `from..to` of the run being written.
@@ -57,7 +58,7 @@ pub(super) trait NativeLayout: Send {
 /// A native HDF5 export being written: the shared [`Sink`] of every [`NativeLayout`].
 pub struct NativeHdf5Writer<L> {
     pub(super) layout: L,
-    pub(super) ends: Vec<u64>,
+    pub(super) ends: EpisodeEnds,
     pub(super) channels: Vec<ProfileChannel>,
     pub(super) raw: Vec<Option<Arc<LowdimStore>>>,
 }
@@ -66,17 +67,11 @@ impl<L> NativeHdf5Writer<L> {
     pub(super) fn new(layout: L, ends: &[u64], channels: Vec<ProfileChannel>) -> Self {
         NativeHdf5Writer {
             layout,
-            ends: ends.to_vec(),
+            ends: EpisodeEnds::from(ends),
             raw: channels.iter().map(|_| None).collect(),
             channels,
         }
     }
-}
-
-/// `[start, end)` of episode `e` in the stored per-step arrays.
-pub(super) fn episode_span(ends: &[u64], e: usize) -> (usize, usize) {
-    let start = if e == 0 { 0 } else { ends[e - 1] as usize };
-    (start, ends[e] as usize)
 }
 
 /// Creates an HDF5 file whose bytes depend only on what is written into it.
@@ -147,7 +142,7 @@ impl<L: NativeLayout> Sink for NativeHdf5Writer<L> {
             return Ok(());
         }
         let e = self.ends.partition_point(|&end| end as usize <= row);
-        let (start, end) = episode_span(&self.ends, e);
+        let (start, end) = (self.ends.start(e), self.ends.range(e).end);
         let file = open_rw(&self.layout.file_of(e))?;
         let ch = &self.channels[channel];
         let run = Run {
@@ -183,7 +178,7 @@ impl<L: NativeLayout> Sink for NativeHdf5Writer<L> {
     fn finish(self: Box<Self>) -> Result<()> {
         let mut open: Option<(PathBuf, File)> = None;
         for e in 0..self.ends.len() {
-            let (lo, hi) = episode_span(&self.ends, e);
+            let (lo, hi) = (self.ends.start(e), self.ends.range(e).end);
             let path = self.layout.file_of(e);
             if open.as_ref().is_none_or(|(p, _)| *p != path) {
                 if let Some((_, file)) = open.take() {

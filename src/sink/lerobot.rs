@@ -1,3 +1,4 @@
+// Long file: one writer: LeRobot v3.0's data, episodes, info and stats files are written together.
 //! LeRobot v3.0's dataset layout (`format = "parquet"`), plus chunkc's window index.
 //!
 //! ```text

@@ -63,6 +63,7 @@ fn jpeg_size(ds: &Dataset, t: usize, what: &str) -> Result<(usize, usize)> {
 type Located = Option<Vec<(String, h5::Direct)>>;
 
 impl AlohaSource {
+    // Long function: opening is one sequence of checks (files, keys, mapping, headers, rate), each with its own message, read top to bottom.
     pub fn open(spec: &LoadedSpec, dir: &Path) -> Result<Self> {
         let shown = dir.display().to_string();
         if !dir.is_dir() {

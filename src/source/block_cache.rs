@@ -1,3 +1,4 @@
+// Long file: one structure: the cache, its decode-once protocol and its budget.
 //! Decoded blocks shared by the episodes that overlap them, so that a block is decoded at most
 //! once per build whatever the source's chunking.
 //!

@@ -1,3 +1,4 @@
+// Long file: one adapter: zarr v2 and v3 metadata, chunk geometry and the reads share the array model.
 //! Diffusion Policy's zarr ReplayBuffer: all episodes concatenated along axis 0 of `data/<key>`,
 //! with `meta/episode_ends` holding the exclusive cumulative ends.
 //!
@@ -260,6 +261,7 @@ fn dtype_name(array: &ZArray) -> String {
 }
 
 impl DpZarrSource {
+    // Long function: opening is one sequence of checks (arrays, episode_ends, mapping, chunks, rate), each with its own message, read top to bottom.
     pub fn open(spec: &LoadedSpec, root: &Path) -> Result<Self> {
         let store = Arc::new(FilesystemStore::new(root).map_err(|e| {
             Error::source(format!("{}: cannot open zarr store: {e}", root.display()))

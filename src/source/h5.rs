@@ -1,3 +1,4 @@
+// Long file: one helper set over the HDF5 library (open, list, typed and direct reads), shared by two adapters.
 //! HDF5 reading shared by the `aloha` and `robomimic` adapters: opening with a clear error,
 //! listing the datasets under a group, and reading one as `f32` or `u8`, through HDF5 or, where
 //! the storage allows it, with plain `pread`s ([`direct`]).

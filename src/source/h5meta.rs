@@ -1,3 +1,4 @@
+// Long file: one parser: the HDF5 superblock, object headers and their messages, read without the library.
 //! Where a contiguous dataset lies in an HDF5 file, read from the file's own metadata without the
 //! HDF5 library.
 //!

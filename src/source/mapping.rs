@@ -92,6 +92,7 @@ impl Raw {
 
 /// Checks the spec's channel mapping against the keys of the source at `place` (a path shown in
 /// messages). A key that is missing is a spec error listing the keys that exist.
+// Long function: one arm per mapping form (rename, columns, concat, kind), each with its own messages.
 pub fn resolve(spec: &LoadedSpec, place: &str, available: &[KeyInfo]) -> Result<Mapped> {
     let mut mapped = Mapped {
         channels: Vec::new(),
@@ -258,6 +259,7 @@ fn select(parts: &[Part], range: Range<usize>) -> Vec<Part> {
 
 /// Builds one episode's channels from the keys read for it. `read` is called once per key;
 /// `place` names the episode in messages (`file: episode 3`).
+// Long function: one arm per mapping form (rename, columns, concat, kind), the same arms as `resolve`.
 pub fn assemble(
     mapped: &Mapped,
     len: usize,

@@ -41,6 +41,7 @@ fn demo_id(name: &str) -> Option<u64> {
 }
 
 impl RobomimicSource {
+    // Long function: opening is one sequence of checks (groups, keys, mapping, states, rate), each with its own message, read top to bottom.
     pub fn open(spec: &LoadedSpec, path: &Path) -> Result<Self> {
         let shown = path.display().to_string();
         let file = h5::open(path)?;

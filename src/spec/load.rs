@@ -1,3 +1,4 @@
+// Long file: parsing and its diagnostics (spans, serde messages, did-you-mean) are one step.
 //! Reading a spec: TOML text → spanned document → typed [`Spec`] → validated, expanded profiles.
 //!
 //! The spanned `toml_edit` document is kept next to the typed spec (cargo's habit), so any later
@@ -194,6 +195,7 @@ fn syntax_error(message: &str, span: Option<Range<usize>>, text: &str) -> Diagno
 
 /// Rewrites serde's messages (`unknown field`, `unknown variant`, `invalid type`, …) into ones
 /// that name the key, its table, and the closest valid name.
+// Long function: one arm per kind of serde message.
 fn serde_error(err: &toml::de::Error, doc: &Document<String>) -> Diagnostic {
     let message = err.message();
     let span = err.span().unwrap_or(0..0);

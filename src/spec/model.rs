@@ -1,3 +1,4 @@
+// Long file: every TOML table's type in one place, in the order the schema and reference are generated.
 //! The spec as written: serde + schemars types and nothing else.
 //!
 //! These types mirror the TOML one to one. Every optional value stays optional here; presets and

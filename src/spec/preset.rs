@@ -1,3 +1,4 @@
+// Long file: each preset's values are a table of defaults; the expansion walks them key by key.
 //! Preset expansion: turns a [`ProfileSpec`] as written (and the chain of profiles it `extends`)
 //! into a fully explicit [`Profile`], remembering where every value came from.
 //!
@@ -184,6 +185,7 @@ fn chain<'a>(
 }
 
 /// Expands the profile `name` of `profiles`.
+// Long function: one field per profile key, resolved in a fixed order: long, not deep.
 pub fn expand(
     name: &str,
     profiles: &BTreeMap<String, ProfileSpec>,

@@ -1,3 +1,4 @@
+// Long file: every rule a spec must meet before any data is read, in one list.
 //! Semantic checks that need no source data: ranges, names, references between keys, and what
 //! this version of chunkc can build. Every error points at the key it is about.
 //!
@@ -200,6 +201,7 @@ impl Checker<'_> {
     }
 
     /// Checks one profile and, when nothing is missing, expands it.
+    // Long function: one check per profile key, in the spec reference's order.
     fn profile(&mut self, name: &str, profile: &ProfileSpec) -> Option<Profile> {
         let key = |k: &'static str| ["profiles", name, k];
         if !is_profile_name(name) {
@@ -406,6 +408,7 @@ impl Checker<'_> {
 
     /// `export_keys`: channels that exist, names of one component, a format that renames, and no
     /// two channels exported under one name (overridden or by default).
+    // Long function: one check per rule in the doc above, over the same maps.
     fn export_keys(&mut self, name: &str, own: &ProfileSpec, p: &Profile) {
         let spec = &self.loaded.spec;
         let channels: Vec<&str> = spec.source.channels.keys().map(String::as_str).collect();

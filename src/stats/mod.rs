@@ -1,3 +1,4 @@
+// Long file: the statistics pass (moments, percentiles, histograms per rate) and its results are one step.
 //! Statistics over the training split: exact, per dimension, over all timesteps.
 //!
 //! - `moments`: mergeable count/mean/M2/min/max partials.

@@ -1,3 +1,4 @@
+// Long file: one adapter's opening and episode reads; the two layouts' listings are in v2.rs and v3.rs.
 //! LeRobot datasets: parquet frames plus `meta/info.json`, in two layouts told apart by
 //! `codebase_version`.
 //!
@@ -72,6 +73,7 @@ pub struct LerobotSource {
 type FileRowGroups = (parquet_read::Footer, Vec<u32>);
 
 impl LerobotSource {
+    // Long function: opening is one sequence of checks (info.json, features, mapping, episodes, videos), each with its own message, read top to bottom.
     pub fn open(spec: &LoadedSpec, root: &Path) -> Result<Self> {
         let shown = root.display().to_string();
         let info_path = root.join("meta/info.json");

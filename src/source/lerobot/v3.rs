@@ -28,6 +28,7 @@ struct EpisodeRow {
 }
 
 /// The episodes of a v3.0 dataset and where their rows are in the shared data files.
+// Long function: the episodes table's columns read one by one, each with its own error.
 pub(super) fn list(root: &Path, info: &Info, media: &[&KeyInfo]) -> Result<Listing> {
     let shown = root.display().to_string();
     let data_path = info.data_path.as_str();

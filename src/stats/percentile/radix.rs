@@ -1,3 +1,4 @@
+// Long file: one algorithm: the two-pass radix selection and its tests.
 //! Exact percentiles of a column read in blocks, twice, in memory independent of its length:
 //! the first pass counts values by the high 16 bits of an order-preserving key, the second the
 //! low 16 bits within the buckets the needed ranks fall in.
