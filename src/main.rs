@@ -32,6 +32,10 @@ enum Command {
         spec: PathBuf,
         #[arg(long, value_enum, default_value_t = PlanFormat::Text)]
         format: PlanFormat,
+        /// Also show how N shards would split the episodes, with each shard's steps, estimated
+        /// bytes and read time.
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+        shards: Option<u64>,
     },
     /// Build every profile of a spec that is not up to date.
     Build {
@@ -39,6 +43,24 @@ enum Command {
         /// Fail (exit 5) instead of building if any output is out of date.
         #[arg(long)]
         locked: bool,
+        /// No progress bars.
+        #[arg(long, short)]
+        quiet: bool,
+        /// Build only shard I of N (from 0; e.g. `--shard $SLURM_ARRAY_TASK_ID/16`): its
+        /// episodes are processed into a partial in `--partials`, for `chunkc merge`. Nothing is
+        /// written to the output directory.
+        #[arg(long, requires = "partials", conflicts_with = "locked")]
+        shard: Option<plan::shards::Shard>,
+        /// Where shards write their partials and `merge` reads them (shared by every worker).
+        #[arg(long, requires = "shard")]
+        partials: Option<PathBuf>,
+    },
+    /// Build every profile from the partials of all N shards (`build --shard I/N`): the same
+    /// bytes as `chunkc build`. Checks that every shard is there and from this plan first.
+    Merge {
+        spec: PathBuf,
+        #[arg(long)]
+        partials: PathBuf,
         /// No progress bars.
         #[arg(long, short)]
         quiet: bool,
@@ -158,18 +180,88 @@ fn run(cli: Cli) -> Result<(), Error> {
                 plan.profiles.len()
             );
         }
-        Command::Plan { spec, format } => {
+        Command::Plan {
+            spec,
+            format,
+            shards,
+        } => {
             let spec = LoadedSpec::load(&spec)?;
-            let (_, plan) = commands::plan(&spec)?;
+            let (source, plan) = commands::plan(&spec)?;
+            let shards = shards
+                .map(|n| plan::shards::estimate(&plan, source.as_ref(), n as usize))
+                .transpose()?;
             match format {
-                PlanFormat::Text => print!("{}", plan::render_text(&plan)),
-                PlanFormat::Json => print!("{}", plan.to_json()),
+                PlanFormat::Text => {
+                    print!("{}", plan::render_text(&plan));
+                    if let Some(s) = &shards {
+                        print!("{}", plan::shards::render_text(s));
+                    }
+                }
+                PlanFormat::Json => match &shards {
+                    None => print!("{}", plan.to_json()),
+                    Some(s) => {
+                        let mut v: serde_json::Value = serde_json::from_str(&plan.to_json())
+                            .map_err(|e| Error::Internal(e.to_string()))?;
+                        v["shards"] =
+                            serde_json::to_value(s).map_err(|e| Error::Internal(e.to_string()))?;
+                        println!(
+                            "{}",
+                            serde_json::to_string_pretty(&v)
+                                .map_err(|e| Error::Internal(e.to_string()))?
+                        );
+                    }
+                },
             }
         }
         Command::Build {
             spec,
             locked,
             quiet,
+            shard: Some(shard),
+            partials: Some(partials),
+        } => {
+            let spec = LoadedSpec::load(&spec)?;
+            let opts = BuildOptions {
+                locked,
+                progress: !quiet,
+            };
+            let r = commands::build_shard(&spec, shard, &partials, &opts)?;
+            eprintln!(
+                "shard {}: episodes {}..{} -> {} ({:.1} MiB)",
+                r.shard,
+                r.episodes.start,
+                r.episodes.end,
+                tidy(&r.partial).display(),
+                r.bytes as f64 / (1 << 20) as f64
+            );
+            if !r.excluded.is_empty() {
+                eprintln!(
+                    "warning: {} episodes left out by [audit] non_finite: `chunkc merge` will refuse this run",
+                    r.excluded.len()
+                );
+            }
+        }
+        Command::Merge {
+            spec,
+            partials,
+            quiet,
+        } => {
+            let spec = LoadedSpec::load(&spec)?;
+            let report = commands::merge(
+                &spec,
+                &partials,
+                &BuildOptions {
+                    locked: false,
+                    progress: !quiet,
+                },
+            )?;
+            print_build(&report);
+        }
+        Command::Build {
+            spec,
+            locked,
+            quiet,
+            ..
         } => {
             let spec = LoadedSpec::load(&spec)?;
             let report = commands::build(

@@ -84,25 +84,32 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         .map(|_| AtomicUsize::new(0))
         .collect();
     let names: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
-    let committed =
-        match exec::execute(spec, &plan, &stale, source.as_ref(), opts.progress, &reads)? {
-            Outcome::Built(staging, hashes) => {
-                let block_decodes = source.decode_counts();
-                build_lock.keep();
-                let _commit = timings::phase("commit (fsync)");
-                staging.commit(&names)?;
-                Committed {
-                    plan,
-                    built: names,
-                    hashes,
-                    block_decodes,
-                }
+    let committed = match exec::execute(
+        spec,
+        &plan,
+        &stale,
+        source.as_ref(),
+        opts.progress,
+        &reads,
+        exec::Input::Source,
+    )? {
+        Outcome::Built(staging, hashes) => {
+            let block_decodes = source.decode_counts();
+            build_lock.keep();
+            let _commit = timings::phase("commit (fsync)");
+            staging.commit(&names)?;
+            Committed {
+                plan,
+                built: names,
+                hashes,
+                block_decodes,
             }
-            Outcome::Exclude(excluded) => {
-                let again = (spec, &plan, names, opts);
-                rebuild_without(again, source, &excluded, &mut build_lock)?
-            }
-        };
+        }
+        Outcome::Exclude(excluded) => {
+            let again = (spec, &plan, names, opts);
+            rebuild_without(again, source, &excluded, &mut build_lock)?
+        }
+    };
     update_lock(spec, &committed.plan, &committed.hashes)?;
     drop(whole);
     timings::report();
@@ -141,6 +148,7 @@ fn rebuild_without(
         kept.as_ref(),
         opts.progress,
         &again,
+        exec::Input::Source,
     )? {
         Outcome::Built(staging, hashes) => {
             let block_decodes = kept.decode_counts();
@@ -190,7 +198,7 @@ fn replan(spec: &LoadedSpec, plan: &Plan, kept: &dyn Source, excluded: &Excluded
 
 /// Records the build in `chunkc.lock`: re-read, so that only this spec's entry changes whatever
 /// else it holds; profiles not built keep their previous entries.
-fn update_lock(spec: &LoadedSpec, plan: &Plan, hashes: &FileHashes) -> Result<()> {
+pub(super) fn update_lock(spec: &LoadedSpec, plan: &Plan, hashes: &FileHashes) -> Result<()> {
     let lock_path = lock::path_for(&spec.file);
     let key = lock::key_for(&spec.file);
     let mut all = Lock::read(&lock_path)?.unwrap_or(Lock {

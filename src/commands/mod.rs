@@ -9,15 +9,18 @@
 //! - `check`: the plan, for `chunkc check`'s one line.
 //! - `analyze`: the chunk-length analysis and its report.
 //! - `build`: the stale profiles built, committed and locked.
+//! - `shard`: a sharded build: one shard's partial (`build --shard`), and the merge of all.
 
 mod analyze;
 mod audit;
 mod build;
 mod check;
 mod plan;
+mod shard;
 
 pub use analyze::analyze;
 pub use audit::{audit, audit_report, Audit};
 pub use build::{build, BuildOptions, BuildReport};
 pub use check::check;
 pub use plan::plan;
+pub use shard::{build_shard, merge};

@@ -14,15 +14,19 @@
 //! - `read`: the batched pass over the source.
 //! - `guard`: the panic-to-error wrapper of a per-episode job.
 //! - `finish`: a profile's last writes once the statistics are known.
+//! - `partial`: a shard's processed episodes on disk, and reading them back for the merge.
+//! - `shard`: one shard's part of the pass (`build --shard I/N`), written as a partial.
 //! - `staging`: the staging directory, the build lock and the final renames.
 //! - `progress`: progress bars (hidden when stderr is not a terminal).
 
 mod finish;
 mod guard;
+pub mod partial;
 mod process;
 mod progress;
 mod rate;
 mod read;
+mod shard;
 pub mod staging;
 
 use std::collections::BTreeMap;
@@ -37,6 +41,7 @@ use crate::spec::LoadedSpec;
 use crate::store;
 
 pub use crate::files::{BUILD_LOCK_FILE, STAGING_DIR};
+pub use shard::{shard, ShardReport};
 pub use staging::{BuildLock, Staging};
 
 /// BLAKE3 of every output file, by profile, then path.
@@ -62,25 +67,30 @@ pub fn spill_budget() -> usize {
         .unwrap_or(store::DEFAULT_BUDGET)
 }
 
-/// Builds the `stale` profiles of `plan` from `source` into a new staging directory under the
-/// output directory. `reads` counts each episode's reads; `progress` shows progress bars.
-pub fn execute(
-    spec: &LoadedSpec,
+/// Where a build's episodes come from.
+pub enum Input<'a> {
+    /// Read from the source.
+    Source,
+    /// Processed already, by the shards whose partials these are (in shard order, verified:
+    /// see [`partial::verify`]), for `chunkc merge`.
+    Partials(&'a [std::path::PathBuf]),
+}
+
+/// What a pass sets up before it reads: the state of each rate, the sinks (rate position,
+/// sink) and their directories, and the frame encodings per rate.
+struct Setup {
+    rates: Vec<rate::RateState>,
+    sinks: Vec<(usize, Box<dyn Sink>)>,
+    dirs: Vec<std::path::PathBuf>,
+    jobs: Vec<(Conversion, Vec<FrameEncoding>)>,
+}
+
+fn set_up(
     plan: &Plan,
     stale: &[&ProfilePlan],
-    source: &dyn Source,
-    progress: bool,
-    reads: &[AtomicUsize],
-) -> Result<Outcome> {
-    let manifest = source.manifest();
-    let staging = Staging::new(&spec.resolve(&spec.spec.output.dir))?;
-    let overrides = spec
-        .spec
-        .output
-        .templates
-        .as_deref()
-        .map(|t| spec.resolve(t));
-    let renderer = render::Renderer::new(overrides.as_deref())?;
+    manifest: &crate::source::Manifest,
+    staging: &Staging,
+) -> Result<Setup> {
     // In plan order (fastest first), once each.
     let conversions: Vec<Conversion> = plan
         .rates
@@ -89,12 +99,11 @@ pub fn execute(
         .filter(|c| stale.iter().any(|p| p.conversion == *c))
         .collect();
     let budget = spill_budget();
-    let mut rates: Vec<rate::RateState> = conversions
+    let rates: Vec<rate::RateState> = conversions
         .iter()
         .enumerate()
-        .map(|(r, &c)| rate::RateState::new(r, c, manifest, &staging, budget))
+        .map(|(r, &c)| rate::RateState::new(r, c, manifest, staging, budget))
         .collect();
-
     let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
     let mut sinks: Vec<(usize, Box<dyn Sink>)> = Vec::with_capacity(stale.len());
     let mut dirs = Vec::with_capacity(stale.len());
@@ -114,6 +123,41 @@ pub fn execute(
         dirs.push(dir);
     }
     let jobs = encodings(&rates, &sinks);
+    Ok(Setup {
+        rates,
+        sinks,
+        dirs,
+        jobs,
+    })
+}
+
+/// Builds the `stale` profiles of `plan` from `input` (the source, or shards' partials) into a
+/// new staging directory under the output directory. `reads` counts each episode's reads;
+/// `progress` shows progress bars.
+pub fn execute(
+    spec: &LoadedSpec,
+    plan: &Plan,
+    stale: &[&ProfilePlan],
+    source: &dyn Source,
+    progress: bool,
+    reads: &[AtomicUsize],
+    input: Input,
+) -> Result<Outcome> {
+    let manifest = source.manifest();
+    let staging = Staging::new(&spec.resolve(&spec.spec.output.dir))?;
+    let overrides = spec
+        .spec
+        .output
+        .templates
+        .as_deref()
+        .map(|t| spec.resolve(t));
+    let renderer = render::Renderer::new(overrides.as_deref())?;
+    let Setup {
+        mut rates,
+        mut sinks,
+        dirs,
+        jobs,
+    } = set_up(plan, stale, manifest, &staging)?;
     let pass = read::Pass {
         plan,
         source,
@@ -123,7 +167,16 @@ pub fn execute(
         reads,
         progress,
     };
-    let excluded = read::read_all(&pass, &mut rates, &mut sinks)?;
+    let mut feed = match input {
+        Input::Source => read::Feed::Source,
+        Input::Partials(paths) => read::Feed::Partials(
+            paths
+                .iter()
+                .map(|p| partial::Reader::open(p))
+                .collect::<Result<_>>()?,
+        ),
+    };
+    let excluded = read::read_all(&pass, &mut rates, &mut sinks, &mut feed)?;
     if !excluded.is_empty() {
         return Ok(Outcome::Exclude(excluded));
     }

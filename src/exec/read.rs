@@ -9,6 +9,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use super::guard::episode_job;
+use super::partial::{self, Record as Read};
 use super::process::{process, Prepared, Processed};
 use super::rate::RateState;
 use super::{progress, Excluded};
@@ -39,12 +40,12 @@ pub(super) struct Pass<'a> {
     pub progress: bool,
 }
 
-/// One episode after the parallel part.
-enum Read {
-    Kept(Processed),
-    /// Checked only: an earlier episode was excluded, so this attempt is thrown away.
-    Checked,
-    Excluded(String),
+/// Where the pass takes its episodes from.
+pub(super) enum Feed {
+    /// The source: each episode read, checked and processed here.
+    Source,
+    /// Shards' partials (in shard order), processed already (`chunkc merge`).
+    Partials(Vec<partial::Reader>),
 }
 
 /// Low-dim rows waiting for their store, with whether they are a training episode's.
@@ -57,6 +58,7 @@ pub(super) fn read_all(
     pass: &Pass,
     rates: &mut [RateState],
     sinks: &mut [(usize, Box<dyn Sink>)],
+    feed: &mut Feed,
 ) -> Result<Excluded> {
     let manifest = pass.source.manifest();
     let mut excluded = Excluded::new();
@@ -66,8 +68,11 @@ pub(super) fn read_all(
         "reading episodes",
     );
     let _reading = timings::phase("read episodes");
-    for batch in batches(manifest) {
-        let read = read_batch(pass, batch.clone(), !excluded.is_empty())?;
+    for batch in batches(manifest, 0..manifest.episodes.len()) {
+        let read = match feed {
+            Feed::Source => read_batch(pass, batch.clone(), !excluded.is_empty())?,
+            Feed::Partials(readers) => from_partials(readers, batch.clone())?,
+        };
         let mut kept = Vec::with_capacity(read.len());
         for (i, r) in batch.clone().zip(read) {
             match r {
@@ -89,10 +94,25 @@ pub(super) fn read_all(
     Ok(excluded)
 }
 
-/// Episodes decoded at once, in order: at least two per thread (to keep every thread busy), and
-/// more while their decoded values stay under [`BATCH_BYTES`] (short low-dim episodes: fewer
-/// pauses between batches). Memory stays bounded by the batch.
-fn batches(manifest: &Manifest) -> Vec<Range<usize>> {
+/// The records of the episodes `batch` from the partials that hold them.
+fn from_partials(readers: &mut [partial::Reader], batch: Range<usize>) -> Result<Vec<Read>> {
+    batch
+        .map(|i| {
+            let reader = readers
+                .iter_mut()
+                .find(|r| r.episodes().contains(&i))
+                .ok_or_else(|| {
+                    crate::error::Error::Internal(format!("no partial holds episode {i}"))
+                })?;
+            reader.record()
+        })
+        .collect()
+}
+
+/// The episodes `range` in batches decoded at once, in order: at least two per thread (to keep
+/// every thread busy), and more while their decoded values stay under [`BATCH_BYTES`] (short
+/// low-dim episodes: fewer pauses between batches). Memory stays bounded by the batch.
+pub(super) fn batches(manifest: &Manifest, range: Range<usize>) -> Vec<Range<usize>> {
     let min = 2 * rayon::current_num_threads();
     let step_bytes: usize = manifest
         .channels
@@ -103,22 +123,26 @@ fn batches(manifest: &Manifest) -> Vec<Range<usize>> {
         })
         .sum();
     let mut out = Vec::new();
-    let (mut start, mut bytes) = (0, 0);
-    for (i, e) in manifest.episodes.iter().enumerate() {
-        bytes += e.len * step_bytes;
+    let (mut start, mut bytes) = (range.start, 0);
+    for i in range.clone() {
+        bytes += manifest.episodes[i].len * step_bytes;
         if i + 1 - start >= min && bytes >= BATCH_BYTES {
             out.push(start..i + 1);
             (start, bytes) = (i + 1, 0);
         }
     }
-    if start < manifest.episodes.len() {
-        out.push(start..manifest.episodes.len());
+    if start < range.end {
+        out.push(start..range.end);
     }
     out
 }
 
 /// The parallel part of a batch: read, check and (unless `checking_only`) process each episode.
-fn read_batch(pass: &Pass, batch: Range<usize>, checking_only: bool) -> Result<Vec<Read>> {
+pub(super) fn read_batch(
+    pass: &Pass,
+    batch: Range<usize>,
+    checking_only: bool,
+) -> Result<Vec<Read>> {
     let manifest = pass.source.manifest();
     // Test hook: the tests prove that a panicking episode job becomes an error naming it.
     let panic_on: Option<u64> = std::env::var("CHUNKC_TEST_PANIC_EPISODE")

@@ -14,6 +14,7 @@
 //! - `split`: the deterministic train/validation split.
 //! - `export`: where each channel's array lives in the profile's container (native exports
 //!   name them as their codebase's configuration does).
+//! - `shards`: which episodes each shard of a sharded build reads, and the plan's identity.
 //! - `text`: the human-readable rendering of `chunkc plan`.
 
 mod conversion;
@@ -22,6 +23,7 @@ pub mod export;
 pub mod freshness;
 mod resolve;
 mod sampling;
+pub mod shards;
 pub mod split;
 mod text;
 mod types;

@@ -133,6 +133,20 @@ impl Frames {
     pub fn bytes(&self) -> &[u8] {
         &self.bytes
     }
+
+    /// Exclusive end of each frame in [`Frames::bytes`].
+    pub fn ends(&self) -> &[u64] {
+        &self.ends
+    }
+
+    /// Frames from their bytes and ends, as [`Frames::bytes`] and [`Frames::ends`] gave them (a
+    /// sharded build's partial stores them so).
+    pub fn from_parts(bytes: Vec<u8>, ends: Vec<u64>) -> Frames {
+        Frames {
+            bytes,
+            ends: Ends::new(ends),
+        }
+    }
 }
 
 /// What a sink needs to lay out its container.
