@@ -57,8 +57,8 @@
 //! [`synth`] writes synthetic sources in every input layout (`chunkc synth`, for the benchmarks
 //! and tests); [`fuzzing`] has the fuzz targets' bodies (one per input parser; see `fuzz/`).
 //!
-//! **On top**: [`commands`], the drivers of `check`, `plan`, `audit`, `analyze` and `build`
-//! (re-planning after an exclusion, the commit, the lock update). `main.rs` is the command line
+//! **On top**: [`commands`], the drivers of `check`, `plan`, `audit`, `analyze`, `build` and
+//! `merge` (re-planning after an exclusion, the sharded build, the commit, the lock update). `main.rs` is the command line
 //! only: it parses arguments, sizes the thread pool, calls a driver and prints its result.
 //!
 //! # Threads

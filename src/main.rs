@@ -1,3 +1,4 @@
+// Long file: the command line, every command's clap definition and its printout; each does its work in the library.
 //! The `chunkc` command line. Everything it does is a call into the library.
 
 use std::path::{Component, Path, PathBuf};
@@ -162,6 +163,7 @@ fn tidy(path: &Path) -> PathBuf {
     out
 }
 
+// Long function: one arm per command, each a call into the library and its printout.
 fn run(cli: Cli) -> Result<(), Error> {
     if let Some(n) = cli.threads {
         rayon::ThreadPoolBuilder::new()
@@ -184,35 +186,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             spec,
             format,
             shards,
-        } => {
-            let spec = LoadedSpec::load(&spec)?;
-            let (source, plan) = commands::plan(&spec)?;
-            let shards = shards
-                .map(|n| plan::shards::estimate(&plan, source.as_ref(), n as usize))
-                .transpose()?;
-            match format {
-                PlanFormat::Text => {
-                    print!("{}", plan::render_text(&plan));
-                    if let Some(s) = &shards {
-                        print!("{}", plan::shards::render_text(s));
-                    }
-                }
-                PlanFormat::Json => match &shards {
-                    None => print!("{}", plan.to_json()),
-                    Some(s) => {
-                        let mut v: serde_json::Value = serde_json::from_str(&plan.to_json())
-                            .map_err(|e| Error::Internal(e.to_string()))?;
-                        v["shards"] =
-                            serde_json::to_value(s).map_err(|e| Error::Internal(e.to_string()))?;
-                        println!(
-                            "{}",
-                            serde_json::to_string_pretty(&v)
-                                .map_err(|e| Error::Internal(e.to_string()))?
-                        );
-                    }
-                },
-            }
-        }
+        } => plan_command(&LoadedSpec::load(&spec)?, format, shards)?,
         Command::Build {
             spec,
             locked,
@@ -220,26 +194,11 @@ fn run(cli: Cli) -> Result<(), Error> {
             shard: Some(shard),
             partials: Some(partials),
         } => {
-            let spec = LoadedSpec::load(&spec)?;
             let opts = BuildOptions {
                 locked,
                 progress: !quiet,
             };
-            let r = commands::build_shard(&spec, shard, &partials, &opts)?;
-            eprintln!(
-                "shard {}: episodes {}..{} -> {} ({:.1} MiB)",
-                r.shard,
-                r.episodes.start,
-                r.episodes.end,
-                tidy(&r.partial).display(),
-                r.bytes as f64 / (1 << 20) as f64
-            );
-            if !r.excluded.is_empty() {
-                eprintln!(
-                    "warning: {} episodes left out by [audit] non_finite: `chunkc merge` will refuse this run",
-                    r.excluded.len()
-                );
-            }
+            shard_command(&LoadedSpec::load(&spec)?, shard, &partials, &opts)?;
         }
         Command::Merge {
             spec,
@@ -307,6 +266,56 @@ fn run(cli: Cli) -> Result<(), Error> {
             let spec = synth::generate(&opts, &args.out)?;
             eprintln!("wrote {}", tidy(&spec).display());
         }
+    }
+    Ok(())
+}
+
+/// `chunkc plan [--shards N]`: the plan, and the shard assignment when asked.
+fn plan_command(spec: &LoadedSpec, format: PlanFormat, shards: Option<u64>) -> Result<(), Error> {
+    let (source, plan) = commands::plan(spec)?;
+    let shards = shards
+        .map(|n| plan::shards::estimate(&plan, source.as_ref(), n as usize))
+        .transpose()?;
+    let internal = |e: serde_json::Error| Error::Internal(e.to_string());
+    match (format, &shards) {
+        (PlanFormat::Text, _) => {
+            print!("{}", plan::render_text(&plan));
+            if let Some(s) = &shards {
+                print!("{}", plan::shards::render_text(s));
+            }
+        }
+        (PlanFormat::Json, None) => print!("{}", plan.to_json()),
+        (PlanFormat::Json, Some(s)) => {
+            let mut v: serde_json::Value =
+                serde_json::from_str(&plan.to_json()).map_err(internal)?;
+            v["shards"] = serde_json::to_value(s).map_err(internal)?;
+            println!("{}", serde_json::to_string_pretty(&v).map_err(internal)?);
+        }
+    }
+    Ok(())
+}
+
+/// `chunkc build --shard I/N --partials DIR`: one shard's partial, and what it holds.
+fn shard_command(
+    spec: &LoadedSpec,
+    shard: plan::shards::Shard,
+    partials: &Path,
+    opts: &BuildOptions,
+) -> Result<(), Error> {
+    let r = commands::build_shard(spec, shard, partials, opts)?;
+    eprintln!(
+        "shard {}: episodes {}..{} -> {} ({:.1} MiB)",
+        r.shard,
+        r.episodes.start,
+        r.episodes.end,
+        tidy(&r.partial).display(),
+        r.bytes as f64 / (1 << 20) as f64
+    );
+    if !r.excluded.is_empty() {
+        eprintln!(
+            "warning: {} episodes left out by [audit] non_finite: `chunkc merge` will refuse this run",
+            r.excluded.len()
+        );
     }
     Ok(())
 }

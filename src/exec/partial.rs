@@ -1,3 +1,4 @@
+// Long file: one file format, its writer, checker and reader side by side (and their round-trip tests), so the layout is written down once.
 //! A shard's partial: what the parallel part of the read produced for each of its episodes (the
 //! converted low-dim rows, the frames in every encoding the sinks asked for, the statistics
 //! partials), in episode order, so that `chunkc merge` can run the sequential part of the same
