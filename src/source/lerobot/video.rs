@@ -105,7 +105,7 @@ impl Videos {
         let timeline = match self.timeline(&r.file) {
             Ok(t) => t,
             Err(e) => {
-                out.problem = Some(format!("the file {e}"));
+                out.problem = Some(e);
                 return out;
             }
         };

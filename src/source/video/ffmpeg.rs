@@ -54,12 +54,12 @@ fn open(path: &Path) -> Result<Opened, String> {
         ff::Error::InvalidData => {
             format!("not a readable video file ({e}): truncated before its index, or not a video")
         }
-        e => format!("cannot be opened as a video: {e}"),
+        e => format!("the file cannot be opened as a video: {e}"),
     })?;
     let stream = input
         .streams()
         .best(ff::media::Type::Video)
-        .ok_or_else(|| "holds no video stream".to_string())?;
+        .ok_or_else(|| "the file holds no video stream".to_string())?;
     let tb = stream.time_base();
     let params = stream.parameters();
     let (width, height) = unsafe {
