@@ -168,14 +168,6 @@ impl LerobotSource {
         }
         let mut warnings = mapped.warnings.clone();
         if let Some(m) = media.first() {
-            if !codec::ENABLED {
-                return Err(Error::source(format!(
-                    "{shown}: channel `{}` maps to the video feature `{}`; {}",
-                    channel_of(&m.key),
-                    m.key,
-                    codec::DISABLED
-                )));
-            }
             if info.video_path.is_none() {
                 return Err(Error::source(format!(
                     "{}: no `video_path`, but `{}` is a video feature",
@@ -203,6 +195,15 @@ impl LerobotSource {
                     )));
                 }
             }
+        }
+        // A missing file first (the same message with or without the feature), then the feature.
+        if let Some(m) = media.first().filter(|_| !codec::ENABLED) {
+            return Err(Error::source(format!(
+                "{shown}: channel `{}` maps to the video feature `{}`; {}",
+                channel_of(&m.key),
+                m.key,
+                codec::DISABLED
+            )));
         }
         // Trust the stream over info.json's `video.codec`, and say so.
         let probed: Vec<(PathBuf, String, std::result::Result<codec::Probe, String>)> = files
