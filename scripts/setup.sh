@@ -7,16 +7,23 @@
 #
 # Steps:
 #   0. install the Debian packages the tests need when they are missing (headless `chromium` and
-#      its fonts, for the HTML report tests), with apt-get as root; elsewhere it says what to install;
+#      its fonts, for the HTML report tests; FFmpeg's development libraries, clang and pkg-config,
+#      for the `video` feature), with apt-get as root; elsewhere it says what to install;
 #   1. create the project virtualenv `.venv` (python3 -m venv) if there is none;
 #   2. install tests/python/requirements.txt into it, only when that file changed since the last
 #      successful install (its hash is kept in .venv/.chunkc-requirements.sha256);
 #   3. put .venv/bin first on PATH: the bundled HDF5 build needs cmake >= 3.26, which comes from
 #      the venv;
-#   4. build chunkc with `cargo build --release --locked` (the first build compiles HDF5).
+#   4. build chunkc with `cargo build --release --locked --features video` (the first build
+#      compiles HDF5).
 #
 # Environment: PYTHON (the interpreter that creates the venv; default python3),
-# CHUNKC_VERBOSE=1 (show pip's and cargo's full output).
+# CHUNKC_VERBOSE=1 (show pip's and cargo's full output), CHUNKC_VIDEO=0 (build without the
+# `video` feature: no FFmpeg needed, LeRobot videos cannot be read; see book/src/video.md for
+# why the feature is off by default: Debian's libavcodec is GPL).
+#
+# Every script builds with the same features ($CHUNKC_FEATURES, exported when sourced), so
+# that `cargo test` never rebuilds target/release/chunkc without them.
 
 if [[ "${BASH_SOURCE[0]}" != "$0" ]]; then
     # Sourced. Do the work in a child bash, so that strict mode and helper variables never leak
@@ -24,6 +31,8 @@ if [[ "${BASH_SOURCE[0]}" != "$0" ]]; then
     CHUNKC_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)" || return
     export CHUNKC_ROOT
     "${BASH:-bash}" "$CHUNKC_ROOT/scripts/setup.sh" || return
+    if [ "${CHUNKC_VIDEO:-1}" = 0 ]; then CHUNKC_FEATURES=""; else CHUNKC_FEATURES="--features video"; fi
+    export CHUNKC_FEATURES
     case ":$PATH:" in
         *":$CHUNKC_ROOT/.venv/bin:"*) ;;
         *) export PATH="$CHUNKC_ROOT/.venv/bin:$PATH" ;;
@@ -55,6 +64,18 @@ command -v cc >/dev/null || command -v gcc >/dev/null \
 debian=()
 command -v chromium >/dev/null || command -v chromium-browser >/dev/null || debian+=(chromium)
 [ -e /usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf ] || debian+=(fonts-liberation)
+# The `video` feature: ffmpeg-sys-next finds FFmpeg with pkg-config and binds it with bindgen
+# (libclang). Debian 12's FFmpeg is 5.1, which ffmpeg-next 7.1 supports.
+features=(--features video)
+if [ "${CHUNKC_VIDEO:-1}" = 0 ]; then
+    features=()
+else
+    command -v pkg-config >/dev/null || debian+=(pkg-config)
+    command -v clang >/dev/null || debian+=(clang)
+    for lib in libavcodec libavformat libswscale libavutil; do
+        pkg-config --exists "$lib" 2>/dev/null || debian+=("$lib-dev")
+    done
+fi
 if [ "${#debian[@]}" -gt 0 ]; then
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
         say "installing Debian packages: ${debian[*]} (apt-get)"
@@ -63,7 +84,7 @@ if [ "${#debian[@]}" -gt 0 ]; then
             && apt-get install -y -qq --no-install-recommends "${debian[@]}" >&2 \
             || die "apt-get could not install ${debian[*]}"
     else
-        say "warning: missing Debian packages ${debian[*]}: install them (apt-get install ${debian[*]}); the report tests need them"
+        say "warning: missing Debian packages ${debian[*]}: install them (apt-get install ${debian[*]}); the report tests need chromium, the \`video\` feature the others (or set CHUNKC_VIDEO=0)"
     fi
 fi
 
@@ -112,9 +133,9 @@ fi
 export PATH="$CHUNKC_ROOT/$venv/bin:$PATH"
 
 # 4. The release build (tests build with --release too, so HDF5 is compiled only once).
-say "building chunkc (cargo build --release --locked; $(cmake --version | head -n1))"
+say "building chunkc (cargo build --release --locked ${features[*]}; $(cmake --version | head -n1))"
 if [ ! -d target/release/build ]; then
     say "first build: compiling HDF5 and ~220 crates takes a while"
 fi
-cargo build --release --locked "${quiet[@]}"
+cargo build --release --locked "${features[@]}" "${quiet[@]}"
 say "ready: $(target/release/chunkc --version) at target/release/chunkc"

@@ -4,8 +4,10 @@
 #   scripts/test.sh
 #
 # Runs every check even when an earlier one fails, prints a summary, and exits non-zero if any
-# check failed: cargo fmt --check, cargo clippy (-D warnings), cargo test --release, the Python
-# suite in tests/python against target/release/chunkc, and a 10 s run of each fuzz target when
+# check failed: cargo fmt --check, cargo clippy (-D warnings), cargo test --release (all with
+# the `video` feature, as setup.sh builds; CHUNKC_VIDEO=0: without), a check that chunkc still
+# builds without the feature, the Python suite in tests/python against
+# target/release/chunkc, and a 10 s run of each fuzz target when
 # cargo-fuzz is installed (CHUNKC_FUZZ=1: install it if needed; CHUNKC_FUZZ=0: skip;
 # CHUNKC_FUZZ_SECONDS: another length).
 #
@@ -65,9 +67,17 @@ pytest_run() {
     return "$rc"
 }
 
+# The features setup.sh built with (sourcing it exported them); unquoted on purpose: empty or
+# `--features video`.
+# shellcheck disable=SC2086
 check fmt cargo fmt --check
-check clippy cargo clippy --release --locked --all-targets -- -D warnings
-check cargo-test cargo test --release --locked
+check clippy cargo clippy --release --locked --all-targets $CHUNKC_FEATURES -- -D warnings
+check cargo-test cargo test --release --locked $CHUNKC_FEATURES
+# Default features (no FFmpeg): still builds, lints clean, and a video source says which
+# feature it needs (clippy writes no binary, so target/release/chunkc keeps the feature).
+if [ -n "$CHUNKC_FEATURES" ]; then
+    check no-video-build cargo clippy --release --locked --all-targets -- -D warnings
+fi
 if [ -n "${CHUNKC_FULL_PUSHT:-}" ]; then
     echo "test: CHUNKC_FULL_PUSHT=$CHUNKC_FULL_PUSHT (full Push-T tests enabled)"
 fi

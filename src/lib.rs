@@ -27,7 +27,8 @@
 //!    expanded). Errors point at `file:line:col` with "did you mean". Also the per-format names
 //!    every later stage shares ([`spec::OutputFormat::files`]).
 //! 2. **Open** ([`source`]): an adapter per on-disk layout (Diffusion Policy zarr, ALOHA,
-//!    robomimic/robosuite, LeRobot v2.1/v3.0) gives a [`source::Manifest`] (metadata only) and
+//!    robomimic/robosuite, LeRobot v2.1/v3.0 with their camera videos, [`source::video`],
+//!    feature `video`) gives a [`source::Manifest`] (metadata only) and
 //!    reads [`source::Episode`]s one at a time; [`source::mapping`] applies `[source.channels]`
 //!    (rename, column slices, concatenation, kind) the same way for all of them.
 //! 3. **Audit** ([`audit`]): inter-frame intervals per episode (timestamps only) → flags,
@@ -70,8 +71,10 @@
 //! - [`exec`]: episodes of a batch decoded and converted side by side, the row stores filled
 //!   side by side, rates and profiles finished side by side; a few plain threads fsync outputs
 //!   while they are hashed (they wait on the disk, not the CPU).
-//! - [`source`]: storage chunks decoded in parallel (zarr, ALOHA's per-episode headers), and the
-//!   source fingerprint hashed in parallel with the opening.
+//! - [`source`]: storage chunks decoded in parallel (zarr, ALOHA's per-episode headers), the
+//!   cameras of a LeRobot episode decoded side by side (one decoder thread per video file), and
+//!   the source fingerprint hashed in parallel with the opening.
+//! - [`audit`]: the camera videos' packet times demuxed for several episodes at once.
 //! - [`stats`]: the percentile passes, one column per task.
 //! - [`sink`]: frames compressed and normalized blocks prepared in parallel, while the previous
 //!   block is written (`rayon::join`).

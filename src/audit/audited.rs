@@ -4,7 +4,7 @@
 
 use super::repair;
 use super::timing::Repair;
-use super::AuditReport;
+use super::{AuditReport, Flag};
 use crate::error::{Error, Result};
 use crate::source::{ChannelData, Episode, Manifest, Source, Subset};
 
@@ -26,10 +26,19 @@ impl Audited {
         repairs: Vec<Repair>,
         apply: bool,
     ) -> Self {
+        // Without repairs an episode left out for its video (`[audit] video`) still goes: it
+        // cannot be read.
         let repairs = if apply {
             repairs
         } else {
-            vec![Repair::None; repairs.len()]
+            report
+                .episodes
+                .iter()
+                .map(|e| match e.flags.contains(&Flag::Video) {
+                    true => Repair::Exclude,
+                    false => Repair::None,
+                })
+                .collect()
         };
         let excluded: Vec<u64> = inner
             .manifest()

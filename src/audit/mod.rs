@@ -19,12 +19,16 @@ pub mod spline;
 pub mod timing;
 
 pub use audited::Audited;
-pub use report::{AuditReport, EpisodeAudit, Flag, Histogram, RepairExample, Thresholds, Verdict};
+pub use report::{
+    AuditReport, EpisodeAudit, Flag, Histogram, RepairExample, Thresholds, Verdict, VideoAudit,
+};
 pub use timing::Repair;
+
+use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::source::{ChannelKind, Source};
-use crate::spec::LoadedSpec;
+use crate::spec::{BadVideo, LoadedSpec};
 
 /// Above this share of repaired episodes the audit warns.
 pub const REPAIR_WARNING: f64 = 0.1;
@@ -94,6 +98,7 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
         episodes.push(audit);
         repairs.push(repair);
     }
+    let video = video_checks(spec, source, &mut episodes, &mut repairs)?;
     for (&len, &count) in &lengths {
         let grid: Vec<f64> = (0..len).map(|k| k as f64 * expected).collect();
         intervals.add_steps(&grid, count);
@@ -143,8 +148,61 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
         histogram: histogram::histogram_of(&intervals, expected),
         warnings,
         examples: Vec::new(),
+        video,
     };
     Ok((report, repairs))
+}
+
+/// The camera videos of every episode against its rows (demuxed, not decoded; episodes side by
+/// side). An episode with a bad video fails the audit, or under `[audit] video =
+/// "exclude_episode"` is excluded (flag `video`). The first bad one in episode order is the
+/// error, whatever the thread count.
+fn video_checks(
+    spec: &LoadedSpec,
+    source: &dyn Source,
+    episodes: &mut [EpisodeAudit],
+    repairs: &mut [Repair],
+) -> Result<Vec<VideoAudit>> {
+    let checks: Vec<Result<Vec<crate::source::VideoCheck>>> = (0..episodes.len())
+        .into_par_iter()
+        .map(|i| source.video_checks(i))
+        .collect();
+    let shown = &spec.spec.source.path;
+    let mut out = Vec::new();
+    for ((e, repair), checks) in episodes.iter_mut().zip(repairs.iter_mut()).zip(checks) {
+        for check in checks? {
+            if let Some(problem) = &check.problem {
+                let place = format!(
+                    "{shown}: episode {}, camera `{}` (channel `{}`), file {}",
+                    e.id, check.camera, check.channel, check.file
+                );
+                match spec.spec.audit.video {
+                    BadVideo::Error => {
+                        return Err(Error::source(format!(
+                            "{place}: {problem}; set `[audit] video = \"exclude_episode\"` to leave such episodes out"
+                        )))
+                    }
+                    BadVideo::ExcludeEpisode => {
+                        if !e.flags.contains(&Flag::Video) {
+                            e.flags.push(Flag::Video);
+                            e.detail = format!(
+                                "video `{}` ({}): {problem}",
+                                check.camera, check.file
+                            );
+                        }
+                        e.verdict = Verdict::Exclude;
+                        e.repaired_frames = 0;
+                        *repair = Repair::Exclude;
+                    }
+                }
+            }
+            out.push(VideoAudit {
+                episode: e.id,
+                check,
+            });
+        }
+    }
+    Ok(out)
 }
 
 /// Up to three repaired episodes, one dimension of one channel before and after repair
@@ -291,6 +349,33 @@ impl AuditReport {
                 ));
             }
         }
+        if !self.video.is_empty() {
+            let bad = self
+                .video
+                .iter()
+                .filter(|v| v.check.problem.is_some())
+                .count();
+            let worst = self
+                .video
+                .iter()
+                .map(|v| v.check.worst_gap)
+                .fold(0.0, f64::max);
+            s.push_str(&format!(
+                "camera videos: {} checked (episode x camera), {bad} bad; farthest row from its frame {:.6} s (tolerance {} s)\n",
+                self.video.len(),
+                worst,
+                crate::source::video::TOLERANCE_S
+            ));
+            for v in self.video.iter().filter(|v| v.check.problem.is_some()) {
+                s.push_str(&format!(
+                    "  episode {}, camera `{}`, file {}: {}\n",
+                    v.episode,
+                    v.check.camera,
+                    v.check.file,
+                    v.check.problem.as_deref().unwrap_or("")
+                ));
+            }
+        }
         for w in &self.warnings {
             s.push_str(&format!("warning: {w}\n"));
         }
@@ -316,6 +401,7 @@ impl Flag {
             Flag::Gap => "gap",
             Flag::Count => "count",
             Flag::NonMonotonic => "non_monotonic",
+            Flag::Video => "video",
         }
     }
 }

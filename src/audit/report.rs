@@ -1,7 +1,8 @@
 //! The audit's result as data: what `chunkc audit` writes to `audit/audit.json`, what the plan
 //! applies, and what the HTML report draws. The JSON field names are part of the interface
 //! contract (DESIGN.md): `expected_interval`, `episodes[].{id, n_frames, interval_mean,
-//! interval_std, interval_min, interval_max, flags, verdict}`, `repaired_fraction`.
+//! interval_std, interval_min, interval_max, flags, verdict}`, `repaired_fraction`; `video`
+//! (one entry per episode and camera) appears only for sources with video.
 
 use serde::Serialize;
 
@@ -27,6 +28,19 @@ pub struct AuditReport {
     pub warnings: Vec<String>,
     /// A few repaired episodes, one channel dimension each, before and after repair.
     pub examples: Vec<RepairExample>,
+    /// Per episode and camera video: its frames against the rows (sources with video only).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub video: Vec<VideoAudit>,
+}
+
+/// One episode's camera video checked against its rows: the frame count and pts regularity
+/// against the rows and `fps`, and the farthest a row is from its frame (LeRobot's
+/// `tolerance_s` rule).
+#[derive(Debug, Clone, Serialize)]
+pub struct VideoAudit {
+    pub episode: u64,
+    #[serde(flatten)]
+    pub check: crate::source::VideoCheck,
 }
 
 /// The thresholds the flags were decided with (`[audit]`).
@@ -63,6 +77,8 @@ pub enum Flag {
     Gap,
     Count,
     NonMonotonic,
+    /// A camera video cannot give every row its frame (`[audit] video`).
+    Video,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

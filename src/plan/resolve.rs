@@ -140,11 +140,13 @@ pub fn apply_audit(plan: &mut Plan, report: &AuditReport, applied: bool) {
         excluded_fraction: report.excluded_fraction,
         warnings: report.warnings.clone(),
     };
-    if !applied {
-        return;
-    }
     for p in &mut plan.profiles {
         for e in &report.episodes {
+            // `[audit] repair = false` keeps every verdict but one: an episode left out for a
+            // bad video (`[audit] video`) cannot be read at all.
+            if !applied && !e.flags.contains(&crate::audit::Flag::Video) {
+                continue;
+            }
             match e.verdict {
                 Verdict::Ok => {}
                 Verdict::Exclude => p.excluded.push(Excluded {

@@ -11,6 +11,7 @@ fn flag_name(f: Flag) -> &'static str {
         Flag::Gap => "gap",
         Flag::Count => "count",
         Flag::NonMonotonic => "non_monotonic",
+        Flag::Video => "video",
     }
 }
 
@@ -117,6 +118,48 @@ pub fn render(r: &AuditReport, title: &str) -> String {
                 "why",
             ],
             &flagged,
+        );
+    }
+
+    if !r.video.is_empty() {
+        page.heading("Camera videos");
+        page.paragraph(
+            "Each episode's camera video against its rows: frames in the episode's span of the \
+             file, the smallest and largest interval between them, and the farthest any row is \
+             from the frame it gets (LeRobot's rule: the frame nearest the row's time, which must \
+             be closer than tolerance_s = 0.1 ms).",
+        );
+        let rows: Vec<Vec<String>> = r
+            .video
+            .iter()
+            .map(|v| {
+                let c = &v.check;
+                vec![
+                    v.episode.to_string(),
+                    c.camera.clone(),
+                    c.codec.clone(),
+                    c.rows.to_string(),
+                    c.frames.to_string(),
+                    ms(c.interval_min),
+                    ms(c.interval_max),
+                    ms(c.worst_gap),
+                    c.problem.clone().unwrap_or_else(|| "ok".into()),
+                ]
+            })
+            .collect();
+        page.table(
+            &[
+                "episode",
+                "camera",
+                "codec",
+                "rows",
+                "frames",
+                "min (ms)",
+                "max (ms)",
+                "worst gap (ms)",
+                "check",
+            ],
+            &rows,
         );
     }
 

@@ -89,6 +89,7 @@ pub(crate) fn sample_audit() -> AuditReport {
             after_t,
             after,
         }],
+        video: Vec::new(),
         episodes,
     }
 }

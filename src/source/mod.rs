@@ -23,6 +23,8 @@
 //! - `block_map`: where a chunked, unfiltered HDF5 dataset's blocks lie in its file (read and
 //!   written with `pread`/`pwrite`, outside HDF5's lock; the HDF5 writer uses it too).
 //! - `jpeg`: decoding JPEG frames.
+//! - `video`: camera videos (demux, LeRobot's frame selection, decode to RGB as PyAV does),
+//!   behind the `video` cargo feature.
 //! - `parquet_read`: parquet columns (scalars, fixed- and variable-size lists) as rows of numbers.
 //! - `subset`: `[source] episodes = […]`, a view of some episodes of any source.
 //! - `fingerprint`: the content hash that tells the plan whether a source changed.
@@ -41,10 +43,12 @@ pub mod mapping;
 mod parquet_read;
 mod robomimic;
 mod subset;
+pub mod video;
 
 pub use block_cache::DecodeCounts;
 pub use lerobot::Info as LerobotInfo;
 pub use subset::Subset;
+pub use video::VideoCheck;
 
 use std::collections::BTreeMap;
 
@@ -161,6 +165,14 @@ pub trait Source: Send + Sync {
     /// with its episode named, when it is read.
     fn prefetch(&self, positions: &[usize]) {
         let _ = positions;
+    }
+    /// The checks of the episode at `index`'s camera videos, one per video channel (demuxed
+    /// packet times against the rows; nothing decoded); empty for sources without video. An
+    /// `Err` is a failure to read the source's metadata, not a bad video (that is a check's
+    /// `problem`).
+    fn video_checks(&self, index: usize) -> Result<Vec<VideoCheck>> {
+        let _ = index;
+        Ok(Vec::new())
     }
     /// Only the episodes at `positions` (sorted) will be read from now on: adapters that keep a
     /// decoded chunk until every episode overlapping it has been read count only these.

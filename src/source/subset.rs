@@ -83,6 +83,10 @@ impl Source for Subset {
         self.inner.decode_counts()
     }
 
+    fn video_checks(&self, index: usize) -> Result<Vec<crate::source::VideoCheck>> {
+        self.inner.video_checks(self.positions[index])
+    }
+
     fn prefetch(&self, positions: &[usize]) {
         let inner: Vec<usize> = positions.iter().map(|&i| self.positions[i]).collect();
         self.inner.prefetch(&inner);

@@ -227,6 +227,12 @@ pub struct AuditSpec {
     /// `excluded` in each profile's `meta.json`).
     #[serde(default)]
     pub non_finite: NonFinite,
+    /// A camera video (LeRobot `dtype: "video"`) that cannot give every row its frame: a missing,
+    /// truncated or unreadable file, or a row whose nearest frame is `tolerance_s` (1e-4 s) or
+    /// more away. Stop with an error naming the episode, camera, file (and row and gap)
+    /// (default), or leave the episode out of every profile.
+    #[serde(default)]
+    pub video: BadVideo,
     /// Apply the audit's verdicts in `build` (re-grid, resample, exclude). When false, episodes
     /// are used as recorded and the verdicts are only reported.
     #[serde(default = "default_true")]
@@ -285,6 +291,7 @@ impl Default for AuditSpec {
     fn default() -> Self {
         AuditSpec {
             non_finite: NonFinite::default(),
+            video: BadVideo::default(),
             repair: true,
             jitter_threshold: default_jitter(),
             gap_threshold: default_gap(),
@@ -359,6 +366,17 @@ pub enum NonFinite {
     #[default]
     Error,
     /// Leave the episode out of every profile.
+    ExcludeEpisode,
+}
+
+/// What to do with an episode whose camera video cannot give every row its frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum BadVideo {
+    /// Fail `audit` and `build`, naming the episode, camera and file.
+    #[default]
+    Error,
+    /// Leave the episode out of every profile (its audit verdict is `exclude`).
     ExcludeEpisode,
 }
 

@@ -237,7 +237,8 @@ def test_lerobot_missing_video_names_the_file(tmp_path):
     proc = build(tmp_path, "lerobot", G1, {
         "action": q("action"), "observation.image": q("observation.images.cam_high")}, check=False)
     assert proc.returncode == 3
-    assert "videos/chunk-000/observation.images.cam_high/episode_000000.mp4 is missing" in proc.stderr
+    assert ("episode 0, camera `observation.images.cam_high` (channel `observation.image`), "
+            "file videos/chunk-000/observation.images.cam_high/episode_000000.mp4: the file is missing") in proc.stderr
 
 
 def test_changed_source_file_invalidates_the_build(tmp_path):

@@ -102,6 +102,9 @@ pub struct Info {
     /// `splits` as (name, episode range) pairs; `None` when the file has no `splits` table.
     /// Values that are not `"a:b"` are left out.
     pub splits: Option<Vec<(String, Range<u64>)>>,
+    /// Per video feature, the codec its `info` block claims (`video.codec`); the stream wins
+    /// when they disagree.
+    pub video_codecs: Vec<(String, String)>,
 }
 
 impl Info {
@@ -145,6 +148,14 @@ impl Info {
                 )));
             }
         }
+        let video_codecs = info["features"]
+            .as_object()
+            .into_iter()
+            .flatten()
+            .filter_map(|(key, f)| {
+                Some((key.clone(), f["info"]["video.codec"].as_str()?.to_string()))
+            })
+            .collect();
         let splits = info["splits"].as_object().map(|splits| {
             splits
                 .iter()
@@ -159,6 +170,7 @@ impl Info {
             data_path: data_path.to_string(),
             video_path: video_path.map(str::to_string),
             splits,
+            video_codecs,
         })
     }
 }

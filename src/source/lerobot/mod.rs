@@ -10,11 +10,12 @@
 //!   contiguous.
 //!
 //! Every frame row has `timestamp` (seconds), which becomes the episode's timestamps; the rate is
-//! info.json's `fps`. Video features live in mp4 files: a channel mapped to one needs the files
-//! to exist (decoding them comes later).
+//! info.json's `fps`. Video features live in mp4 files: a channel mapped to one is decoded from
+//! them (feature `video`), each row given the frame LeRobot would give it.
 //!
 //! - `info`: parsing `meta/info.json` (version, rate, features, path templates, splits).
 //! - `v2`, `v3`: each layout's episode listing and where each episode's rows are.
+//! - `video`: each episode's camera files and spans, their audit checks and their decoding.
 //! - here: opening (the checks common to both layouts) and reading episodes.
 
 use std::collections::BTreeMap;
@@ -25,13 +26,17 @@ use std::sync::{Arc, OnceLock};
 use super::block_cache::{self, BlockCache, DecodeCounts};
 use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::parquet_read::{self, read_columns};
+use super::video as codec;
+use super::VideoCheck;
 use super::{fingerprint, Episode, EpisodeInfo, Manifest, Source, SourceSplit};
 use crate::error::{Error, Result};
-use crate::spec::{LoadedSpec, SourceFormat};
+use crate::spec::{BadVideo, LoadedSpec, SourceFormat};
+use rayon::prelude::*;
 
 mod info;
 mod v2;
 mod v3;
+mod video;
 
 pub use info::Info;
 use info::Version;
@@ -46,8 +51,17 @@ struct Listing {
     /// Per episode: the data file (relative to the root) and its rows there (`None`: all).
     locations: Vec<(PathBuf, Option<Range<usize>>)>,
     /// Per episode, the video file of each media feature.
-    video_files: Vec<BTreeMap<String, PathBuf>>,
+    video_files: Vec<BTreeMap<String, VideoRef>>,
     read_files: Vec<PathBuf>,
+}
+
+/// Where one episode's camera is: its file (relative to the root) and, in v3.0's shared files,
+/// its span (`from_timestamp`, `to_timestamp`); v2: from 0, to the end.
+#[derive(Debug, Clone)]
+struct VideoRef {
+    file: PathBuf,
+    from: f64,
+    to: Option<f64>,
 }
 
 pub struct LerobotSource {
@@ -67,6 +81,8 @@ pub struct LerobotSource {
     /// Per episode: timestamps the audit read, kept for the episode read (8 bytes a step), so
     /// that the `timestamp` column is decoded once.
     stamps: Vec<OnceLock<Vec<f64>>>,
+    /// The mapped video features' files per episode.
+    videos: video::Videos,
 }
 
 /// A v3.0 data file's footer, and the episodes that take rows from each of its row groups.
@@ -132,8 +148,9 @@ impl LerobotSource {
             return Err(Error::source(format!("{shown}: episode {} is empty", e.id)));
         }
 
-        // Video and image features are not in the parquet files: first a missing file, which the
-        // user can fix, then the decoding that is not there yet.
+        // Video and image features are not in the parquet files. Images stored in parquet are
+        // not read yet; videos need the feature, the template and (unless the audit may
+        // exclude the episode) every file.
         let channel_of = |key: &str| {
             mapped
                 .channels
@@ -142,20 +159,7 @@ impl LerobotSource {
                 .map(|c| c.name.clone())
                 .unwrap_or_default()
         };
-        for m in &media {
-            for (e, videos) in episodes.iter().zip(&video_files) {
-                if let Some(rel) = videos.get(&m.key).filter(|rel| !root.join(rel).exists()) {
-                    return Err(Error::source(format!(
-                        "{shown}: channel `{}` maps to the video feature `{}`, but episode {}'s video {} is missing",
-                        channel_of(&m.key),
-                        m.key,
-                        e.id,
-                        rel.display()
-                    )));
-                }
-            }
-        }
-        if let Some(m) = media.first() {
+        if let Some(m) = media.iter().find(|m| m.dtype != "video") {
             return Err(Error::source(format!(
                 "{shown}: channel `{}` maps to `{}`, a {} feature; reading LeRobot {}s is not supported yet",
                 channel_of(&m.key),
@@ -164,6 +168,80 @@ impl LerobotSource {
                 m.dtype
             )));
         }
+        let mut warnings = mapped.warnings.clone();
+        if let Some(m) = media.first() {
+            if info.video_path.is_none() {
+                return Err(Error::source(format!(
+                    "{}: no `video_path`, but `{}` is a video feature",
+                    info_path.display(),
+                    m.key
+                )));
+            }
+        }
+        let excluding = spec.spec.audit.video == BadVideo::ExcludeEpisode;
+        let mut files: BTreeMap<PathBuf, String> = BTreeMap::new();
+        for m in &media {
+            for (e, videos) in episodes.iter().zip(&video_files) {
+                let Some(r) = videos.get(&m.key) else {
+                    continue;
+                };
+                if root.join(&r.file).exists() {
+                    files.entry(r.file.clone()).or_insert_with(|| m.key.clone());
+                } else if !excluding {
+                    return Err(Error::source(format!(
+                        "{shown}: episode {}, camera `{}` (channel `{}`), file {}: the file is missing; set `[audit] video = \"exclude_episode\"` to leave such episodes out",
+                        e.id,
+                        m.key,
+                        channel_of(&m.key),
+                        r.file.display()
+                    )));
+                }
+            }
+        }
+        // A missing file first (the same message with or without the feature), then the feature.
+        if let Some(m) = media.first().filter(|_| !codec::ENABLED) {
+            return Err(Error::source(format!(
+                "{shown}: channel `{}` maps to the video feature `{}`; {}",
+                channel_of(&m.key),
+                m.key,
+                codec::DISABLED
+            )));
+        }
+        // Trust the stream over info.json's `video.codec`, and say so.
+        let probed: Vec<(PathBuf, String, std::result::Result<codec::Probe, String>)> = files
+            .par_iter()
+            .map(|(f, key)| (f.clone(), key.clone(), codec::probe(&root.join(f))))
+            .collect();
+        let mut disagree: BTreeMap<(String, String, String), Vec<PathBuf>> = BTreeMap::new();
+        for (file, key, probe) in probed {
+            let claimed = info.video_codecs.iter().find(|(k, _)| *k == key);
+            if let (Ok(p), Some((_, claimed))) = (probe, claimed) {
+                if codec::codec_family(claimed) != codec::codec_family(&p.codec) {
+                    let k = (key, claimed.clone(), p.codec);
+                    disagree.entry(k).or_default().push(file);
+                }
+            }
+        }
+        for ((key, claimed, found), files) in disagree {
+            warnings.push(format!(
+                "{}: `{key}` says `video.codec` is `{claimed}`, but {} file(s) hold {found} (first: {}); decoding what the stream holds",
+                info_path.display(),
+                files.len(),
+                files[0].display()
+            ));
+        }
+        read_files.extend(files.keys().cloned());
+        let video_channels: BTreeMap<String, String> = media
+            .iter()
+            .map(|m| (m.key.clone(), channel_of(&m.key)))
+            .collect();
+        let video_refs: Vec<BTreeMap<String, VideoRef>> = video_files
+            .into_iter()
+            .map(|mut v| {
+                v.retain(|k, _| video_channels.contains_key(k));
+                v
+            })
+            .collect();
 
         let source_split = info.splits.as_ref().map(|ranges| {
             let in_split = |name: &str, id: u64| {
@@ -222,7 +300,7 @@ impl LerobotSource {
                 files: fingerprint.files,
                 timestamps: has_timestamp,
                 source_split,
-                warnings: mapped.warnings.clone(),
+                warnings,
             },
             mapped,
             locations,
@@ -230,6 +308,7 @@ impl LerobotSource {
             footers,
             cache: BlockCache::new(block_cache::budget_from_env()),
             stamps,
+            videos: video::Videos::new(root, video_refs, video_channels, fps),
         })
     }
 }
@@ -263,7 +342,9 @@ impl Source for LerobotSource {
         let (rel, _) = &self.locations[index];
         let path = self.root.join(rel);
         let place = format!("{}: episode {}", path.display(), info.id);
-        let keys = self.mapped.keys();
+        let all_keys = self.mapped.keys();
+        let (video_keys, keys): (Vec<String>, Vec<String>) =
+            all_keys.into_iter().partition(|k| self.videos.is_video(k));
         let widths: BTreeMap<&str, usize> = self
             .mapped
             .recipes
@@ -292,7 +373,34 @@ impl Source for LerobotSource {
         };
         let mut by_key: BTreeMap<&str, Vec<f64>> =
             keys.iter().map(String::as_str).zip(cols).collect();
+        // Cameras side by side, each file decoded sequentially (see `video`).
+        let mut frames: BTreeMap<&str, Vec<u8>> = BTreeMap::new();
+        if !video_keys.is_empty() {
+            let stamps = self.row_times(index, timestamps.as_deref());
+            let shapes: BTreeMap<&str, [usize; 3]> = self
+                .mapped
+                .channels
+                .iter()
+                .filter(|c| c.shape.len() == 3)
+                .map(|c| (c.key.as_str(), [c.shape[0], c.shape[1], c.shape[2]]))
+                .collect();
+            let decoded: Vec<Result<Vec<u8>>> = video_keys
+                .par_iter()
+                .map(|k| {
+                    let shape = shapes.get(k.as_str()).copied().ok_or_else(|| {
+                        Error::source(format!("{place}: `{k}` is not an (H, W, C) video"))
+                    })?;
+                    self.videos.decode(index, info.id, k, &stamps, shape)
+                })
+                .collect();
+            for (k, d) in video_keys.iter().zip(decoded) {
+                frames.insert(k.as_str(), d?);
+            }
+        }
         let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
+            if let Some(f) = frames.remove(key) {
+                return Ok(Raw::U8(f));
+            }
             let values = by_key.remove(key).expect("every mapped key was read");
             Ok(Raw::F32(values.into_iter().map(|v| v as f32).collect()))
         })?;
@@ -302,6 +410,15 @@ impl Source for LerobotSource {
             timestamps,
             channels,
         })
+    }
+
+    fn video_checks(&self, index: usize) -> Result<Vec<VideoCheck>> {
+        if self.videos.keys(index).next().is_none() {
+            return Ok(Vec::new());
+        }
+        let stamps = self.read_timestamps(index)?;
+        let times = self.row_times(index, stamps.as_deref());
+        Ok(self.videos.checks(index, &times))
     }
 
     fn decode_counts(&self) -> DecodeCounts {
@@ -340,6 +457,20 @@ impl Source for LerobotSource {
 }
 
 impl LerobotSource {
+    /// The time each row of episode `index` looks its frames up at: its `timestamp`, or
+    /// `frame_index / fps` in a dataset without the column.
+    fn row_times(&self, index: usize, stamps: Option<&[f64]>) -> Vec<f64> {
+        match stamps {
+            Some(t) => t.to_vec(),
+            None => {
+                let fps = self.manifest.fps;
+                (0..self.manifest.episodes[index].len)
+                    .map(|k| k as f64 / fps)
+                    .collect()
+            }
+        }
+    }
+
     /// The columns `wanted` (name, values per step) of episode `index`, as `rows × width`
     /// values each, from its data file's row groups: each row group's column decoded once
     /// (through the cache), however many episodes it holds.

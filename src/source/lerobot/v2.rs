@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use serde_json::Value;
 
 use super::info::{fill, Info};
-use super::Listing;
+use super::{Listing, VideoRef};
 use crate::error::{Error, Result};
 use crate::source::mapping::KeyInfo;
 use crate::source::parquet_read::num_rows;
@@ -74,7 +74,13 @@ pub(super) fn list(root: &Path, info: &Info, media: &[&KeyInfo]) -> Result<Listi
             for m in media {
                 let mut v = values.to_vec();
                 v.push(("video_key", m.key.clone()));
-                videos.insert(m.key.clone(), PathBuf::from(fill(template, &v)));
+                let file = PathBuf::from(fill(template, &v));
+                let video = VideoRef {
+                    file,
+                    from: 0.0,
+                    to: None,
+                };
+                videos.insert(m.key.clone(), video);
             }
         }
         video_files.push(videos);

@@ -12,7 +12,7 @@ use arrow_array::types::Int64Type;
 use arrow_array::Array;
 
 use super::info::{fill, Info};
-use super::Listing;
+use super::{Listing, VideoRef};
 use crate::error::{Error, Result};
 use crate::source::mapping::KeyInfo;
 use crate::source::parquet_read::{self, read_columns};
@@ -24,7 +24,7 @@ struct EpisodeRow {
     len: usize,
     chunk: u64,
     file: u64,
-    videos: BTreeMap<String, PathBuf>,
+    videos: BTreeMap<String, VideoRef>,
 }
 
 /// The episodes of a v3.0 dataset and where their rows are in the shared data files.
@@ -60,19 +60,21 @@ pub(super) fn list(root: &Path, info: &Info, media: &[&KeyInfo]) -> Result<Listi
             "data/chunk_index",
             "data/file_index",
         ];
-        let video_cols: Vec<(String, String, String)> = media
+        let video_cols: Vec<(String, [String; 4])> = media
             .iter()
             .map(|m| {
-                (
-                    m.key.clone(),
-                    format!("videos/{}/chunk_index", m.key),
-                    format!("videos/{}/file_index", m.key),
-                )
+                let col = |what: &str| format!("videos/{}/{what}", m.key);
+                let cols = [
+                    "chunk_index",
+                    "file_index",
+                    "from_timestamp",
+                    "to_timestamp",
+                ];
+                (m.key.clone(), cols.map(col))
             })
             .collect();
-        for (_, c, f) in &video_cols {
-            names.push(c);
-            names.push(f);
+        for (_, cols) in &video_cols {
+            names.extend(cols.iter().map(String::as_str));
         }
         let cols = read_columns(&path, &names, None)?;
         let ints = |i: usize| -> Result<Vec<u64>> {
@@ -80,19 +82,32 @@ pub(super) fn list(root: &Path, info: &Info, media: &[&KeyInfo]) -> Result<Listi
                 .map(|v| v.into_iter().map(|x| x as u64).collect())
         };
         let (ids, lens, chunk, file) = (ints(0)?, ints(1)?, ints(2)?, ints(3)?);
-        let video_ints: Vec<(Vec<u64>, Vec<u64>)> = (0..video_cols.len())
-            .map(|j| Ok((ints(4 + 2 * j)?, ints(5 + 2 * j)?)))
+        let floats = |i: usize| -> Result<Vec<f64>> {
+            parquet_read::to_f64_rows(&cols[i], 1, &format!("{}: `{}`", path.display(), names[i]))
+        };
+        type VideoCols = (Vec<u64>, Vec<u64>, Vec<f64>, Vec<f64>);
+        let video_ints: Vec<VideoCols> = (0..video_cols.len())
+            .map(|j| {
+                let at = 4 + 4 * j;
+                Ok((ints(at)?, ints(at + 1)?, floats(at + 2)?, floats(at + 3)?))
+            })
             .collect::<Result<_>>()?;
         for r in 0..ids.len() {
             let mut videos = BTreeMap::new();
             if let Some(template) = &info.video_path {
-                for (j, (key, _, _)) in video_cols.iter().enumerate() {
+                for (j, (key, _)) in video_cols.iter().enumerate() {
+                    let (chunks, files, from, to) = &video_ints[j];
                     let v = [
                         ("video_key", key.clone()),
-                        ("chunk_index", video_ints[j].0[r].to_string()),
-                        ("file_index", video_ints[j].1[r].to_string()),
+                        ("chunk_index", chunks[r].to_string()),
+                        ("file_index", files[r].to_string()),
                     ];
-                    videos.insert(key.clone(), PathBuf::from(fill(template, &v)));
+                    let video = VideoRef {
+                        file: PathBuf::from(fill(template, &v)),
+                        from: from[r],
+                        to: Some(to[r]),
+                    };
+                    videos.insert(key.clone(), video);
                 }
             }
             rows.push(EpisodeRow {

@@ -1,0 +1,154 @@
+"""Decoding LeRobot AV1 video: chunkc (-j1, -j2) against PyAV in one process (issue 19, a note,
+not a test; results in book/src/video.md).
+
+    .venv/bin/python bench/video_read.py DIR [EPISODES ...]   (default: 10 20)
+
+For each episode count it writes a LeRobot v3.0 dataset under DIR: two cameras of 480x640
+frames (ffmpeg's testsrc2 and its mirror), FRAMES frames an episode at 10 fps, all episodes in
+one mp4 per camera, encoded as LeRobot encodes (libsvtav1, yuv420p, g=2, crf=30; needs the
+`ffmpeg` CLI). Then it times
+- PyAV alone decoding every frame of both files to rgb24 (`frame.to_ndarray(format="rgb24")`),
+  sequentially, in one process: the floor for anything built on PyAV;
+- `chunkc build` of an HDF5 profile (every frame decoded and written uncompressed) with -j1 and
+  -j2, its peak RSS (getrusage of the child) and the "read episodes" phase (CHUNKC_TIMINGS).
+"""
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+REPO = Path(__file__).resolve().parents[1]
+BIN = os.environ.get("CHUNKC_BIN", str(REPO / "target/release/chunkc"))
+FRAMES = int(os.environ.get("FRAMES", "150"))
+H, W, FPS = 480, 640, 10
+KEYS = ["observation.images.top", "observation.images.wrist"]
+
+
+def encode(out: Path, n: int, mirror: bool):
+    out.parent.mkdir(parents=True, exist_ok=True)
+    vf = "hflip," if mirror else ""
+    subprocess.run(
+        ["ffmpeg", "-v", "error", "-y", "-f", "lavfi", "-i",
+         f"testsrc2=size={W}x{H}:rate={FPS}", "-frames:v", str(n), "-vf", f"{vf}format=yuv420p",
+         "-c:v", "libsvtav1", "-g", "2", "-crf", "30", "-preset", "10", str(out)],
+        check=True,
+    )
+
+
+def write_dataset(root: Path, episodes: int):
+    if (root / "meta/info.json").exists():
+        return
+    n = episodes * FRAMES
+    for i, key in enumerate(KEYS):
+        encode(root / f"videos/{key}/chunk-000/file-000.mp4", n, mirror=i == 1)
+    ep = np.repeat(np.arange(episodes), FRAMES)
+    k = np.tile(np.arange(FRAMES), episodes)
+    rng = np.random.default_rng(0)
+    data = root / "data/chunk-000/file-000.parquet"
+    data.parent.mkdir(parents=True, exist_ok=True)
+    vec = lambda: pa.array(list(rng.standard_normal((n, 2)).astype(np.float32)), type=pa.list_(pa.float32(), 2))
+    pq.write_table(pa.table({
+        "observation.state": vec(), "action": vec(),
+        "timestamp": pa.array((k / FPS).astype(np.float32)),
+        "frame_index": pa.array(k), "episode_index": pa.array(ep), "index": pa.array(np.arange(n)),
+        "task_index": pa.array(np.zeros(n, dtype=np.int64)),
+    }), data, row_group_size=FRAMES)
+    cols = {"episode_index": np.arange(episodes), "length": np.full(episodes, FRAMES),
+            "data/chunk_index": np.zeros(episodes, dtype=np.int64),
+            "data/file_index": np.zeros(episodes, dtype=np.int64)}
+    for key in KEYS:
+        cols[f"videos/{key}/chunk_index"] = np.zeros(episodes, dtype=np.int64)
+        cols[f"videos/{key}/file_index"] = np.zeros(episodes, dtype=np.int64)
+        cols[f"videos/{key}/from_timestamp"] = np.arange(episodes) * FRAMES / FPS
+        cols[f"videos/{key}/to_timestamp"] = (np.arange(episodes) + 1) * FRAMES / FPS
+    meta = root / "meta/episodes/chunk-000/file-000.parquet"
+    meta.parent.mkdir(parents=True, exist_ok=True)
+    pq.write_table(pa.table(cols), meta)
+    video = {"dtype": "video", "shape": [H, W, 3], "names": ["height", "width", "channels"],
+             "info": {"video.codec": "av1", "video.fps": FPS}}
+    info = {
+        "codebase_version": "v3.0", "fps": FPS, "chunks_size": 1000,
+        "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
+        "video_path": "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4",
+        "features": {**{k: video for k in KEYS},
+                     "observation.state": {"dtype": "float32", "shape": [2]},
+                     "action": {"dtype": "float32", "shape": [2]},
+                     "timestamp": {"dtype": "float32", "shape": [1]}},
+    }
+    (root / "meta/info.json").write_text(json.dumps(info))
+
+
+def pyav_fps(root: Path) -> float:
+    import av
+
+    t0, n = time.perf_counter(), 0
+    for key in KEYS:
+        with av.open(str(root / f"videos/{key}/chunk-000/file-000.mp4")) as c:
+            for frame in c.decode(video=0):
+                frame.to_ndarray(format="rgb24")
+                n += 1
+    return n / (time.perf_counter() - t0)
+
+
+def chunkc(root: Path, work: Path, threads: int):
+    spec = work / f"spec_j{threads}.toml"
+    spec.write_text(f"""version = 1
+[source]
+format = "lerobot"
+path = "{root}"
+[source.channels]
+action = "action"
+"observation.state" = "observation.state"
+"observation.top" = "{KEYS[0]}"
+"observation.wrist" = "{KEYS[1]}"
+[split]
+val_fraction = 0.0
+[output]
+dir = "{work}/out_j{threads}"
+[profiles.h]
+preset = "act"
+fps = 10
+chunk = 10
+format = "hdf5"
+""")
+    subprocess.run(["rm", "-rf", str(work / f"out_j{threads}")], check=True)
+    # A fresh Python parent per run, so that its children's peak RSS is this build's alone.
+    measure = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:]).returncode; "
+               "print('peak_rss_kb', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, file=sys.stderr); "
+               "sys.exit(r)")
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-c", measure, BIN, "build", "-j", str(threads), str(spec)],
+                       capture_output=True, text=True, env={**os.environ, "CHUNKC_TIMINGS": "1"})
+    wall = time.perf_counter() - t0
+    if p.returncode:
+        raise SystemExit(p.stderr)
+    rss = int(next(l for l in p.stderr.splitlines() if l.startswith("peak_rss_kb")).split()[1])
+    read = next((l for l in p.stderr.splitlines() if "read episodes" in l), "").strip()
+    subprocess.run(["rm", "-rf", str(work / f"out_j{threads}")], check=True)
+    return wall, rss, read
+
+
+def main():
+    work = Path(sys.argv[1]).resolve()
+    counts = [int(c) for c in sys.argv[2:]] or [10, 20]
+    for e in counts:
+        root = work / f"av1_{e}ep"
+        write_dataset(root, e)
+        frames = e * FRAMES * len(KEYS)
+        print(f"{e} episodes x {FRAMES} frames x {len(KEYS)} cameras at {W}x{H}: {frames} frames")
+        print(f"  PyAV, one process: {pyav_fps(root):.0f} frames/s")
+        for j in (1, 2):
+            wall, rss, read = chunkc(root, work, j)
+            shown = f"{rss / 1024:.0f} MB"
+            print(f"  chunkc build -j{j}: {wall:.1f} s, {frames / wall:.0f} frames/s, peak RSS {shown}; {read}")
+        sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
