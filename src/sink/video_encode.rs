@@ -289,9 +289,21 @@ mod imp {
                     opts.set("threads", "1");
                 }
             }
-            let encoder = enc
-                .open_with(opts)
-                .map_err(|err| format!("cannot open the {name} encoder: {err}"))?;
+            let encoder = enc.open_with(opts).map_err(|err| {
+                // SVT-AV1 before 2.0 (Debian 12 has 1.4) takes nothing under 64x64.
+                let small =
+                    s.codec == VideoCodec::Libsvtav1 && (shape.height < 64 || shape.width < 64);
+                let hint = if small {
+                    format!(
+                        " ({}x{} frames: this SVT-AV1 may need at least 64x64; \
+                             `video_codec = \"libx264\"` takes them)",
+                        shape.height, shape.width
+                    )
+                } else {
+                    String::new()
+                };
+                format!("cannot open the {name} encoder: {err}{hint}")
+            })?;
             {
                 let mut ost = octx.add_stream(codec).map_err(e("cannot add the stream"))?;
                 ost.set_parameters(&encoder);

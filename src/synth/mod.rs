@@ -150,6 +150,15 @@ fn check(opts: &SynthOptions) -> Result<()> {
     if opts.cameras > 0 && opts.format == SourceFormat::Lerobot && !cfg!(feature = "video") {
         return usage("lerobot sources keep cameras in mp4 videos, which needs a chunkc built with the `video` cargo feature; use --cameras 0".into());
     }
+    if opts.cameras > 0
+        && opts.format == SourceFormat::Lerobot
+        && (opts.height % 2 != 0 || opts.width % 2 != 0)
+    {
+        return usage(format!(
+            "lerobot cameras are yuv420p videos, whose height and width must be even, not {}x{}",
+            opts.height, opts.width
+        ));
+    }
     if opts.cameras > 0 && opts.robosuite {
         return usage("--robosuite files have no images; use --cameras 0".into());
     }
