@@ -39,9 +39,6 @@ pub fn codec_name(codec: VideoCodec) -> &'static str {
 /// The pixel format every stream is encoded in.
 pub const PIX_FMT: &str = "yuv420p";
 
-/// SVT-AV1's preset (speed) as LeRobot sets it.
-const SVTAV1_PRESET: u32 = 12;
-
 /// Frames (episodes) queued for a [`Background`] encoder before `push` waits.
 const QUEUE: usize = 2;
 
@@ -72,7 +69,11 @@ impl VideoStream {
     /// Creates `path` (its directory must exist) for RGB24 frames of `shape`.
     pub fn create(path: &Path, shape: StreamShape, settings: VideoSettings) -> Result<Self> {
         let fail = |m: String| Error::output(format!("{}: {m}", path.display()));
-        if shape.height < 2 || shape.width < 2 || shape.height % 2 != 0 || shape.width % 2 != 0 {
+        if shape.height < 2
+            || shape.width < 2
+            || !shape.height.is_multiple_of(2)
+            || !shape.width.is_multiple_of(2)
+        {
             return Err(fail(format!(
                 "cannot encode {}x{} frames as {PIX_FMT} video: height and width must be even \
                  and at least 2",
@@ -81,7 +82,7 @@ impl VideoStream {
         }
         #[cfg(feature = "video")]
         {
-            let inner = imp::Inner::create(path, shape, settings).map_err(|e| fail(e))?;
+            let inner = imp::Inner::create(path, shape, settings).map_err(fail)?;
             Ok(VideoStream {
                 path: path.to_path_buf(),
                 shape,
@@ -203,8 +204,11 @@ mod imp {
     use ff::{codec, encoder, format, frame, software::scaling, Dictionary, Packet, Rational};
     use ffmpeg_next as ff;
 
-    use super::{StreamShape, SVTAV1_PRESET};
+    use super::StreamShape;
     use crate::spec::{VideoCodec, VideoSettings};
+
+    /// SVT-AV1's preset (speed) as LeRobot sets it.
+    const SVTAV1_PRESET: u32 = 12;
 
     pub struct Inner {
         octx: format::context::Output,

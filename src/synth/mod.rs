@@ -152,7 +152,7 @@ fn check(opts: &SynthOptions) -> Result<()> {
     }
     if opts.cameras > 0
         && opts.format == SourceFormat::Lerobot
-        && (opts.height % 2 != 0 || opts.width % 2 != 0)
+        && (!opts.height.is_multiple_of(2) || !opts.width.is_multiple_of(2))
     {
         return usage(format!(
             "lerobot cameras are yuv420p videos, whose height and width must be even, not {}x{}",
