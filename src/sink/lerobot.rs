@@ -240,7 +240,7 @@ fn i64_col(values: impl IntoIterator<Item = i64>) -> ArrayRef {
 }
 
 /// The stream of camera `name` of per-step `shape`: RGB frames only (LeRobot's videos are
-/// three-channel; a gray or RGBA camera stays PNG).
+/// three-channel); any other camera is an error that says to keep it PNG.
 fn video_shape(name: &str, shape: &[usize], fps: f64) -> Result<StreamShape> {
     match shape {
         [height, width, 3] => Ok(StreamShape {
