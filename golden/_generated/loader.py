@@ -46,6 +46,18 @@ except ImportError:  # pragma: no cover - exercised in numpy-only environments
     _DatasetBase = object
 
 
+def _video(path, shape):
+    """Every frame of an mp4 chunkc wrote (`image_encoding = "video"`), in order, as RGB: decoded
+    sequentially with PyAV (`pip install av`), converted as LeRobot's pyav backend does."""
+    try:
+        import av
+    except ImportError as e:  # pragma: no cover - depends on the environment
+        raise ImportError(f"{path}: reading video frames needs PyAV (`pip install av`)") from e
+    with av.open(path) as container:
+        frames = [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
+    return np.stack(frames).reshape((len(frames),) + shape) if frames else np.zeros((0,) + shape, dtype=np.uint8)
+
+
 def _png(data, shape):
     """One PNG frame as written by chunkc (8-bit, no interlace): filters undone here, so numpy
     and zlib are enough."""
@@ -197,6 +209,10 @@ class _ParquetBackend(_Backend):
         out = {}
         for name, channel in self.meta["channels"].items():
             shape = tuple(channel["shape"])
+            if channel["kind"] != "lowdim" and name not in table.column_names:
+                # `image_encoding = "video"`: the camera's frames are an mp4 beside the table.
+                out["data/" + name] = _video(os.path.join(self.root, "videos", name, "chunk-000", "file-000.mp4"), shape)
+                continue
             column = table.column(name).combine_chunks()
             if channel["kind"] == "lowdim":
                 # Fixed-size lists, nested once per axis of the per-step shape.

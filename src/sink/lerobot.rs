@@ -12,6 +12,8 @@
 //! meta/tasks.parquet                task_index, task ("chunkc")
 //! meta/stats.json                   written by `exec` (LeRobot's statistics layout)
 //! chunkc_index.parquet              chunkc's window index: split, episode, t, limit, sub
+//! videos/<channel>/chunk-000/file-000.mp4   with `image_encoding = "video"`: every frame of
+//!                                   the camera, stored row `i` at time `i / fps`
 //! ```
 //! Values are raw: LeRobot normalizes in its policy with `meta/stats.json`, and chunkc's loader
 //! normalizes on read. Writer properties are fixed (created_by, zstd level, no dictionary,
@@ -20,6 +22,13 @@
 //! Frames arrive PNG-encoded (in `exec`'s parallel stage) episode by episode, before the low-dim
 //! channels the same row groups need: they wait in a scratch file per camera, and `finish`
 //! writes the data file one episode (one row group) at a time, so memory holds one episode.
+//!
+//! With `image_encoding = "video"` frames arrive raw and go straight to one encoder per camera,
+//! each on its own thread ([`super::video_encode::Background`]): the camera is a `dtype:
+//! "video"` feature of `meta/info.json` (with the `info` block LeRobot's `get_video_info`
+//! writes), has no column in the data file, and `meta/episodes` locates each episode in its mp4
+//! (`videos/<channel>/{chunk_index, file_index, from_timestamp, to_timestamp}`), as LeRobot's
+//! own writer does.
 
 use std::fs::File;
 use std::io::{BufWriter, Read, Seek, Write};
@@ -37,10 +46,11 @@ use parquet::basic::{Compression as PqCompression, ZstdLevel};
 use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use serde_json::{json, Value};
 
+use super::video_encode::{self, Background, StreamShape};
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
 use crate::source::ChannelKind;
-use crate::spec::Compression;
+use crate::spec::{Compression, VideoSettings};
 use crate::stats::normalize::Normalizer;
 use crate::store::LowdimStore;
 use crate::window::Ends;
@@ -51,6 +61,13 @@ pub const STATS_PATH: &str = "meta/stats.json";
 const TASK: &str = "chunkc";
 const CREATED_BY: &str = "chunkc";
 const DEFAULT_ZSTD_LEVEL: u32 = 3;
+/// LeRobot's `video_path` template (v3.0).
+pub const VIDEO_PATH: &str = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4";
+
+/// Where camera `name`'s video goes (the one file of [`VIDEO_PATH`] chunkc writes).
+pub fn video_file(name: &str) -> String {
+    format!("videos/{name}/chunk-000/file-000.mp4")
+}
 
 pub struct LerobotWriter {
     dir: PathBuf,
@@ -61,8 +78,12 @@ pub struct LerobotWriter {
     /// Per channel: the name, its shape, its kind.
     channels: Vec<(String, Vec<usize>, ChannelKind)>,
     raw: Vec<Option<Arc<LowdimStore>>>,
-    /// Per channel: its PNG frames by stored row (images only).
+    /// Per channel: its PNG frames by stored row (images stored as PNG only).
     frames: Vec<Option<FrameSpill>>,
+    /// The encoder settings when images are stored as video.
+    video: Option<VideoSettings>,
+    /// Per channel: its video encoder and the frames sent to it (images stored as video only).
+    videos: Vec<Option<(Background, usize)>>,
     train: Vec<[i64; 4]>,
     val: Vec<[i64; 4]>,
 }
@@ -219,7 +240,36 @@ fn i64_col(values: impl IntoIterator<Item = i64>) -> ArrayRef {
     Arc::new(Int64Array::from_iter_values(values))
 }
 
+/// The stream of camera `name` of per-step `shape`: RGB frames only (LeRobot's videos are
+/// three-channel); any other camera is an error that says to keep it PNG.
+fn video_shape(name: &str, shape: &[usize], fps: f64) -> Result<StreamShape> {
+    match shape {
+        [height, width, 3] => Ok(StreamShape {
+            height: *height,
+            width: *width,
+            fps,
+        }),
+        _ => Err(Error::output(format!(
+            "channel `{name}`: `image_encoding = \"video\"` stores (height, width, 3) RGB frames, \
+             and this channel's frames are {shape:?}; use `image_encoding = \"png\"`"
+        ))),
+    }
+}
+
 impl LerobotWriter {
+    /// Whether channels of `kind` are stored as video.
+    fn is_video(&self, kind: ChannelKind) -> bool {
+        kind == ChannelKind::Image && self.video.is_some()
+    }
+
+    /// The channels stored as video: (name, shape).
+    fn video_channels(&self) -> impl Iterator<Item = (&str, &[usize])> + '_ {
+        self.channels
+            .iter()
+            .filter(|(_, _, k)| self.is_video(*k))
+            .map(|(n, s, _)| (n.as_str(), s.as_slice()))
+    }
+
     pub fn create(ctx: &SinkContext) -> Result<Self> {
         let v = &ctx.profile.values;
         let compression = match v.compression {
@@ -244,6 +294,21 @@ impl LerobotWriter {
             .map(|c| (c.name.clone(), c.shape.clone(), c.kind))
             .collect();
         let steps = *ctx.episode_ends.last().unwrap_or(&0) as usize;
+        let video = v.video();
+        let videos = channels
+            .iter()
+            .map(|(name, shape, kind)| match (kind, video) {
+                (ChannelKind::Image, Some(settings)) => {
+                    let shape = video_shape(name, shape, ctx.profile.fps)?;
+                    let path = ctx.dir.join(video_file(name));
+                    if let Some(parent) = path.parent() {
+                        std::fs::create_dir_all(parent).at("create", parent)?;
+                    }
+                    Ok(Some((Background::spawn(&path, shape, settings)?, 0)))
+                }
+                _ => Ok(None),
+            })
+            .collect::<Result<Vec<_>>>()?;
         Ok(LerobotWriter {
             dir: ctx.dir.to_path_buf(),
             fps: ctx.profile.fps,
@@ -255,13 +320,15 @@ impl LerobotWriter {
                 .iter()
                 .enumerate()
                 .map(|(c, (_, _, k))| match k {
-                    ChannelKind::Image => {
+                    ChannelKind::Image if video.is_none() => {
                         let file = format!("{}-frames-{c}", ctx.profile.name);
                         FrameSpill::create(ctx.scratch.join(file), steps).map(Some)
                     }
-                    ChannelKind::Lowdim => Ok(None),
+                    _ => Ok(None),
                 })
                 .collect::<Result<_>>()?,
+            video,
+            videos,
             channels,
             train: Vec::new(),
             val: Vec::new(),
@@ -303,6 +370,9 @@ impl LerobotWriter {
     fn data(&mut self) -> Result<()> {
         let mut fields = Vec::new();
         for (name, shape, kind) in &self.channels {
+            if self.is_video(*kind) {
+                continue;
+            }
             let dt = match kind {
                 ChannelKind::Lowdim => lowdim_type(shape),
                 ChannelKind::Image => DataType::Struct(image_fields()),
@@ -334,6 +404,9 @@ impl LerobotWriter {
                 .iter()
                 .zip(this.raw.iter().zip(frames.iter_mut()))
             {
+                if this.is_video(*kind) {
+                    continue;
+                }
                 match (kind, frames) {
                     (ChannelKind::Lowdim, _) => {
                         let raw = raw
@@ -363,7 +436,7 @@ impl LerobotWriter {
     }
 
     fn episodes(&self) -> Result<()> {
-        let schema = Arc::new(Schema::new(vec![
+        let mut fields = vec![
             Field::new("episode_index", DataType::Int64, false),
             Field::new(
                 "tasks",
@@ -375,7 +448,18 @@ impl LerobotWriter {
             Field::new("dataset_to_index", DataType::Int64, false),
             Field::new("data/chunk_index", DataType::Int64, false),
             Field::new("data/file_index", DataType::Int64, false),
-        ]));
+        ];
+        for (name, _) in self.video_channels() {
+            for (column, dt) in [
+                ("chunk_index", DataType::Int64),
+                ("file_index", DataType::Int64),
+                ("from_timestamp", DataType::Float64),
+                ("to_timestamp", DataType::Float64),
+            ] {
+                fields.push(Field::new(format!("videos/{name}/{column}"), dt, false));
+            }
+        }
+        let schema = Arc::new(Schema::new(fields));
         let n = self.ends.len();
         let starts: Vec<i64> = std::iter::once(0)
             .chain(self.ends.iter().map(|&e| e as i64))
@@ -387,7 +471,7 @@ impl LerobotWriter {
             tasks.append(true);
         }
         let tasks = tasks.finish();
-        let cols: Vec<ArrayRef> = vec![
+        let mut cols: Vec<ArrayRef> = vec![
             i64_col(self.ids.iter().map(|&i| i as i64)),
             Arc::new(tasks),
             i64_col(self.ends.iter().zip(&starts).map(|(&e, &s)| e as i64 - s)),
@@ -396,6 +480,19 @@ impl LerobotWriter {
             i64_col((0..n).map(|_| 0)),
             i64_col((0..n).map(|_| 0)),
         ];
+        // Every camera's file holds every stored row, row `i` at `i / fps`.
+        let seconds = |rows: &[i64]| -> ArrayRef {
+            Arc::new(arrow_array::Float64Array::from_iter_values(
+                rows.iter().map(|&r| r as f64 / self.fps),
+            ))
+        };
+        let ends: Vec<i64> = self.ends.iter().map(|&e| e as i64).collect();
+        for _ in self.video_channels() {
+            cols.push(i64_col((0..n).map(|_| 0)));
+            cols.push(i64_col((0..n).map(|_| 0)));
+            cols.push(seconds(&starts));
+            cols.push(seconds(&ends));
+        }
         let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
         self.write_parquet(
             "meta/episodes/chunk-000/file-000.parquet",
@@ -418,6 +515,24 @@ impl LerobotWriter {
     fn info(&self) -> Result<()> {
         let mut features = serde_json::Map::new();
         for (name, shape, kind) in &self.channels {
+            if let (true, Some(video)) = (self.is_video(*kind), self.video) {
+                let info = json!({
+                    "video.height": shape[0],
+                    "video.width": shape[1],
+                    "video.codec": video_encode::codec_name(video.codec),
+                    "video.pix_fmt": video_encode::PIX_FMT,
+                    "video.is_depth_map": false,
+                    "video.fps": self.fps.round() as u64,
+                    "video.channels": shape[2],
+                    "has_audio": false,
+                });
+                features.insert(
+                    name.clone(),
+                    json!({"dtype": "video", "shape": shape,
+                           "names": ["height", "width", "channels"], "info": info}),
+                );
+                continue;
+            }
             let dtype = match kind {
                 ChannelKind::Lowdim => "float32",
                 ChannelKind::Image => "image",
@@ -445,6 +560,11 @@ impl LerobotWriter {
             );
         }
         let n = self.ends.len();
+        let video_path = self
+            .video_channels()
+            .next()
+            .map(|_| Value::String(VIDEO_PATH.into()))
+            .unwrap_or(Value::Null);
         let doc = json!({
             "codebase_version": "v3.0",
             "robot_type": null,
@@ -455,7 +575,7 @@ impl LerobotWriter {
             "fps": self.fps,
             "splits": {"train": format!("0:{n}")},
             "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
-            "video_path": null,
+            "video_path": video_path,
             "features": Value::Object(features),
         });
         self.write_json("meta/info.json", &doc)
@@ -492,7 +612,10 @@ impl Sink for LerobotWriter {
     }
 
     fn frame_encoding(&self) -> FrameEncoding {
-        FrameEncoding::Png
+        match self.video {
+            Some(_) => FrameEncoding::Raw,
+            None => FrameEncoding::Png,
+        }
     }
 
     fn stores_normalized(&self) -> bool {
@@ -500,6 +623,18 @@ impl Sink for LerobotWriter {
     }
 
     fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
+        if let Some((encoder, sent)) = self.videos[channel].as_mut() {
+            if *sent != row {
+                return Err(Error::Internal(format!(
+                    "frames out of order: row {row}, have {sent}"
+                )));
+            }
+            *sent += frames.len();
+            let name = &self.channels[channel].0;
+            return encoder
+                .push(frames.bytes().to_vec())
+                .map_err(|e| Error::output(format!("channel `{name}`, rows from {row}: {e}")));
+        }
         let spill = self.frames[channel]
             .as_mut()
             .ok_or_else(|| Error::Internal(format!("channel {channel} has no frames")))?;
@@ -530,6 +665,20 @@ impl Sink for LerobotWriter {
     }
 
     fn finish(mut self: Box<Self>) -> Result<()> {
+        let rows = self.ends.last().copied().unwrap_or(0);
+        for (c, video) in self.videos.iter_mut().enumerate() {
+            if let Some((encoder, sent)) = video.as_mut() {
+                let name = &self.channels[c].0;
+                let written = encoder
+                    .finish()
+                    .map_err(|e| Error::output(format!("channel `{name}`: {e}")))?;
+                if written != rows || *sent as u64 != rows {
+                    return Err(Error::Internal(format!(
+                        "video of `{name}` has {written} frames for {rows} rows"
+                    )));
+                }
+            }
+        }
         self.data()?;
         self.episodes()?;
         self.info()?;

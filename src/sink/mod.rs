@@ -11,6 +11,8 @@
 //! - `hdf5_native`: the writer path `act_episodes` and `robomimic` share.
 //! - `lerobot`: a LeRobot v3.0 parquet dataset + the window index (raw values).
 //! - `png`: the PNG encoding of frames that `lerobot` stores.
+//! - `video_encode`: camera frames as mp4 video (SVT-AV1/x264), what `lerobot` stores with
+//!   `image_encoding = "video"` and `chunkc synth --format lerobot` writes.
 //! - `robomimic`: robomimic's `data.hdf5` with `data/demo_<i>` (raw values).
 //! - `documents`: `meta.json` and `stats.json`.
 //! - `dump`: canonical text dumps of written files (golden tests).
@@ -24,6 +26,7 @@ mod hdf5_native;
 pub mod lerobot;
 pub mod png;
 pub mod robomimic;
+pub mod video_encode;
 pub mod zarr;
 mod zarr_store;
 

@@ -25,7 +25,7 @@ pub use diagnostic::Diagnostic;
 pub use load::LoadedSpec;
 pub use model::*;
 pub use output_location::check_output_location;
-pub use preset::Profile;
+pub use preset::{Profile, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP};
 
 /// The JSON Schema of the spec, pretty-printed with a trailing newline (`chunkc schema`).
 pub fn json_schema() -> String {

@@ -475,6 +475,25 @@ pub struct ProfileSpec {
     /// gzip level of `image_compression = "gzip"`, 0-9 (default 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub image_compression_level: Option<u32>,
+    /// How `format = "parquet"` stores image frames: `png` (default; lossless PNGs in the
+    /// parquet rows, readable by chunkc's loader with numpy alone and by any build of chunkc) or
+    /// `video` (one mp4 per camera, `videos/<channel>/chunk-000/file-000.mp4`, `dtype: "video"`
+    /// in `meta/info.json`, as LeRobot records its datasets: lossy, many times smaller; needs a
+    /// chunkc built with the `video` cargo feature). See `video-export.md`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_encoding: Option<ImageEncoding>,
+    /// Encoder of `image_encoding = "video"`: `libsvtav1` (default; AV1, LeRobot's default) or
+    /// `libx264` (H.264).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub video_codec: Option<VideoCodec>,
+    /// Constant rate factor of `image_encoding = "video"` (lower is better quality and larger):
+    /// default 30 (LeRobot's); libsvtav1 0-63, libx264 0-51.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub video_crf: Option<u32>,
+    /// Keyframe interval (GOP size) of `image_encoding = "video"`, in frames: default 2
+    /// (LeRobot's: random access to any frame decodes at most one other).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub video_gop: Option<u32>,
     /// Zarr format version of `format = "zarr"`: 2 (default; what Diffusion Policy's
     /// `ReplayBuffer` opens) or 3.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -846,6 +865,53 @@ impl ImageCompression {
         match self {
             ImageCompression::None => "none",
             ImageCompression::Gzip => "gzip",
+        }
+    }
+}
+
+/// How `format = "parquet"` stores image frames (see `image_encoding`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ImageEncoding {
+    /// A PNG per frame in the parquet rows (`dtype: "image"`).
+    Png,
+    /// One mp4 video per camera (`dtype: "video"`).
+    Video,
+}
+
+impl ImageEncoding {
+    pub fn name(self) -> &'static str {
+        match self {
+            ImageEncoding::Png => "png",
+            ImageEncoding::Video => "video",
+        }
+    }
+}
+
+/// The video encoder of `image_encoding = "video"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum VideoCodec {
+    /// AV1 with SVT-AV1 (LeRobot's default encoder).
+    Libsvtav1,
+    /// H.264 with x264.
+    Libx264,
+}
+
+impl VideoCodec {
+    /// FFmpeg's name of the encoder.
+    pub fn name(self) -> &'static str {
+        match self {
+            VideoCodec::Libsvtav1 => "libsvtav1",
+            VideoCodec::Libx264 => "libx264",
+        }
+    }
+
+    /// The largest constant rate factor the encoder takes.
+    pub fn max_crf(self) -> u32 {
+        match self {
+            VideoCodec::Libsvtav1 => 63,
+            VideoCodec::Libx264 => 51,
         }
     }
 }

@@ -11,8 +11,8 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use super::model::{
-    Alignment, Compression, HierarchySpec, ImageCompression, Layout, NormalizeMode, OutputFormat,
-    Padding, Preset, ProfileSpec, SegmentSpec, StatsFormat,
+    Alignment, Compression, HierarchySpec, ImageCompression, ImageEncoding, Layout, NormalizeMode,
+    OutputFormat, Padding, Preset, ProfileSpec, SegmentSpec, StatsFormat, VideoCodec,
 };
 
 /// A profile with every value decided. Later stages never look at presets again.
@@ -48,12 +48,47 @@ pub struct Profile {
     pub image_compression: ImageCompression,
     /// `None`: gzip's default level for frames (1).
     pub image_compression_level: Option<u32>,
+    /// Image frames of `format = "parquet"` as written (`None`: PNG); see [`Profile::video`].
+    /// Unset keys stay `None` and out of the serialized profile, so that the fingerprint of a
+    /// profile that does not use them is the one it had before they existed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub image_encoding: Option<ImageEncoding>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub video_codec: Option<VideoCodec>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub video_crf: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub video_gop: Option<u32>,
     pub zarr_version: u32,
     pub stats_formats: Vec<StatsFormat>,
     pub segment: Option<SegmentSpec>,
     pub hierarchy: Option<HierarchySpec>,
     /// Where each value came from: `profiles.<name>`, `preset <name>` or `default`.
     pub origins: BTreeMap<&'static str, String>,
+}
+
+/// The encoder settings of a profile that stores frames as video (`image_encoding = "video"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct VideoSettings {
+    pub codec: VideoCodec,
+    pub crf: u32,
+    pub gop: u32,
+}
+
+/// LeRobot's `encode_video_frames` defaults (`g=2`, `crf=30`).
+pub const DEFAULT_VIDEO_CRF: u32 = 30;
+pub const DEFAULT_VIDEO_GOP: u32 = 2;
+
+impl Profile {
+    /// The encoder settings when frames are stored as video, else `None` (PNG frames).
+    pub fn video(&self) -> Option<VideoSettings> {
+        (self.format == OutputFormat::Parquet && self.image_encoding == Some(ImageEncoding::Video))
+            .then(|| VideoSettings {
+                codec: self.video_codec.unwrap_or(VideoCodec::Libsvtav1),
+                crf: self.video_crf.unwrap_or(DEFAULT_VIDEO_CRF),
+                gop: self.video_gop.unwrap_or(DEFAULT_VIDEO_GOP),
+            })
+    }
 }
 
 /// The values a preset supplies (see TARGETS.md, "Default chunk parameters").
@@ -286,6 +321,10 @@ pub fn expand(
     );
     let image_compression_level =
         resolve!(image_compression_level, |_: &PresetValues| None, None, Some);
+    let image_encoding = pick!(image_encoding);
+    let video_codec = pick!(video_codec);
+    let video_crf = pick!(video_crf);
+    let video_gop = pick!(video_gop);
     let zarr_version = resolve!(
         zarr_version,
         |_: &PresetValues| None,
@@ -351,6 +390,10 @@ pub fn expand(
         compression_level,
         image_compression,
         image_compression_level,
+        image_encoding,
+        video_codec,
+        video_crf,
+        video_gop,
         zarr_version,
         stats_formats,
         segment,

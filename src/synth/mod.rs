@@ -147,8 +147,17 @@ fn check(opts: &SynthOptions) -> Result<()> {
     if opts.cameras > 0 && (opts.height == 0 || opts.width == 0) {
         return usage("--resolution must be at least 1x1".into());
     }
-    if opts.cameras > 0 && opts.format == SourceFormat::Lerobot {
-        return usage("lerobot sources keep images in mp4 videos, which chunkc does not decode yet; use --cameras 0".into());
+    if opts.cameras > 0 && opts.format == SourceFormat::Lerobot && !cfg!(feature = "video") {
+        return usage("lerobot sources keep cameras in mp4 videos, which needs a chunkc built with the `video` cargo feature; use --cameras 0".into());
+    }
+    if opts.cameras > 0
+        && opts.format == SourceFormat::Lerobot
+        && (!opts.height.is_multiple_of(2) || !opts.width.is_multiple_of(2))
+    {
+        return usage(format!(
+            "lerobot cameras are yuv420p videos, whose height and width must be even, not {}x{}",
+            opts.height, opts.width
+        ));
     }
     if opts.cameras > 0 && opts.robosuite {
         return usage("--robosuite files have no images; use --cameras 0".into());
@@ -253,7 +262,7 @@ fn keys(opts: &SynthOptions) -> (String, String, Vec<String>) {
         SourceFormat::Lerobot => (
             "\"action\"".into(),
             "\"observation.state\"".into(),
-            Vec::new(),
+            cams(&lerobot::camera_key),
         ),
     }
 }
