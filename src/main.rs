@@ -115,6 +115,7 @@ enum SynthFormat {
     RobomimicHdf5,
     DiffusionPolicyZarr,
     Lerobot,
+    Rlds,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -257,6 +258,7 @@ fn synth_options(args: &SynthArgs) -> Result<synth::SynthOptions, Error> {
             SynthFormat::RobomimicHdf5 => SourceFormat::RobomimicHdf5,
             SynthFormat::DiffusionPolicyZarr => SourceFormat::DiffusionPolicyZarr,
             SynthFormat::Lerobot => SourceFormat::Lerobot,
+            SynthFormat::Rlds => SourceFormat::Rlds,
         },
         episodes: args.episodes,
         steps: args.steps,
