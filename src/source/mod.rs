@@ -113,6 +113,10 @@ pub struct Manifest {
     pub source_split: Option<SourceSplit>,
     /// Things the user should know that do not stop the build (gaps in ids, skipped keys).
     pub warnings: Vec<String>,
+    /// Each episode's task (RLDS: its language instruction), by source id; empty for sources
+    /// that store none. Written where the outputs keep tasks (`meta.json`, the dataset card).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub tasks: BTreeMap<u64, String>,
 }
 
 /// A train/validation split stored in the source, by source episode id.

@@ -212,6 +212,8 @@ def test_every_step_of_both_splits_equals_the_independent_reader(raw_build, orac
     # TFDS's splits kept: train -> train, val -> val; ids in split, shard and record order.
     assert meta["split"] == {"train": list(range(n_train)), "val": list(range(n_train, n_train + n_val))}
     assert meta["source"]["format"] == "rlds"
+    # Each episode's language instruction is its task.
+    assert meta["tasks"] == {str(i): e["task"] for i, e in enumerate(oracle["train"] + oracle["val"])}
     episodes = oracle["train"] + oracle["val"]
     ends = np.asarray(meta["episode_ends"])
     assert list(np.diff(np.concatenate([[0], ends]))) == [len(e["steps/action"]) for e in episodes]
@@ -224,6 +226,17 @@ def test_every_step_of_both_splits_equals_the_independent_reader(raw_build, orac
                 assert np.array_equal(got, want), name  # bit for bit with TF's decode
             else:
                 assert np.array_equal(bits(got.astype(np.float32)), bits(want.reshape(got.shape))), name
+
+
+def test_the_audit_reports_the_step_markers(raw_build, oracle):
+    """Bridge sets `is_first` only: the audit warns about `is_last`, and builds anyway."""
+    spec = raw_build.parent.parent / "spec.toml"
+    proc = run_chunkc("audit", spec)
+    report = json.loads((raw_build.parent / "audit" / "audit.json").read_text())
+    n = len(oracle["train"]) + len(oracle["val"])
+    assert any("is_last" in w and f"{n} of {n} episodes" in w for w in report["warnings"]), report["warnings"]
+    assert not any("is_first" in w for w in report["warnings"])
+    assert "is_last" in proc.stdout + proc.stderr
 
 
 def test_frames_are_not_the_accurate_dct_decode():

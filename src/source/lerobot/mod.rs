@@ -221,6 +221,7 @@ impl LerobotSource {
                 timestamps: has_timestamp,
                 source_split,
                 warnings: mapped.warnings.clone(),
+                tasks: Default::default(),
             },
             mapped,
             locations,

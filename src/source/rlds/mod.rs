@@ -325,6 +325,7 @@ impl RldsSource {
                     val,
                 }),
                 warnings,
+                tasks: episodes_tasks(&tasks),
             },
             dir,
             mapped,
@@ -347,6 +348,15 @@ impl RldsSource {
     pub fn dir(&self) -> &Path {
         &self.dir
     }
+}
+
+/// The tasks by episode id (ids are positions here), episodes without one left out.
+fn episodes_tasks(tasks: &[Option<String>]) -> BTreeMap<u64, String> {
+    tasks
+        .iter()
+        .enumerate()
+        .filter_map(|(i, t)| t.clone().map(|t| (i as u64, t)))
+        .collect()
 }
 
 /// A spec error for a channel path `features.json` does not declare, listing those it does.
