@@ -192,7 +192,7 @@ fn encode_example(o: &SynthOptions, ep: &SynthEpisode) -> Result<Vec<u8>> {
 impl SynthWriter for RldsWriter {
     fn episode(&mut self, ep: &SynthEpisode) -> Result<()> {
         let x = self.written / PER_SHARD;
-        if self.written % PER_SHARD == 0 {
+        if self.written.is_multiple_of(PER_SHARD) {
             if let Some(mut w) = self.current.take() {
                 w.flush()
                     .map_err(|e| Error::output(format!("cannot write a shard: {e}")))?;

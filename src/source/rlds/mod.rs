@@ -380,9 +380,10 @@ fn check_paths(spec: &LoadedSpec, declared: &[Feature], shown: &str) -> Result<(
                 }
                 Some(f) => {
                     let why = match &f.kind {
-                        _ if !f.per_step => Some(format!(
+                        _ if !f.per_step => Some(
                             "a per-episode feature (not under `steps`); channels are per step"
-                        )),
+                                .to_string(),
+                        ),
                         Kind::Text => Some(
                             "text; a language instruction is kept as the episode's task".into(),
                         ),
@@ -515,7 +516,7 @@ fn scan_record(data: &[u8], declared: &[Feature], place: &str) -> Result<Scanned
                 f.list()
             };
             // An empty list carries no kind: TFDS writes empty episodes' lists that way.
-            if values.len() > 0 && values.kind() != list {
+            if !values.is_empty() && values.kind() != list {
                 return Err(disagrees(
                     place,
                     format!(

@@ -66,7 +66,7 @@ pub fn crc32c(data: &[u8]) -> u32 {
 /// TFRecord's masked crc32c.
 pub fn masked_crc(data: &[u8]) -> u32 {
     let c = crc32c(data);
-    ((c >> 15) | (c << 17)).wrapping_add(0xa282_ead8)
+    c.rotate_right(15).wrapping_add(0xa282_ead8)
 }
 
 /// Where one record's data lies in its shard.
