@@ -138,6 +138,7 @@ enum SynthFormat {
     RobomimicHdf5,
     DiffusionPolicyZarr,
     Lerobot,
+    Rlds,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -358,6 +359,7 @@ fn synth_options(args: &SynthArgs) -> Result<synth::SynthOptions, Error> {
             SynthFormat::RobomimicHdf5 => SourceFormat::RobomimicHdf5,
             SynthFormat::DiffusionPolicyZarr => SourceFormat::DiffusionPolicyZarr,
             SynthFormat::Lerobot => SourceFormat::Lerobot,
+            SynthFormat::Rlds => SourceFormat::Rlds,
         },
         episodes: args.episodes,
         steps: args.steps,

@@ -337,6 +337,7 @@ macro_rules! example_specs {
 
 example_specs!(
     aloha_sim,
+    bridge,
     lerobot_g1,
     lerobot_v3,
     multi_arch,

@@ -128,6 +128,11 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
             100.0 * repaired_fraction
         ));
     }
+    // RLDS's step markers (`is_first`/`is_last`/`is_terminal`) checked while the source was
+    // opened: reported here with the timing, never acted on.
+    if manifest.format == crate::spec::SourceFormat::Rlds {
+        warnings.extend(manifest.warnings.iter().cloned());
+    }
     if !cfg.repair && episodes.iter().any(|e| e.verdict != Verdict::Ok) {
         warnings.push(
             "`[audit] repair = false`: the verdicts are reported, and `build` uses every episode as recorded".into(),

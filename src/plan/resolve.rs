@@ -49,6 +49,7 @@ pub fn resolve(
             fingerprint: manifest.fingerprint.clone(),
             files: manifest.files.clone(),
             channels: manifest.channels.clone(),
+            tasks: manifest.tasks.clone(),
         },
         split,
         rates,

@@ -69,6 +69,10 @@ pub struct SourcePlan {
     #[serde(skip)]
     pub files: BTreeMap<String, String>,
     pub channels: Vec<ChannelInfo>,
+    /// Each episode's task, by source id (RLDS language instructions); empty when the source
+    /// stores none. Not part of the plan's text or JSON: `meta.json` and the card show it.
+    #[serde(skip)]
+    pub tasks: BTreeMap<u64, String>,
 }
 
 #[derive(Debug, Clone, Serialize)]

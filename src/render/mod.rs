@@ -13,6 +13,7 @@
 pub mod codebase;
 pub mod pickle;
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use minijinja::{context, Environment, Value};
@@ -167,8 +168,20 @@ pub fn profile_files(r: &Renderer, c: &ProfileContext) -> Result<Vec<(&'static s
             }
         })
         .collect();
+    // The profile's tasks (RLDS language instructions), each with its number of episodes.
+    let mut task_counts: BTreeMap<&str, usize> = BTreeMap::new();
+    for e in &p.episodes {
+        if let Some(t) = c.plan.source.tasks.get(&e.id) {
+            *task_counts.entry(t.as_str()).or_default() += 1;
+        }
+    }
+    let tasks: Vec<Value> = task_counts
+        .iter()
+        .map(|(task, episodes)| context! { task, episodes })
+        .collect();
     let card = context! {
         profile => p.name,
+        tasks,
         version => TOOL_VERSION,
         spec_file => c.spec_file,
         spec_hash => c.plan.spec_hash,

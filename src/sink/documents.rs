@@ -138,6 +138,20 @@ pub fn meta_json(
         },
         "spec_hash": plan.spec_hash,
     });
+    let mut doc = doc;
+    // Each episode's task (the language instruction of an RLDS episode), by source id.
+    let tasks: serde_json::Map<String, serde_json::Value> = ids
+        .iter()
+        .filter_map(|id| {
+            plan.source
+                .tasks
+                .get(id)
+                .map(|t| (id.to_string(), json!(t)))
+        })
+        .collect();
+    if !tasks.is_empty() {
+        doc["tasks"] = serde_json::Value::Object(tasks);
+    }
     pretty(&doc)
 }
 

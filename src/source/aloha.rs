@@ -254,6 +254,7 @@ impl AlohaSource {
                 timestamps: false,
                 source_split: None,
                 warnings,
+                tasks: Default::default(),
             },
             mapped,
             jpeg: jpeg_keys,

@@ -382,6 +382,7 @@ impl DpZarrSource {
                 timestamps: false,
                 source_split: None,
                 warnings: mapped.warnings.clone(),
+                tasks: Default::default(),
             },
             bounds,
             arrays: chunked,

@@ -9,6 +9,7 @@
 //! - `aloha`: ACT / ALOHA, one `episode_<i>.hdf5` per episode, raw or JPEG-compressed images.
 //! - `robomimic`: robomimic `data/demo_<i>` groups, and robosuite's older files of that shape.
 //! - `lerobot`: LeRobot v2.1 (one parquet per episode) and v3.0 (many per file).
+//! - `rlds`: RLDS / Open X-Embodiment, TFDS-prepared TFRecord shards, read without TensorFlow.
 //!
 //! Shared pieces:
 //! - `check`: what every episode must satisfy (lengths, finite values, increasing timestamps).
@@ -41,6 +42,7 @@ mod jpeg;
 mod lerobot;
 pub mod mapping;
 mod parquet_read;
+pub mod rlds;
 mod robomimic;
 mod subset;
 pub mod video;
@@ -115,6 +117,10 @@ pub struct Manifest {
     pub source_split: Option<SourceSplit>,
     /// Things the user should know that do not stop the build (gaps in ids, skipped keys).
     pub warnings: Vec<String>,
+    /// Each episode's task (RLDS: its language instruction), by source id; empty for sources
+    /// that store none. Written where the outputs keep tasks (`meta.json`, the dataset card).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub tasks: BTreeMap<u64, String>,
 }
 
 /// A train/validation split stored in the source, by source episode id.
@@ -201,6 +207,7 @@ pub fn open(spec: &LoadedSpec) -> Result<Box<dyn Source>> {
         SourceFormat::AlohaHdf5 => Box::new(aloha::AlohaSource::open(spec, &path)?),
         SourceFormat::RobomimicHdf5 => Box::new(robomimic::RobomimicSource::open(spec, &path)?),
         SourceFormat::Lerobot => Box::new(lerobot::LerobotSource::open(spec, &path)?),
+        SourceFormat::Rlds => Box::new(rlds::RldsSource::open(spec, &path)?),
     };
     match &src.episodes {
         Some(ids) => Ok(Box::new(subset::Subset::new(spec, source, ids)?)),

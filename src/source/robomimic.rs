@@ -220,6 +220,7 @@ impl RobomimicSource {
                 timestamps: timestamps.is_some(),
                 source_split,
                 warnings,
+                tasks: Default::default(),
             },
             demos: demos.into_iter().map(|(_, n)| n).collect(),
             mapped,

@@ -32,6 +32,7 @@ impl Subset {
         let mut manifest = inner.manifest().clone();
         manifest.episodes = positions.iter().map(|&i| all[i].clone()).collect();
         inner.only_reading(&positions);
+        manifest.tasks.retain(|id, _| ids.contains(id));
         if let Some(split) = manifest.source_split.as_mut() {
             split.train.retain(|id| ids.contains(id));
             split.val.retain(|id| ids.contains(id));
@@ -54,6 +55,7 @@ impl Subset {
         let mut manifest = inner.manifest().clone();
         manifest.episodes = positions.iter().map(|&i| all[i].clone()).collect();
         inner.only_reading(&positions);
+        manifest.tasks.retain(|id, _| !excluded.contains(id));
         if let Some(split) = manifest.source_split.as_mut() {
             split.train.retain(|id| !excluded.contains(id));
             split.val.retain(|id| !excluded.contains(id));

@@ -154,6 +154,9 @@ pub enum SourceFormat {
     RobomimicHdf5,
     /// LeRobot v2.1 / v3.0: parquet + `meta/info.json`.
     Lerobot,
+    /// RLDS / Open X-Embodiment: a TFDS-prepared directory of TFRecord shards
+    /// (`dataset_info.json`, `features.json`). Stores no rate: `source.fps` is required.
+    Rlds,
 }
 
 impl SourceFormat {
@@ -163,6 +166,7 @@ impl SourceFormat {
             SourceFormat::AlohaHdf5 => "aloha_hdf5",
             SourceFormat::RobomimicHdf5 => "robomimic_hdf5",
             SourceFormat::Lerobot => "lerobot",
+            SourceFormat::Rlds => "rlds",
         }
     }
 }

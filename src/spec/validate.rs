@@ -9,7 +9,7 @@ use super::export_keys;
 use super::load::{dotted, LoadedSpec, Target};
 use super::model::{
     ChannelKindSpec, ChannelSpec, ChannelTable, Compression, ImageCompression, Layout,
-    OutputFormat, Preset, ProfileSpec,
+    OutputFormat, Preset, ProfileSpec, SourceFormat,
 };
 use super::preset::{self, ExpandError, Profile};
 
@@ -110,6 +110,12 @@ impl Checker<'_> {
     fn source(&mut self) {
         let source = &self.loaded.spec.source;
         self.fps(&["source", "fps"], source.fps);
+        if source.format == SourceFormat::Rlds && source.fps.is_none() {
+            let message =
+                "`source.fps` is required for `format = \"rlds\"`: RLDS stores no rate".to_string();
+            let help = Some("add `fps = <control rate in Hz>` to `[source]`; Open X-Embodiment's dataset table lists each dataset's rate".into());
+            self.value(&["source", "fps"], message, "no `fps` here", help);
+        }
         if source.episodes.as_ref().is_some_and(|e| e.is_empty()) {
             let message = "`source.episodes` is empty".to_string();
             let help = Some("leave it out to read every episode".into());

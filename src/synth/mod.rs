@@ -3,7 +3,8 @@
 //!
 //! [`trajectory`] makes the values (smooth joint trajectories, a lagging state, camera frames
 //! that show the motion, timestamps and optional timing faults); one writer per layout stores
-//! them the way the original tools do ([`aloha`], [`robomimic`], [`dp_zarr`], [`lerobot`]).
+//! them the way the original tools do ([`aloha`], [`robomimic`], [`dp_zarr`], [`lerobot`],
+//! [`rlds`]).
 //! [`generate`] also writes `spec.toml` (so `chunkc build <dir>/spec.toml` works directly) and,
 //! when faults were asked for, `faults.json` listing exactly what was injected where.
 //!
@@ -13,6 +14,7 @@
 pub mod aloha;
 pub mod dp_zarr;
 pub mod lerobot;
+pub mod rlds;
 pub mod robomimic;
 pub mod trajectory;
 
@@ -133,6 +135,7 @@ pub fn source_name(format: SourceFormat) -> &'static str {
         SourceFormat::RobomimicHdf5 => "demos.hdf5",
         SourceFormat::DiffusionPolicyZarr => "replay.zarr",
         SourceFormat::Lerobot => "lerobot",
+        SourceFormat::Rlds => "rlds",
     }
 }
 
@@ -190,6 +193,7 @@ pub fn generate(opts: &SynthOptions, dir: &Path) -> Result<PathBuf> {
             Box::new(dp_zarr::DpZarrWriter::create(opts, &source)?)
         }
         SourceFormat::Lerobot => Box::new(lerobot::LerobotWriter::create(opts, &source)?),
+        SourceFormat::Rlds => Box::new(rlds::RldsWriter::create(opts, &source)?),
     };
     let mut faults = serde_json::Map::new();
     let ids: Vec<u64> = (0..opts.episodes as u64).collect();
@@ -258,6 +262,11 @@ fn keys(opts: &SynthOptions) -> (String, String, Vec<String>) {
             "\"action\"".into(),
             "\"state\"".into(),
             cams(&|c| format!("cam{c}")),
+        ),
+        SourceFormat::Rlds => (
+            "\"steps/action\"".into(),
+            "\"steps/observation/state\"".into(),
+            cams(&|c| format!("steps/observation/cam{c}")),
         ),
         SourceFormat::Lerobot => (
             "\"action\"".into(),

@@ -342,6 +342,21 @@ def reference_lengths(fmt, path):
                                for p in sorted((Path(path) / "data").rglob("*.parquet"))])
         ids, counts = np.unique(rows, return_counts=True)
         return dict(zip(ids.tolist(), counts.tolist()))
+    if fmt == "rlds":
+        # The tfrecord package and protobuf: one Example per episode, ids over the splits in order.
+        from tfrecord import example_pb2
+        from tfrecord.reader import tfrecord_iterator
+        version = Path(path) if (Path(path) / "dataset_info.json").exists() else next(Path(path).iterdir())
+        info = json.loads((version / "dataset_info.json").read_text())
+        lengths = []
+        for split in info["splits"]:
+            n = len(split["shardLengths"])
+            for x in range(n):
+                for rec in tfrecord_iterator(str(version / f"{info['name']}-{split['name']}.tfrecord-{x:05d}-of-{n:05d}")):
+                    ex = example_pb2.Example()
+                    ex.ParseFromString(rec)
+                    lengths.append(len(ex.features.feature["steps/is_first"].int64_list.value))
+        return dict(enumerate(lengths))
     raise AssertionError(fmt)
 
 

@@ -301,6 +301,7 @@ impl LerobotSource {
                 timestamps: has_timestamp,
                 source_split,
                 warnings,
+                tasks: Default::default(),
             },
             mapped,
             locations,
