@@ -343,6 +343,7 @@ example_specs!(
     multi_arch,
     pusht,
     pusht_formats,
+    pusht_rollout,
     robosuite_panda,
     robosuite_sawyer,
 );

@@ -2,7 +2,8 @@
 //! overridable by a file of the same name (plus `.j2`) in the spec's `[output] templates`
 //! directory.
 //!
-//! The generated scripts (`loader.py`, `validate.py`, `smoke_train.py`, `dp_normalizer.py`) are
+//! The generated scripts (`loader.py`, `policy.py`, `validate.py`, `smoke_train.py`,
+//! `rollout.py` for profiles naming a simulator, `dp_normalizer.py`) are
 //! one static library per chunkc version: identical bytes in every profile directory, reading
 //! the profile from `meta.json` at run time ([`SHARED_SCRIPTS`]). What differs per profile is in
 //! `meta.json`, the statistics files and the dataset card.
@@ -32,6 +33,8 @@ pub const TEMPLATES: &[(&str, &str)] = &[
         "smoke_train.py",
         include_str!("../../templates/smoke_train.py.j2"),
     ),
+    ("policy.py", include_str!("../../templates/policy.py.j2")),
+    ("rollout.py", include_str!("../../templates/rollout.py.j2")),
     ("README.md", include_str!("../../templates/README.md.j2")),
     (
         "dp_normalizer.py",
@@ -96,6 +99,8 @@ pub const SHARED_SCRIPTS: &[&str] = &[
     "loader.py",
     "validate.py",
     "smoke_train.py",
+    "policy.py",
+    "rollout.py",
     "dp_normalizer.py",
 ];
 
@@ -120,7 +125,8 @@ pub struct ProfileContext<'a> {
     pub stats_files: &'a [(String, String)],
 }
 
-/// `loader.py`, `validate.py`, `smoke_train.py` (the same for every profile) and the dataset
+/// `loader.py`, `policy.py`, `validate.py`, `smoke_train.py`, `rollout.py` when the profile names
+/// an `env` (the same for every profile) and the dataset
 /// card `README.md`.
 pub fn profile_files(r: &Renderer, c: &ProfileContext) -> Result<Vec<(&'static str, String)>> {
     let p = c.profile;
@@ -201,10 +207,15 @@ pub fn profile_files(r: &Renderer, c: &ProfileContext) -> Result<Vec<(&'static s
         output_hint => c.output_hint,
         chunk => p.window().chunk,
     };
-    Ok(vec![
+    let mut files = vec![
         ("loader.py", shared_script(r, "loader.py")?),
+        ("policy.py", shared_script(r, "policy.py")?),
         ("validate.py", shared_script(r, "validate.py")?),
         ("smoke_train.py", shared_script(r, "smoke_train.py")?),
-        ("README.md", r.render("README.md", card)?),
-    ])
+    ];
+    if v.env.is_some() {
+        files.push(("rollout.py", shared_script(r, "rollout.py")?));
+    }
+    files.push(("README.md", r.render("README.md", card)?));
+    Ok(files)
 }

@@ -95,7 +95,7 @@ pub fn meta_json(
         );
     }
     let ids: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();
-    let doc = json!({
+    let mut doc = json!({
         "format_version": META_FORMAT_VERSION,
         "chunkc_version": TOOL_VERSION,
         "profile": profile.name,
@@ -151,6 +151,10 @@ pub fn meta_json(
         .collect();
     if !tasks.is_empty() {
         doc["tasks"] = serde_json::Value::Object(tasks);
+    }
+    if let (Some(env), Some(map)) = (&v.env, doc.as_object_mut()) {
+        // Only profiles that name a simulator carry it (and get `rollout.py`).
+        map.insert("env".into(), json!(env));
     }
     pretty(&doc)
 }

@@ -12,6 +12,7 @@
 //! - `reference`: the spec's documentation read from the JSON Schema (book chapter, hints).
 
 mod diagnostic;
+pub mod env;
 pub mod export_keys;
 mod load;
 pub mod model;

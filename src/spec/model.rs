@@ -429,6 +429,11 @@ pub struct ProfileSpec {
     /// Policy's `pad_after`), whatever the alignment.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub executes: Option<u32>,
+    /// The simulator the trained policy is rolled out in, a gymnasium id such as
+    /// `"gym_pusht/PushT-v0"`: the profile gets a generated `rollout.py` (see the book's
+    /// "Validating a dataset" chapter for the environments it supports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub env: Option<String>,
     /// Where the action chunk starts relative to the observation history.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alignment: Option<Alignment>,

@@ -27,6 +27,8 @@ pub struct Profile {
     pub obs_history: u32,
     /// Steps executed per chunk; bounds the padding after the episode end to `executes - 1`.
     pub executes: Option<u32>,
+    /// The gymnasium id of the simulator `rollout.py` runs the policy in.
+    pub env: Option<String>,
     pub alignment: Alignment,
     pub padding: Padding,
     pub stride: u32,
@@ -281,6 +283,7 @@ pub fn expand(
         None,
         Some
     );
+    let env = pick!(env);
     let alignment = resolve!(
         alignment,
         |b: &PresetValues| Some(b.alignment),
@@ -377,6 +380,7 @@ pub fn expand(
         chunk,
         obs_history,
         executes,
+        env,
         alignment,
         padding,
         stride,

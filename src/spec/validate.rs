@@ -230,6 +230,11 @@ impl Checker<'_> {
             );
         }
         self.fps(&key("fps"), profile.fps);
+        if let Some(id) = &profile.env {
+            if let Err((message, help)) = super::env::check(id) {
+                self.value(&key("env"), message, "not a gymnasium id", help);
+            }
+        }
         let counts = [
             ("chunk", profile.chunk),
             ("obs_history", profile.obs_history),

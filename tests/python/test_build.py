@@ -36,8 +36,8 @@ def test_outputs_identical_across_runs_and_thread_counts(tmp_path):
         run_chunkc("build", "-q", write_spec(d, PROFILES), env={"RAYON_NUM_THREADS": threads})
         results.append(digests(d / "out"))
         assert (d / "chunkc.lock").exists()
-    # data, meta, stats, loader, validate, smoke_train, README for both; ACT pickle+JSON; DP normalizer.
-    assert len(results[0]) == 18
+    # data, meta, stats, loader, policy, validate, smoke_train, README for both; ACT pickle+JSON; DP normalizer.
+    assert len(results[0]) == 20
     assert results[0] == results[1] == results[2]
 
 
