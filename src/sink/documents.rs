@@ -95,7 +95,7 @@ pub fn meta_json(
         );
     }
     let ids: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();
-    let mut doc = json!({
+    let doc = json!({
         "format_version": META_FORMAT_VERSION,
         "chunkc_version": TOOL_VERSION,
         "profile": profile.name,
