@@ -7,10 +7,13 @@
 //! - `spline`: the not-a-knot cubic spline (as `scipy.interpolate.CubicSpline`).
 //! - `resample`: Fourier (as `scipy.signal.resample`) and linear resampling along time.
 //! - `repair`: a verdict applied to an [`Episode`](crate::source::Episode).
+//! - `doctor`: the dataset doctor, checks of the action and state values (frozen, clipped,
+//!   jumps, duplicates, misalignment, mixed conventions, units, shift, short episodes).
 //! - `audited`: the source as the audit leaves it ([`Audited`]): exclusions gone, repaired
 //!   lengths, repairs applied as episodes are read.
 
 mod audited;
+pub mod doctor;
 pub mod histogram;
 pub mod repair;
 pub mod report;
@@ -128,7 +131,7 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
             "`[audit] repair = false`: the verdicts are reported, and `build` uses every episode as recorded".into(),
         );
     }
-    let report = AuditReport {
+    let mut report = AuditReport {
         expected_interval: expected,
         source_fps: fps,
         timestamps: manifest.timestamps,
@@ -143,7 +146,9 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
         histogram: histogram::histogram_of(&intervals, expected),
         warnings,
         examples: Vec::new(),
+        doctor: None,
     };
+    doctor::run(spec, source, &mut report, &mut repairs)?;
     Ok((report, repairs))
 }
 
@@ -316,6 +321,14 @@ impl Flag {
             Flag::Gap => "gap",
             Flag::Count => "count",
             Flag::NonMonotonic => "non_monotonic",
+            Flag::Frozen => "frozen",
+            Flag::Clipped => "clipped",
+            Flag::Jump => "jump",
+            Flag::Duplicate => "duplicate",
+            Flag::Misaligned => "misaligned",
+            Flag::MixedConvention => "mixed_convention",
+            Flag::Units => "units",
+            Flag::Short => "short",
         }
     }
 }

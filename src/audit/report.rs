@@ -27,6 +27,9 @@ pub struct AuditReport {
     pub warnings: Vec<String>,
     /// A few repaired episodes, one channel dimension each, before and after repair.
     pub examples: Vec<RepairExample>,
+    /// The dataset doctor's dataset-wide results (`[audit.doctor]`); absent when it did not run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub doctor: Option<super::doctor::DoctorSummary>,
 }
 
 /// The thresholds the flags were decided with (`[audit]`).
@@ -54,6 +57,9 @@ pub struct EpisodeAudit {
     pub detail: String,
     /// Steps after repair (equal to `n_frames` when nothing is repaired; 0 when excluded).
     pub repaired_frames: usize,
+    /// The dataset doctor's findings, one per flag it added, with their evidence.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub findings: Vec<super::doctor::Finding>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
@@ -63,6 +69,15 @@ pub enum Flag {
     Gap,
     Count,
     NonMonotonic,
+    /// The dataset doctor's flags (`audit::doctor`).
+    Frozen,
+    Clipped,
+    Jump,
+    Duplicate,
+    Misaligned,
+    MixedConvention,
+    Units,
+    Short,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

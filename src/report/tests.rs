@@ -28,6 +28,7 @@ fn episode(
             format!("episode {id} <needs> & repair")
         },
         repaired_frames: if verdict == Verdict::Exclude { 0 } else { 100 },
+        findings: Vec::new(),
     }
 }
 
@@ -89,6 +90,7 @@ pub(crate) fn sample_audit() -> AuditReport {
             after_t,
             after,
         }],
+        doctor: None,
         episodes,
     }
 }
