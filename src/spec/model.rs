@@ -294,7 +294,7 @@ pub struct DoctorSpec {
     /// One-step spikes in an action dimension.
     #[serde(default)]
     pub jump: DoctorAction,
-    /// Flag `jump` when a step departs from its neighbours' midpoint by more than this many
+    /// Flag `jump` when a value lies above (or below) both neighbours by more than this many
     /// robust standard deviations of the dimension's step changes (dataset-wide).
     #[serde(default = "default_jump_threshold")]
     pub jump_threshold: f64,
@@ -350,7 +350,7 @@ fn default_clip_fraction() -> f64 {
     0.05
 }
 fn default_jump_threshold() -> f64 {
-    4.0
+    8.0
 }
 fn default_duplicate_tolerance() -> f64 {
     0.01

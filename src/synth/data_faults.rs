@@ -125,7 +125,7 @@ pub fn recorded(
             while at.len() < 2.min(room) {
                 let t = 2 + (rng.next_u64() % room as u64) as usize;
                 if t < steps && at.iter().all(|&u: &usize| u.abs_diff(t) > 2) {
-                    let size = rng.range(0.5, 1.0) * if rng.unit() < 0.5 { -1.0 } else { 1.0 };
+                    let size = rng.range(1.0, 2.0) * if rng.unit() < 0.5 { -1.0 } else { 1.0 };
                     action[t * a + dim] += size as f32;
                     at.push(t);
                     sizes.push(size);

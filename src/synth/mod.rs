@@ -45,7 +45,8 @@ pub enum Fault {
     Frozen,
     /// `clip`: one action dimension saturates at its 70th (or 30th) percentile.
     Clip,
-    /// `jump`: two one-step spikes in one action dimension (a logging glitch: the state does not
+    /// `jump`: two one-step spikes (1 to 2 in size, about the dimension's range) in one action
+    /// dimension (a logging glitch: the state does not
     /// follow them).
     Jump,
     /// `lag:N`: the recorded actions are N steps late against the state (`action[t] = a[t-N]`;

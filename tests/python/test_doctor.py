@@ -104,7 +104,7 @@ def test_evidence_matches_the_injection(tmp_path):
 
 def test_exclude_and_error_verdicts(tmp_path):
     out = tmp_path / "v"
-    run_chunkc("synth", out, "--format", "diffusion_policy_zarr", "--episodes", 60, "--steps", 120,
+    run_chunkc("synth", out, "--format", "diffusion-policy-zarr", "--episodes", 60, "--steps", 120,
                "--action-dim", 4, "--state-dim", 4, "--fps", 10, "--faults", "scale:100",
                "--fault-fraction", 0.1)
     spec = out / "spec.toml"

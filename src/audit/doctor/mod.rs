@@ -35,6 +35,10 @@ use crate::source::{ChannelKind, Source};
 use crate::spec::{DoctorAction, LoadedSpec};
 pub use shift::ShiftDim;
 
+/// `misaligned` needs the dataset's lag to leave at least this many times the unexplained share
+/// of the episode's own lag.
+pub const MISALIGNED_GAIN: f64 = 2.0;
+
 /// One doctor flag on one episode, with why and its evidence numbers.
 #[derive(Debug, Clone, Serialize)]
 pub struct Finding {
@@ -68,6 +72,8 @@ pub struct DoctorSummary {
     pub step_sigma: Vec<f64>,
     /// `channel[dim]` constant over the whole dataset, with the value.
     pub constant: Vec<(String, usize, f64)>,
+    /// `channel[dim]` holding still in most episodes, with the share of episodes.
+    pub stuck: Vec<(String, usize, f64)>,
     /// Every dimension's quarters (in recording order) as robust deviations.
     pub shift: Vec<ShiftDim>,
     /// (earlier id, later id, RMS difference in spreads).
@@ -86,6 +92,8 @@ struct Features {
     action_means: Vec<f64>,
     state_means: Vec<f64>,
     state_range: Vec<(f64, f64)>,
+    /// Per state dimension, the longest run of one exact value.
+    state_runs: Vec<usize>,
     signature: Vec<f64>,
 }
 
@@ -113,6 +121,12 @@ fn features(a: &[f64], s: Option<&[f64]>, n: usize, a_dim: usize, s_dim: usize) 
         .map(|d| alignment::fit_dim(a, s.unwrap_or(&[]), n, a_dim, s_dim, d))
         .collect();
     let (action_means, stds) = column_stats(a, n, a_dim);
+    let state_runs = match s {
+        Some(s) => (0..s_dim)
+            .map(|d| signal::dim_signal(s, n, s_dim, d).run.0)
+            .collect(),
+        None => Vec::new(),
+    };
     let (state_means, state_range) = match s {
         Some(s) => {
             let (m, _) = column_stats(s, n, s_dim);
@@ -137,6 +151,7 @@ fn features(a: &[f64], s: Option<&[f64]>, n: usize, a_dim: usize, s_dim: usize) 
         action_means,
         state_means,
         state_range,
+        state_runs,
         signature: duplicates::signature(a, n, a_dim),
     }
 }
@@ -231,8 +246,11 @@ pub fn run(
             }
         }
         if let (Some(l), Some(mode)) = (&judged.lags[e], judged.mode) {
-            if l.lag.abs_diff(mode) > cfg.lag_tolerance {
-                let at_mode = l.unexplained[(mode - alignment::lag_of(0)) as usize];
+            let at_mode = l.unexplained[(mode - alignment::lag_of(0)) as usize];
+            // The mode must explain clearly less: neighbouring lags of a noisy fit are close.
+            if l.lag.abs_diff(mode) > cfg.lag_tolerance
+                && at_mode >= MISALIGNED_GAIN * l.unexplained[l.best]
+            {
                 add(e, Flag::Misaligned, cfg.misaligned, format!(
                     "the action best predicts the state {} steps later (R² {:.3}), the dataset's mode is {mode} (R² {:.3} here): actions shifted by {} steps",
                     l.lag, 1.0 - l.unexplained[l.best], 1.0 - at_mode, l.lag - mode),
@@ -258,14 +276,27 @@ pub fn run(
         };
         let static_share = feats.iter().filter(|f| long(f)).count() as f64 / episodes as f64;
         let clip_median = stats::median(feats.iter().map(|f| f.signal[d].clip.0));
+        let lowest = feats
+            .iter()
+            .map(|f| f.signal[d].min)
+            .fold(f64::INFINITY, f64::min);
+        let highest = feats
+            .iter()
+            .map(|f| f.signal[d].max)
+            .fold(f64::NEG_INFINITY, f64::max);
         for (e, f) in feats.iter().enumerate() {
             let sig = &f.signal[d];
-            if long(f) && static_share < 0.5 {
+            let at_limit = sig.run.2 == lowest || sig.run.2 == highest;
+            if long(f) && static_share < 0.5 && !at_limit {
                 let (len, from, value) = sig.run;
                 add(e, Flag::Frozen, cfg.frozen, format!(
                     "action[{d}] holds {value} for {len} of {} steps from step {from}, where it moves in most episodes", f.n),
                     &[("dim", d as f64), ("steps", len as f64), ("from", from as f64), ("value", value)]);
-            } else if sig.clip.0 >= cfg.clip_fraction && clip_median < cfg.clip_fraction && !long(f)
+            } else if sig.clip.0 >= cfg.clip_fraction
+                && clip_median < cfg.clip_fraction
+                && !long(f)
+                && sig.clip.1 != lowest
+                && sig.clip.1 != highest
             {
                 let (share, bound, side) = sig.clip;
                 add(
@@ -290,7 +321,7 @@ pub fn run(
                             .filter(|s| s.0 / judged.units[e] / sigma > cfg.jump_threshold)
                             .count();
                         add(e, Flag::Jump, cfg.jump, format!(
-                            "action[{d}] jumps at step {step} by {z:.1} robust std of its step changes ({count} such steps)"),
+                            "action[{d}] spikes at step {step} by {z:.1} robust std of its step changes ({count} such steps)"),
                             &[("dim", d as f64), ("step", step as f64), ("z", z)]);
                     }
                 }
@@ -327,6 +358,31 @@ pub fn run(
             .fold(f64::NEG_INFINITY, f64::max);
         if lo == hi {
             constant.push(("observation.state".to_string(), d, lo));
+        }
+    }
+
+    // Stuck: not constant, but holding one value for most of most episodes (an unused or stuck
+    // degree of freedom; per-episode `frozen` leaves these dimensions alone).
+    let mut stuck = Vec::new();
+    for (channel, width) in [("action", a_dim), ("observation.state", s_dim)] {
+        for d in 0..width {
+            if constant.iter().any(|(c, k, _)| c == channel && *k == d) {
+                continue;
+            }
+            let held = feats
+                .iter()
+                .filter(|f| {
+                    let run = if channel == "action" {
+                        f.signal[d].run.0
+                    } else {
+                        f.state_runs[d]
+                    };
+                    f.n >= 10 && run as f64 >= cfg.frozen_fraction * f.n as f64
+                })
+                .count();
+            if 2 * held >= episodes {
+                stuck.push((channel.to_string(), d, held as f64 / episodes as f64));
+            }
         }
     }
 
@@ -487,6 +543,13 @@ pub fn run(
             affected.join(", ")
         ));
     }
+    for (channel, d, share) in &stuck {
+        report.warnings.push(format!(
+            "`{channel}[{d}]` holds one exact value for at least {:.0}% of the steps in {:.0}% of the episodes: an unused or stuck degree of freedom",
+            100.0 * cfg.frozen_fraction,
+            100.0 * share
+        ));
+    }
     for s in &shifts {
         if let Some((q, dev)) = s
             .deviations
@@ -542,6 +605,7 @@ pub fn run(
             .collect(),
         step_sigma,
         constant,
+        stuck,
         shift: shifts,
         duplicates: pairs.iter().map(|&(a, b, r)| (ids[a], ids[b], r)).collect(),
         units_ratio: cfg.units_ratio,

@@ -4,15 +4,20 @@
 //!
 //! - **frozen**: the longest run of one exact value covers at least `frozen_fraction` of the
 //!   episode, in a dimension that does not hold still like that in most episodes (a gripper that
-//!   never moves in the dataset is `constant`, not frozen).
+//!   never moves in the dataset is `constant`, not frozen), at a value that is not the
+//!   dimension's dataset-wide min or max (a hand closed on an object holds its limit).
 //! - **clipped**: at least `clip_fraction` of the steps sit exactly at the episode's max (or min)
-//!   in runs of two or more, in a dimension whose median episode does not (binary grippers sit
-//!   at their bounds by design).
-//! - **jump**: a step departs from the midpoint of its neighbours by more than `jump_threshold`
-//!   robust standard deviations of the dimension's step changes. The reference is the median over
-//!   episodes of each episode's MAD of step changes, after dividing every episode by its units
-//!   factor, so a units-changed episode is not "full of jumps", and a few spikes do not inflate
-//!   it. A midpoint departure catches spikes and leaves steady ramps alone.
+//!   in runs of two or more that the signal enters and leaves moving (a full step of at least
+//!   half the episode's typical step on each side: a hand at rest decelerates into its extreme,
+//!   a saturated command runs into it), at a bound inside the range the other episodes reach
+//!   (a hand fully closed sits at the dataset's limit by design), in a dimension whose median
+//!   episode does not sit at its bounds.
+//! - **jump**: a one-step spike, a value above (or below) both neighbours by more than
+//!   `jump_threshold` robust standard deviations of the dimension's step changes on both sides.
+//!   The reference is the median over episodes of each episode's MAD of step changes, after
+//!   dividing every episode by its units factor, so a units-changed episode is not "full of
+//!   jumps", and a few spikes do not inflate it. Both flanks must be steep: a gripper or hand
+//!   closing in one step is a step, not a glitch.
 
 /// One episode's per-dimension signal features.
 #[derive(Debug, Clone, Default)]
@@ -24,7 +29,8 @@ pub struct DimSignal {
     pub clip: (f64, f64, &'static str),
     /// 1.4826 × MAD of the step changes.
     pub step_sigma: f64,
-    /// The largest departures from the neighbours' midpoint: (|departure|, step), largest first.
+    /// The largest spikes (the smaller flank of a step above or below both neighbours), largest
+    /// first: (size, step).
     pub spikes: Vec<(f64, usize)>,
     pub min: f64,
     pub max: f64,
@@ -51,14 +57,36 @@ pub fn dim_signal(a: &[f64], n: usize, width: usize, d: usize) -> DimSignal {
         }
     }
     out.run = best;
+    let steps: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
+    out.step_sigma = if steps.is_empty() {
+        0.0
+    } else {
+        super::stats::mad_sigma(&steps)
+    };
     if out.max > out.min {
+        // Steps in runs (two or more) at `bound` that the signal enters and leaves moving: a
+        // full step of at least half the episode's typical step on each side (a hand at rest
+        // decelerates into its extreme; a saturated command runs into it).
+        let brisk = |t: usize, u: usize| (x[t] - x[u]).abs() >= 0.5 * out.step_sigma;
         let at = |bound: f64| {
-            (0..n)
-                .filter(|&t| {
-                    x[t] == bound
-                        && ((t > 0 && x[t - 1] == bound) || (t + 1 < n && x[t + 1] == bound))
-                })
-                .count()
+            let mut count = 0;
+            let mut t = 0;
+            while t < n {
+                if x[t] != bound {
+                    t += 1;
+                    continue;
+                }
+                let start = t;
+                while t < n && x[t] == bound {
+                    t += 1;
+                }
+                let enters = start < 2 || brisk(start - 1, start - 2);
+                let leaves = t + 1 >= n || brisk(t + 1, t);
+                if t - start >= 2 && enters && leaves {
+                    count += t - start;
+                }
+            }
+            count
         };
         let (hi, lo) = (at(out.max), at(out.min));
         out.clip = if hi >= lo {
@@ -67,14 +95,18 @@ pub fn dim_signal(a: &[f64], n: usize, width: usize, d: usize) -> DimSignal {
             (lo as f64 / n as f64, out.min, "min")
         };
     }
-    let steps: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
-    out.step_sigma = if steps.is_empty() {
-        0.0
-    } else {
-        super::stats::mad_sigma(&steps)
-    };
+    // A spike leaves both neighbours on the same side: its size is the smaller flank (a step,
+    // a gripper closing, has one flank only).
     let mut spikes: Vec<(f64, usize)> = (1..n.saturating_sub(1))
-        .map(|t| ((x[t] - 0.5 * (x[t - 1] + x[t + 1])).abs(), t))
+        .map(|t| {
+            let (before, after) = (x[t] - x[t - 1], x[t] - x[t + 1]);
+            let size = if before * after > 0.0 {
+                before.abs().min(after.abs())
+            } else {
+                0.0
+            };
+            (size, t)
+        })
         .collect();
     spikes.sort_by(|p, q| q.0.total_cmp(&p.0).then(p.1.cmp(&q.1)));
     spikes.truncate(3);
@@ -93,6 +125,8 @@ mod tests {
         let s = dim_signal(&x, 100, 1, 0);
         assert_eq!(s.spikes[0].1, 40);
         assert!(s.spikes[0].0 > 4.0);
+        let step: Vec<f64> = (0..100).map(|t| if t < 50 { 0.0 } else { 1.0 }).collect();
+        assert_eq!(dim_signal(&step, 100, 1, 0).spikes[0].0, 0.0);
         let held: Vec<f64> = (0..100)
             .map(|t| if t < 30 { t as f64 } else { 30.0 })
             .collect();
