@@ -39,6 +39,9 @@ pub use shift::ShiftDim;
 /// of the episode's own lag.
 pub const MISALIGNED_GAIN: f64 = 2.0;
 
+/// A dimension unchanged from step to step in this share of an episode's steps holds still.
+pub const STUCK_UNCHANGED: f64 = 0.8;
+
 /// One doctor flag on one episode, with why and its evidence numbers.
 #[derive(Debug, Clone, Serialize)]
 pub struct Finding {
@@ -92,8 +95,8 @@ struct Features {
     action_means: Vec<f64>,
     state_means: Vec<f64>,
     state_range: Vec<(f64, f64)>,
-    /// Per state dimension, the longest run of one exact value.
-    state_runs: Vec<usize>,
+    /// Per state dimension, the longest run of one exact value and the share of unchanged steps.
+    state_runs: Vec<(usize, f64)>,
     signature: Vec<f64>,
 }
 
@@ -123,7 +126,10 @@ fn features(a: &[f64], s: Option<&[f64]>, n: usize, a_dim: usize, s_dim: usize) 
     let (action_means, stds) = column_stats(a, n, a_dim);
     let state_runs = match s {
         Some(s) => (0..s_dim)
-            .map(|d| signal::dim_signal(s, n, s_dim, d).run.0)
+            .map(|d| {
+                let sig = signal::dim_signal(s, n, s_dim, d);
+                (sig.run.0, sig.unchanged)
+            })
             .collect(),
         None => Vec::new(),
     };
@@ -361,8 +367,9 @@ pub fn run(
         }
     }
 
-    // Stuck: not constant, but holding one value for most of most episodes (an unused or stuck
-    // degree of freedom; per-episode `frozen` leaves these dimensions alone).
+    // Stuck: not constant, but holding one value for most of most episodes, or unchanged from
+    // step to step in STUCK_UNCHANGED of them (an unused or stuck degree of freedom; per-episode
+    // `frozen` leaves these dimensions alone).
     let mut stuck = Vec::new();
     for (channel, width) in [("action", a_dim), ("observation.state", s_dim)] {
         for d in 0..width {
@@ -372,12 +379,14 @@ pub fn run(
             let held = feats
                 .iter()
                 .filter(|f| {
-                    let run = if channel == "action" {
-                        f.signal[d].run.0
+                    let (run, unchanged) = if channel == "action" {
+                        (f.signal[d].run.0, f.signal[d].unchanged)
                     } else {
                         f.state_runs[d]
                     };
-                    f.n >= 10 && run as f64 >= cfg.frozen_fraction * f.n as f64
+                    f.n >= 10
+                        && (run as f64 >= cfg.frozen_fraction * f.n as f64
+                            || unchanged >= STUCK_UNCHANGED)
                 })
                 .count();
             if 2 * held >= episodes {
@@ -545,23 +554,37 @@ pub fn run(
     }
     for (channel, d, share) in &stuck {
         report.warnings.push(format!(
-            "`{channel}[{d}]` holds one exact value for at least {:.0}% of the steps in {:.0}% of the episodes: an unused or stuck degree of freedom",
+            "`{channel}[{d}]` holds still (one value for {:.0}% of the steps, or unchanged in {:.0}% of them) in {:.0}% of the episodes: an unused or stuck degree of freedom",
             100.0 * cfg.frozen_fraction,
+            100.0 * STUCK_UNCHANGED,
             100.0 * share
         ));
     }
-    for s in &shifts {
-        if let Some((q, dev)) = s
-            .deviations
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-        {
+    for channel in ["action", "observation.state"] {
+        let mut dims = Vec::new();
+        let mut worst: Option<(usize, usize, f64)> = None;
+        for s in shifts.iter().filter(|s| s.channel == channel) {
+            let Some((q, &dev)) = s
+                .deviations
+                .iter()
+                .enumerate()
+                .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            else {
+                continue;
+            };
             if dev.abs() > cfg.shift_threshold {
-                report.warnings.push(format!(
-                    "distribution shift: `{}[{}]`: the episodes of quarter {} (recording order) sit {dev:+.2} robust std from the dataset's median",
-                    s.channel, s.dim, q + 1));
+                dims.push(s.dim.to_string());
+                if worst.is_none_or(|w| dev.abs() > w.2.abs()) {
+                    worst = Some((s.dim, q, dev));
+                }
             }
+        }
+        if let Some((d, q, dev)) = worst {
+            report.warnings.push(format!(
+                "distribution shift across the recording in `{channel}` dimensions {}: the largest, `{channel}[{d}]`, has its quarter {} of the episodes (recording order) {dev:+.2} robust std from the dataset's median",
+                dims.join(", "),
+                q + 1
+            ));
         }
     }
     if let Some(mode) = judged.mode {

@@ -27,6 +27,8 @@ pub struct DimSignal {
     /// The share of steps at the episode's max or min in runs of two or more, that bound, and
     /// which (`max` or `min`).
     pub clip: (f64, f64, &'static str),
+    /// The share of steps equal to the step before.
+    pub unchanged: f64,
     /// 1.4826 × MAD of the step changes.
     pub step_sigma: f64,
     /// The largest spikes (the smaller flank of a step above or below both neighbours), largest
@@ -58,6 +60,7 @@ pub fn dim_signal(a: &[f64], n: usize, width: usize, d: usize) -> DimSignal {
     }
     out.run = best;
     let steps: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
+    out.unchanged = steps.iter().filter(|s| **s == 0.0).count() as f64 / steps.len().max(1) as f64;
     out.step_sigma = if steps.is_empty() {
         0.0
     } else {
@@ -100,8 +103,11 @@ pub fn dim_signal(a: &[f64], n: usize, width: usize, d: usize) -> DimSignal {
     let mut spikes: Vec<(f64, usize)> = (1..n.saturating_sub(1))
         .map(|t| {
             let (before, after) = (x[t] - x[t - 1], x[t] - x[t + 1]);
-            let size = if before * after > 0.0 {
-                before.abs().min(after.abs())
+            let flank = before.abs().min(after.abs());
+            // ... and its neighbours agree with each other (a glitch returns to the signal).
+            let returns = (x[t + 1] - x[t - 1]).abs() <= 0.5 * flank;
+            let size = if before * after > 0.0 && returns {
+                flank
             } else {
                 0.0
             };
