@@ -54,7 +54,7 @@ pub fn fit_dim(
     let (yc, x2c) = (centred(&y), centred(&x2));
     let dot = |p: &[f64], q: &[f64]| p.iter().zip(q).map(|(a, b)| a * b).sum::<f64>();
     let syy = dot(&yc, &yc);
-    if !(syy > 0.0) {
+    if syy.is_nan() || syy <= 0.0 {
         return None;
     }
     let s22 = dot(&x2c, &x2c);

@@ -64,6 +64,7 @@ pub struct Judged {
 
 /// `fits[e][d]`: episode e's fits of shared dimension d; `stds[e][d]`: the standard deviation
 /// of action dimension d in episode e.
+// Long function: tracked dimensions, lags, conventions and units, each from the one before.
 pub fn judge(fits: &[Vec<Option<Vec<LagFit>>>], stds: &[Vec<f64>], units_ratio: f64) -> Judged {
     let episodes = fits.len();
     let dims = fits.iter().map(|f| f.len()).max().unwrap_or(0);

@@ -1,3 +1,4 @@
+// Long file: one pass reads the episodes and every check is judged over the same features; each check's own rules live in its file.
 //! The dataset doctor: checks of the action and state values that catch what silently ruins a
 //! policy (a frozen or clipped actuator, spikes, actions misaligned with the observations or in
 //! another convention or units than the rest, duplicated episodes, shift across the recording,
@@ -276,7 +277,7 @@ pub fn run(
             )
         })
         .collect();
-    for d in 0..a_dim {
+    for (d, &sigma) in step_sigma.iter().enumerate() {
         let long = |f: &Features| {
             f.n >= 10 && f.signal[d].run.0 as f64 >= cfg.frozen_fraction * f.n as f64
         };
@@ -316,7 +317,6 @@ pub fn run(
                     &[("dim", d as f64), ("share", share), ("bound", bound)],
                 );
             }
-            let sigma = step_sigma[d];
             if sigma > 0.0 {
                 if let Some(&(size, step)) = sig.spikes.first() {
                     let z = size / judged.units[e] / sigma;
@@ -448,7 +448,6 @@ pub fn run(
             add(e, Flag::Short, cfg.short, why.join("; "), &ev);
         }
     }
-    drop(add);
 
     // Shift (dataset-wide).
     let mut shifts = Vec::new();

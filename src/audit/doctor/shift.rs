@@ -31,7 +31,7 @@ pub fn deviations(means: &[f64]) -> Option<Vec<f64>> {
     }
     let centre = super::stats::median(means.iter().copied());
     let sigma = super::stats::mad_sigma(means);
-    if !(sigma > 0.0) {
+    if sigma.is_nan() || sigma <= 0.0 {
         return None;
     }
     Some(
