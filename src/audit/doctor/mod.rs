@@ -163,6 +163,24 @@ fn features(a: &[f64], s: Option<&[f64]>, n: usize, a_dim: usize, s_dim: usize) 
     }
 }
 
+/// Replaces each non-finite value of a `(n, width)` array by the last finite value of its column
+/// (0 before the first).
+fn hold_finite(x: &mut [f64], width: usize) {
+    if width == 0 || x.iter().all(|v| v.is_finite()) {
+        return;
+    }
+    for d in 0..width {
+        let mut last = 0.0;
+        for v in x.iter_mut().skip(d).step_by(width) {
+            if v.is_finite() {
+                last = *v;
+            } else {
+                *v = last;
+            }
+        }
+    }
+}
+
 /// Runs the checks and adds their flags, findings, verdicts and summary to `report` (and the
 /// exclusions to `repairs`). Does nothing when `[audit.doctor] enabled = false` or the source has
 /// no low-dimensional `action` channel.
@@ -203,11 +221,14 @@ pub fn run(
             let a = to64(std::mem::take(&mut data[0]));
             let s = si.map(|_| to64(std::mem::take(&mut data[1])));
             let n = a.len() / a_dim;
-            if let Some(k) = a.iter().chain(s.iter().flatten()).position(|x| !x.is_finite()) {
-                return Err(Error::source(format!(
-                    "{shown}: episode {}: a non-finite value ({k}th) in the action or state; the doctor needs finite values (`[audit] non_finite`)",
-                    manifest.episodes[i].id
-                )));
+            // Non-finite values are `[audit] non_finite`'s to judge (an error naming the step,
+            // or the episode left out) when the build reads the episode: here each is held at
+            // the last finite value of its column, so that it sets off no check.
+            let mut a = a;
+            let mut s = s;
+            hold_finite(&mut a, a_dim);
+            if let Some(s) = s.as_mut() {
+                hold_finite(s, s_dim);
             }
             Ok(features(&a, s.as_deref(), n, a_dim, s_dim))
         })
