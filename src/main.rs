@@ -110,10 +110,11 @@ struct SynthArgs {
     fps: f64,
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Timing faults, comma-separated KIND:VALUE: drop:P, rate:HZ, jitter:F, dup:P.
+    /// Faults, comma-separated: timing (drop:P, rate:HZ, jitter:F, dup:P) and data (frozen,
+    /// clip, jump, lag:N, delta, scale:F, duplicate; each data fault in its own share).
     #[arg(long, value_delimiter = ',')]
     faults: Vec<synth::Fault>,
-    /// The fraction of episodes that get the faults.
+    /// The fraction of episodes that get the timing faults, and each data fault.
     #[arg(long, default_value_t = 0.2)]
     fault_fraction: f64,
     /// robomimic only: robosuite's older layout (no obs group; time in states[:, 0]).

@@ -7,10 +7,13 @@
 //! - `spline`: the not-a-knot cubic spline (as `scipy.interpolate.CubicSpline`).
 //! - `resample`: Fourier (as `scipy.signal.resample`) and linear resampling along time.
 //! - `repair`: a verdict applied to an [`Episode`](crate::source::Episode).
+//! - `doctor`: the dataset doctor, checks of the action and state values (frozen, clipped,
+//!   jumps, duplicates, misalignment, mixed conventions, units, shift, short episodes).
 //! - `audited`: the source as the audit leaves it ([`Audited`]): exclusions gone, repaired
 //!   lengths, repairs applied as episodes are read.
 
 mod audited;
+pub mod doctor;
 pub mod histogram;
 pub mod repair;
 pub mod report;
@@ -138,7 +141,7 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
             "`[audit] repair = false`: the verdicts are reported, and `build` uses every episode as recorded".into(),
         );
     }
-    let report = AuditReport {
+    let mut report = AuditReport {
         expected_interval: expected,
         source_fps: fps,
         timestamps: manifest.timestamps,
@@ -154,7 +157,9 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
         warnings,
         examples: Vec::new(),
         video,
+        doctor: None,
     };
+    doctor::run(spec, source, &mut report, &mut repairs)?;
     Ok((report, repairs))
 }
 
@@ -407,6 +412,14 @@ impl Flag {
             Flag::Count => "count",
             Flag::NonMonotonic => "non_monotonic",
             Flag::Video => "video",
+            Flag::Frozen => "frozen",
+            Flag::Clipped => "clipped",
+            Flag::Jump => "jump",
+            Flag::Duplicate => "duplicate",
+            Flag::Misaligned => "misaligned",
+            Flag::MixedConvention => "mixed_convention",
+            Flag::Units => "units",
+            Flag::Short => "short",
         }
     }
 }

@@ -31,6 +31,9 @@ pub struct AuditReport {
     /// Per episode and camera video: its frames against the rows (sources with video only).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub video: Vec<VideoAudit>,
+    /// The dataset doctor's dataset-wide results (`[audit.doctor]`); absent when it did not run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub doctor: Option<super::doctor::DoctorSummary>,
 }
 
 /// One episode's camera video checked against its rows: the frame count and pts regularity
@@ -68,6 +71,9 @@ pub struct EpisodeAudit {
     pub detail: String,
     /// Steps after repair (equal to `n_frames` when nothing is repaired; 0 when excluded).
     pub repaired_frames: usize,
+    /// The dataset doctor's findings, one per flag it added, with their evidence.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub findings: Vec<super::doctor::Finding>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
@@ -79,6 +85,15 @@ pub enum Flag {
     NonMonotonic,
     /// A camera video cannot give every row its frame (`[audit] video`).
     Video,
+    /// The dataset doctor's flags (`audit::doctor`).
+    Frozen,
+    Clipped,
+    Jump,
+    Duplicate,
+    Misaligned,
+    MixedConvention,
+    Units,
+    Short,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

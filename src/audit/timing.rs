@@ -148,6 +148,7 @@ pub fn judge(
         verdict: Verdict::Ok,
         detail: String::new(),
         repaired_frames: n,
+        findings: Vec::new(),
     };
     let (t, repeats) = if raw_flags.contains(&Flag::NonMonotonic) {
         match without_repeats(timestamps, &dt, cfg)? {

@@ -6,13 +6,7 @@ use super::plot::{self, verdict_name};
 use crate::audit::{AuditReport, Flag, Verdict};
 
 fn flag_name(f: Flag) -> &'static str {
-    match f {
-        Flag::Jitter => "jitter",
-        Flag::Gap => "gap",
-        Flag::Count => "count",
-        Flag::NonMonotonic => "non_monotonic",
-        Flag::Video => "video",
-    }
+    f.name()
 }
 
 fn ms(seconds: f64) -> String {
@@ -163,6 +157,10 @@ pub fn render(r: &AuditReport, title: &str) -> String {
         );
     }
 
+    if let Some(d) = &r.doctor {
+        doctor_section(&mut page, r, d);
+    }
+
     if !r.examples.is_empty() {
         page.heading("Repairs, before and after");
         for ex in &r.examples {
@@ -177,4 +175,53 @@ pub fn render(r: &AuditReport, title: &str) -> String {
         }
     }
     page.finish()
+}
+
+/// The dataset doctor's section: what it checked, its charts, and every finding with its reason.
+fn doctor_section(page: &mut Page, r: &AuditReport, d: &crate::audit::doctor::DoctorSummary) {
+    page.heading("Dataset doctor");
+    let counts: Vec<String> = d.flagged.iter().map(|(k, v)| format!("{k}: {v}")).collect();
+    page.paragraph(&format!(
+        "Checks of `{}`{}: frozen, clipped, jump, duplicate, misaligned, mixed_convention, units, \
+         short per episode; constant dimensions and shift across the recording for the dataset. \
+         Flagged: {}. Tracked dimensions (action tracks state): {:?}; lag mode: {}; convention: {}.",
+        d.action_channel,
+        d.state_channel.as_ref().map(|s| format!(" against `{s}`")).unwrap_or_default(),
+        if counts.is_empty() { "nothing".into() } else { counts.join(", ") },
+        d.tracked_dims,
+        d.lag_mode.map_or("none (no dimension tracks the state)".into(), |m| m.to_string()),
+        d.convention.as_deref().unwrap_or("unclear"),
+    ));
+    if !d.lag_curve.is_empty() {
+        page.figure(&super::doctor_plot::lag_chart(d), "Per episode, the lag at which the action best predicts the next state change; flagged `misaligned` when it is more than `lag_tolerance` from the mode.");
+    }
+    page.figure(&super::doctor_plot::units_chart(d, d.units_ratio), "Per episode, the action's units against the dataset's (the gain of the state's response, or the action's spread where nothing tracks the state); outside the dashed lines: `units`.");
+    if !d.shift.is_empty() {
+        page.figure(&super::doctor_plot::shift_chart(d, d.shift_threshold), "Per dimension, each quarter of the recording's median episode mean, in robust standard deviations of the episode means.");
+    }
+    let rows: Vec<Vec<String>> = r
+        .episodes
+        .iter()
+        .flat_map(|e| {
+            e.findings.iter().map(move |f| {
+                let evidence: Vec<String> = f
+                    .evidence
+                    .iter()
+                    .map(|(k, v)| format!("{k} = {v:.4}"))
+                    .collect();
+                vec![
+                    e.id.to_string(),
+                    f.flag.name().to_string(),
+                    format!("{:?}", f.action).to_lowercase(),
+                    f.detail.clone(),
+                    evidence.join(", "),
+                ]
+            })
+        })
+        .collect();
+    if rows.is_empty() {
+        page.note("ok", "The doctor found nothing to flag.");
+    } else {
+        page.table(&["episode", "flag", "action", "why", "evidence"], &rows);
+    }
 }

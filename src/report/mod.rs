@@ -6,10 +6,12 @@
 //!
 //! - `page`: the HTML page builder (escaping, tables, notes, figures).
 //! - `plot`: the charts, drawn with `plotters` into SVG.
+//! - `doctor_plot`: the dataset doctor's charts (lag, units, shift).
 //! - `audit_page`, `analyze_page`: what each page shows, in order.
 
 mod analyze_page;
 mod audit_page;
+mod doctor_plot;
 mod page;
 pub mod plot;
 

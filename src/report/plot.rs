@@ -8,17 +8,17 @@ use plotters::prelude::*;
 use crate::analyze::AnalyzeReport;
 use crate::audit::{EpisodeAudit, Histogram, RepairExample, Verdict};
 
-type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
-type Fallible = Result<(), Box<dyn std::error::Error + 'static>>;
+pub(super) type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
+pub(super) type Fallible = Result<(), Box<dyn std::error::Error + 'static>>;
 
 const WIDTH: u32 = 960;
 const HEIGHT: u32 = 420;
-const FONT: &str = "sans-serif";
+pub(super) const FONT: &str = "sans-serif";
 
-const GREY: RGBColor = RGBColor(150, 150, 150);
-const THRESHOLD_RED: RGBColor = RGBColor(200, 50, 45);
+pub(super) const GREY: RGBColor = RGBColor(150, 150, 150);
+pub(super) const THRESHOLD_RED: RGBColor = RGBColor(200, 50, 45);
 /// Distinguishable colors for a handful of series (dimensions, profiles).
-const PALETTE: [RGBColor; 8] = [
+pub(super) const PALETTE: [RGBColor; 8] = [
     RGBColor(31, 111, 180),
     RGBColor(230, 120, 20),
     RGBColor(44, 160, 44),
@@ -50,7 +50,7 @@ pub fn verdict_name(v: Verdict) -> &'static str {
 
 /// Draws into a fresh SVG; a drawing error becomes a chart that says so (a report with one
 /// broken chart is still worth more than no report).
-fn svg(draw: impl FnOnce(&Area) -> Fallible) -> String {
+pub(super) fn svg(draw: impl FnOnce(&Area) -> Fallible) -> String {
     let mut out = String::new();
     let result = {
         let root = SVGBackend::with_string(&mut out, (WIDTH, HEIGHT)).into_drawing_area();
@@ -75,7 +75,7 @@ fn svg(draw: impl FnOnce(&Area) -> Fallible) -> String {
 }
 
 /// Axis numbers without trailing zeros (`20`, `0.2`, never `-0.0`).
-fn tick(v: &f64) -> String {
+pub(super) fn tick(v: &f64) -> String {
     let rounded = (v * 1e6).round() / 1e6;
     if rounded == 0.0 {
         "0".into()
@@ -127,10 +127,10 @@ impl Ranged for EpisodeAxis {
     }
 }
 
-const GRID: RGBColor = RGBColor(238, 238, 238);
+pub(super) const GRID: RGBColor = RGBColor(238, 238, 238);
 
 /// `lo..hi`, widened when empty so that plotters gets a usable range.
-fn span(lo: f64, hi: f64) -> std::ops::Range<f64> {
+pub(super) fn span(lo: f64, hi: f64) -> std::ops::Range<f64> {
     if !(lo.is_finite() && hi.is_finite()) {
         return 0.0..1.0;
     }
@@ -142,11 +142,14 @@ fn span(lo: f64, hi: f64) -> std::ops::Range<f64> {
     }
 }
 
-fn legend_line(color: RGBColor, width: u32) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
+pub(super) fn legend_line(
+    color: RGBColor,
+    width: u32,
+) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
     move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(width))
 }
 
-fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+pub(super) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
     chart: &mut ChartContext<'a, DB, CT>,
     position: SeriesLabelPosition,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {

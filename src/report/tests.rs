@@ -28,6 +28,7 @@ fn episode(
             format!("episode {id} <needs> & repair")
         },
         repaired_frames: if verdict == Verdict::Exclude { 0 } else { 100 },
+        findings: Vec::new(),
     }
 }
 
@@ -90,6 +91,7 @@ pub(crate) fn sample_audit() -> AuditReport {
             after,
         }],
         video: Vec::new(),
+        doctor: None,
         episodes,
     }
 }

@@ -160,6 +160,20 @@ pub trait Source: Send + Sync {
     fn read_timestamps(&self, index: usize) -> Result<Option<Vec<f64>>> {
         Ok(self.read_episode(index)?.timestamps)
     }
+    /// The low-dimensional channels at `channels` (manifest positions) of the episode at `index`,
+    /// time-major (the dataset doctor reads only these): adapters that read per key override it.
+    fn read_lowdim(&self, index: usize, channels: &[usize]) -> Result<Vec<Vec<f32>>> {
+        let mut episode = self.read_episode(index)?;
+        Ok(channels
+            .iter()
+            .map(|&c| {
+                match std::mem::replace(&mut episode.channels[c], ChannelData::Image(Vec::new())) {
+                    ChannelData::Lowdim(v) => v,
+                    ChannelData::Image(_) => Vec::new(),
+                }
+            })
+            .collect())
+    }
     /// How many times each storage chunk was decoded so far (see [`block_cache`]); empty for
     /// sources that do not count.
     fn decode_counts(&self) -> DecodeCounts {

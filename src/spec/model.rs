@@ -273,6 +273,129 @@ pub struct AuditSpec {
     /// `linear`.
     #[serde(default)]
     pub resample: ResampleMethod,
+    /// `[audit.doctor]`: the data checks (signal quality, alignment, action conventions,
+    /// duplicates, shift, short episodes).
+    #[serde(default)]
+    pub doctor: DoctorSpec,
+}
+
+/// `[audit.doctor]`: the dataset doctor's checks of the action and state values (see the book's
+/// "Dataset doctor" page). Each per-episode check has an action (`warn`, `exclude` the episode,
+/// or fail with an `error`) and its threshold.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DoctorSpec {
+    /// Run the checks (they read every episode's action and state channels once).
+    #[serde(default = "default_true")]
+    pub enabled: bool,
+    /// An action dimension that holds one exact value for a long run, where the dimension moves
+    /// in most other episodes.
+    #[serde(default)]
+    pub frozen: DoctorAction,
+    /// The shortest run flagged `frozen`, as a fraction of the episode.
+    #[serde(default = "default_frozen_fraction")]
+    pub frozen_fraction: f64,
+    /// Runs of an action dimension sitting exactly at its episode's min or max.
+    #[serde(default)]
+    pub clipped: DoctorAction,
+    /// The share of an episode's steps at a bound flagged `clipped`.
+    #[serde(default = "default_clip_fraction")]
+    pub clip_fraction: f64,
+    /// One-step spikes in an action dimension.
+    #[serde(default)]
+    pub jump: DoctorAction,
+    /// Flag `jump` when a value lies above (or below) both neighbours by more than this many
+    /// robust standard deviations of the dimension's step changes (dataset-wide).
+    #[serde(default = "default_jump_threshold")]
+    pub jump_threshold: f64,
+    /// Near-copies of an earlier episode (the later one is flagged).
+    #[serde(default)]
+    pub duplicate: DoctorAction,
+    /// Flag `duplicate` below this RMS difference of the resampled actions, in units of each
+    /// dimension's typical spread.
+    #[serde(default = "default_duplicate_tolerance")]
+    pub duplicate_tolerance: f64,
+    /// An episode whose action-to-state lag differs from the dataset's most common lag.
+    #[serde(default)]
+    pub misaligned: DoctorAction,
+    /// Steps of lag difference tolerated before flagging `misaligned`.
+    #[serde(default = "default_lag_tolerance")]
+    pub lag_tolerance: u32,
+    /// An episode whose actions behave as deltas where most are absolute targets, or the reverse.
+    #[serde(default)]
+    pub mixed_convention: DoctorAction,
+    /// An episode whose actions are in other units than the rest.
+    #[serde(default)]
+    pub units: DoctorAction,
+    /// Flag `units` when an episode's action scale differs from the dataset's by more than this
+    /// factor (either way).
+    #[serde(default = "default_units_ratio")]
+    pub units_ratio: f64,
+    /// An episode shorter than a profile's chunk.
+    #[serde(default)]
+    pub short: DoctorAction,
+    /// Warn of distribution shift when a quarter of the episodes (in recording order) has a
+    /// median episode mean this many robust standard deviations from the dataset's.
+    #[serde(default = "default_shift_threshold")]
+    pub shift_threshold: f64,
+}
+
+/// What a doctor check does with an episode it flags.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum DoctorAction {
+    /// Report it; `build` uses the episode.
+    #[default]
+    Warn,
+    /// Leave the episode out of every profile (with `repair = true`).
+    Exclude,
+    /// Fail `audit` and `build` with an error naming the episode.
+    Error,
+}
+
+fn default_frozen_fraction() -> f64 {
+    0.5
+}
+fn default_clip_fraction() -> f64 {
+    0.05
+}
+fn default_jump_threshold() -> f64 {
+    8.0
+}
+fn default_duplicate_tolerance() -> f64 {
+    0.01
+}
+fn default_lag_tolerance() -> u32 {
+    1
+}
+fn default_units_ratio() -> f64 {
+    3.0
+}
+fn default_shift_threshold() -> f64 {
+    1.0
+}
+
+impl Default for DoctorSpec {
+    fn default() -> Self {
+        DoctorSpec {
+            enabled: true,
+            frozen: DoctorAction::Warn,
+            frozen_fraction: default_frozen_fraction(),
+            clipped: DoctorAction::Warn,
+            clip_fraction: default_clip_fraction(),
+            jump: DoctorAction::Warn,
+            jump_threshold: default_jump_threshold(),
+            duplicate: DoctorAction::Warn,
+            duplicate_tolerance: default_duplicate_tolerance(),
+            misaligned: DoctorAction::Warn,
+            lag_tolerance: default_lag_tolerance(),
+            mixed_convention: DoctorAction::Warn,
+            units: DoctorAction::Warn,
+            units_ratio: default_units_ratio(),
+            short: DoctorAction::Warn,
+            shift_threshold: default_shift_threshold(),
+        }
+    }
 }
 
 fn default_true() -> bool {
@@ -305,6 +428,7 @@ impl Default for AuditSpec {
             rate_error: RateError::default(),
             irregular: Irregular::default(),
             resample: ResampleMethod::default(),
+            doctor: DoctorSpec::default(),
         }
     }
 }

@@ -366,6 +366,7 @@ mod tests {
                 "[source.channels]",
                 "[split]",
                 "[audit]",
+                "[audit.doctor]",
                 "[output]",
                 "[profiles.<name>]",
                 "[profiles.<name>.normalize]",

@@ -52,6 +52,39 @@ impl Checker<'_> {
         self.found.push(d.with_help(help));
     }
 
+    /// `[audit.doctor]` thresholds in range.
+    fn doctor_thresholds(&mut self, doctor: &crate::spec::DoctorSpec) {
+        let fractions = [
+            ("frozen_fraction", doctor.frozen_fraction, 0.0, 1.0),
+            ("clip_fraction", doctor.clip_fraction, 0.0, 1.0),
+            ("jump_threshold", doctor.jump_threshold, 0.0, f64::INFINITY),
+            (
+                "duplicate_tolerance",
+                doctor.duplicate_tolerance,
+                0.0,
+                f64::INFINITY,
+            ),
+            ("units_ratio", doctor.units_ratio, 1.0, f64::INFINITY),
+            (
+                "shift_threshold",
+                doctor.shift_threshold,
+                0.0,
+                f64::INFINITY,
+            ),
+        ];
+        for (k, value, above, most) in fractions {
+            if !(value.is_finite() && value > above && value <= most) {
+                let what = if most.is_finite() {
+                    format!("in ({above}, {most}]")
+                } else {
+                    format!("greater than {above}")
+                };
+                let message = format!("`audit.doctor.{k}` must be {what}, not {value}");
+                self.value(&["audit", "doctor", k], message, "out of range", None);
+            }
+        }
+    }
+
     fn top_level(&mut self) {
         let spec = &self.loaded.spec;
         if spec.version != 1 {
@@ -92,6 +125,7 @@ impl Checker<'_> {
                 self.value(&["audit", k], message, "out of range", None);
             }
         }
+        self.doctor_thresholds(&audit.doctor);
         if spec.profiles.is_empty() {
             let message = "the spec has no profiles".to_string();
             let help = Some(

@@ -12,6 +12,7 @@
 //! and every writer stores no time stamps of its own.
 
 pub mod aloha;
+pub mod data_faults;
 pub mod dp_zarr;
 pub mod lerobot;
 pub mod rlds;
@@ -27,7 +28,10 @@ use crate::error::{Error, IoContext, Result};
 use crate::spec::SourceFormat;
 pub use trajectory::SynthEpisode;
 
-/// A timing fault to inject into the affected episodes (see [`trajectory::Injected`]).
+/// A fault to inject into the affected episodes (see [`trajectory::Injected`]): timing faults
+/// (`drop`, `rate`, `jitter`, `dup`) change the timestamps of one `fault_fraction` of the
+/// episodes; data faults (the rest) change the recorded actions, each in its own disjoint
+/// `fault_fraction` of the episodes, so that every episode has at most one data fault.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Fault {
     /// `drop:P`: each step after the first is removed (data and time) with probability P.
@@ -38,15 +42,66 @@ pub enum Fault {
     Jitter(f64),
     /// `dup:P`: each step after the first repeats the previous timestamp with probability P.
     Duplicate(f64),
+    /// `frozen`: one action dimension holds its value from an early step to the end (the state
+    /// follows the frozen command).
+    Frozen,
+    /// `clip`: one action dimension saturates at its 70th (or 30th) percentile.
+    Clip,
+    /// `jump`: two one-step spikes (1 to 2 in size, about the dimension's range) in one action
+    /// dimension (a logging glitch: the state does not
+    /// follow them).
+    Jump,
+    /// `lag:N`: the recorded actions are N steps late against the state (`action[t] = a[t-N]`;
+    /// negative N: early).
+    Lag(i32),
+    /// `delta`: the episode's actions are recorded as deltas, target minus current state.
+    Delta,
+    /// `scale:F`: the episode's actions are in other units (multiplied by F).
+    Scale(f64),
+    /// `duplicate`: the episode is a near-copy (noise of 1e-4) of an earlier clean episode.
+    Copy,
+}
+
+/// The kinds `--faults` accepts, for messages.
+const FAULT_KINDS: &str =
+    "drop:P, rate:HZ, jitter:F, dup:P, frozen, clip, jump, lag:N, delta, scale:F, duplicate";
+
+impl Fault {
+    /// Whether the fault changes the recorded values (not the timestamps).
+    pub fn is_data(self) -> bool {
+        !matches!(
+            self,
+            Fault::Drop(_) | Fault::Rate(_) | Fault::Jitter(_) | Fault::Duplicate(_)
+        )
+    }
 }
 
 impl std::str::FromStr for Fault {
     type Err = String;
 
     fn from_str(s: &str) -> std::result::Result<Self, String> {
-        let (kind, value) = s.split_once(':').ok_or_else(|| {
-            format!("fault `{s}`: expected KIND:VALUE (drop:0.02, rate:25, jitter:0.2, dup:0.01)")
-        })?;
+        match s {
+            "frozen" => return Ok(Fault::Frozen),
+            "clip" => return Ok(Fault::Clip),
+            "jump" => return Ok(Fault::Jump),
+            "delta" => return Ok(Fault::Delta),
+            "duplicate" => return Ok(Fault::Copy),
+            _ => {}
+        }
+        let (kind, value) = s
+            .split_once(':')
+            .ok_or_else(|| format!("fault `{s}`: expected one of {FAULT_KINDS}"))?;
+        if kind == "lag" {
+            let n: i32 = value
+                .parse()
+                .map_err(|_| format!("fault `{s}`: `{value}` is not a whole number of steps"))?;
+            if n == 0 || n.abs() > 20 {
+                return Err(format!(
+                    "fault `{s}`: the lag must be 1..=20 steps (or -20..=-1)"
+                ));
+            }
+            return Ok(Fault::Lag(n));
+        }
         let v: f64 = value
             .parse()
             .map_err(|_| format!("fault `{s}`: `{value}` is not a number"))?;
@@ -55,9 +110,10 @@ impl std::str::FromStr for Fault {
             "rate" => Fault::Rate(v),
             "jitter" => Fault::Jitter(v),
             "dup" => Fault::Duplicate(v),
+            "scale" => Fault::Scale(v),
             _ => {
                 return Err(format!(
-                    "fault `{s}`: unknown kind `{kind}` (drop, rate, jitter, dup)"
+                    "fault `{s}`: unknown kind `{kind}` ({FAULT_KINDS})"
                 ))
             }
         };
@@ -65,10 +121,12 @@ impl std::str::FromStr for Fault {
             Fault::Drop(p) | Fault::Duplicate(p) => (0.0..1.0).contains(&p),
             Fault::Rate(hz) => hz > 0.0 && hz.is_finite(),
             Fault::Jitter(f) => (0.0..0.5).contains(&f),
+            Fault::Scale(f) => f.is_finite() && f > 0.0 && f != 1.0,
+            _ => true,
         };
         if !ok {
             return Err(format!(
-                "fault `{s}`: out of range (drop/dup in [0, 1), rate > 0, jitter in [0, 0.5))"
+                "fault `{s}`: out of range (drop/dup in [0, 1), rate > 0, jitter in [0, 0.5), scale > 0 and not 1)"
             ));
         }
         Ok(fault)
@@ -167,6 +225,13 @@ fn check(opts: &SynthOptions) -> Result<()> {
     }
     if !(0.0..=1.0).contains(&opts.fault_fraction) {
         return usage("--fault-fraction must be in [0, 1]".into());
+    }
+    let data = opts.faults.iter().filter(|f| f.is_data()).count();
+    if data as f64 * opts.fault_fraction > 1.0 {
+        return usage(format!(
+            "{data} data faults of {} each do not fit in the episodes (each gets its own share); lower --fault-fraction",
+            opts.fault_fraction
+        ));
     }
     if !(opts.fps > 0.0 && opts.fps.is_finite()) {
         return usage("--fps must be positive".into());

@@ -4,7 +4,7 @@
 //! Everything comes from one seeded SplitMix64 stream per (seed, episode, purpose), so an
 //! episode's values do not depend on how many episodes are written or in which order.
 
-use super::{Fault, SynthOptions};
+use super::{data_faults, Fault, SynthOptions};
 
 /// SplitMix64: tiny, fast, and the same on every platform.
 pub struct Rng(u64);
@@ -76,6 +76,29 @@ pub enum Injected {
     Jitter { fraction: f64 },
     /// These steps (of the stored episode) repeat the previous step's timestamp.
     Duplicate { steps: Vec<usize> },
+    /// Action dimension `dim` holds its value from step `from` on.
+    Frozen { dim: usize, from: usize },
+    /// Action dimension `dim` saturates at `bound` (its `side`, "max" or "min"); `steps` were cut.
+    Clip {
+        dim: usize,
+        bound: f64,
+        side: &'static str,
+        steps: usize,
+    },
+    /// One-step spikes of `sizes` added to action dimension `dim` at `steps`.
+    Jump {
+        dim: usize,
+        steps: Vec<usize>,
+        sizes: Vec<f64>,
+    },
+    /// The actions are recorded `steps` late against the state.
+    Lag { steps: i32 },
+    /// The actions are recorded as target minus current state.
+    Delta,
+    /// The actions are multiplied by `factor` (other units).
+    Scale { factor: f64 },
+    /// The episode is a near-copy of episode `of`.
+    DuplicateEpisode { of: u64 },
 }
 
 /// Smooth, bounded joint targets: a sum of three slow sines per joint.
@@ -183,9 +206,11 @@ fn frames(opts: &SynthOptions, id: u64, camera: usize, action: &[f32], steps: us
     out
 }
 
-/// Whether episode `id` gets the faults (`fault_fraction` of the episodes, chosen by the seed).
+/// Whether episode `id` gets the timing faults (`fault_fraction` of the episodes, chosen by the
+/// seed).
 pub fn is_faulty(opts: &SynthOptions, id: u64) -> bool {
-    !opts.faults.is_empty() && Rng::new(opts.seed, id, STREAM_PICK).unit() < opts.fault_fraction
+    opts.faults.iter().any(|f| !f.is_data())
+        && Rng::new(opts.seed, id, STREAM_PICK).unit() < opts.fault_fraction
 }
 
 /// Keeps the rows of `values` (width `width`) whose index is in `keep`.
@@ -211,19 +236,36 @@ pub fn episode(opts: &SynthOptions, id: u64) -> SynthEpisode {
         timestamps: (0..steps).map(|t| t as f64 / opts.fps).collect(),
         injected: Vec::new(),
     };
+    let fault = data_faults::assigned(opts, id);
+    if fault == Some(Fault::Copy) {
+        rng = Rng::new(opts.seed, data_faults::copy_of(opts, id), STREAM_ACTION);
+    }
     ep.action = action(opts, &mut rng, steps);
+    if let Some(f) = fault {
+        ep.injected
+            .extend(data_faults::physical(opts, id, f, &mut ep.action));
+    }
     ep.state = state(opts, &ep.action, steps);
     ep.velocity = velocity(opts, &ep.state, steps);
     ep.frames = (0..opts.cameras)
         .map(|c| frames(opts, id, c, &ep.action, steps))
         .collect();
+    if let Some(f) = fault {
+        ep.injected.extend(data_faults::recorded(
+            opts,
+            id,
+            f,
+            &mut ep.action,
+            &ep.state,
+        ));
+    }
     if is_faulty(opts, id) {
         inject(opts, &mut ep);
     }
     ep
 }
 
-/// Applies the faults in a fixed order: drop, rate, jitter, duplicate.
+/// Applies the timing faults in a fixed order: drop, rate, jitter, duplicate.
 fn inject(opts: &SynthOptions, ep: &mut SynthEpisode) {
     let mut rng = Rng::new(opts.seed, ep.id, STREAM_FAULTS);
     let mut ordered = opts.faults.clone();
@@ -232,6 +274,7 @@ fn inject(opts: &SynthOptions, ep: &mut SynthEpisode) {
         Fault::Rate(_) => 1,
         Fault::Jitter(_) => 2,
         Fault::Duplicate(_) => 3,
+        _ => 4,
     });
     for fault in ordered {
         match fault {
@@ -273,6 +316,7 @@ fn inject(opts: &SynthOptions, ep: &mut SynthEpisode) {
                 }
                 ep.injected.push(Injected::Duplicate { steps });
             }
+            _ => {}
         }
     }
 }

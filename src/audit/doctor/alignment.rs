@@ -1,0 +1,128 @@
+//! Observation/action alignment, per episode: at which lag the commanded action best predicts
+//! the next change of the state.
+//!
+//! A tracking system moves its state toward the command: `s[t+1] - s[t] ≈ α·a[t-ℓ] + β·s[t] + c`.
+//! For every shift ℓ in `LAGS` and every dimension the action and state share, an ordinary
+//! least-squares fit of the state change on the shifted action and the current state; the shift
+//! with the smallest residual is the episode's alignment, reported as the lag `ℓ + 1`: the step
+//! at which the action first shows in the state (1 for a log where `action[t]` is what the robot
+//! was told at the observation of step t). The same fit covers both conventions: an absolute
+//! target gives `β ≈ -α`, a delta `β ≈ 0`; α is the gain in the action's units, so its ratio to
+//! the dataset's median is the episode's units factor ([`super::convention`]).
+
+/// The shifts ℓ tried (reported lags -5..=10).
+pub const SHIFT_MIN: i64 = -6;
+pub const SHIFT_MAX: i64 = 9;
+/// Episodes shorter than this get no fit.
+pub const MIN_STEPS: usize = 40;
+
+/// One dimension's fit at one shift.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct LagFit {
+    /// Residual over total sum of squares of the state change (1 - R²).
+    pub unexplained: f64,
+    /// The action's coefficient.
+    pub alpha: f64,
+    /// |corr(a[t-ℓ], s[t+1])| - |corr(a[t-ℓ], s[t+1] - s[t])|: positive for an absolute target,
+    /// negative for a delta.
+    pub convention: f64,
+}
+
+/// The fits of dimension `d` at every shift (`SHIFT_MIN..=SHIFT_MAX`), or None when the episode
+/// is too short or the state does not move.
+pub fn fit_dim(
+    a: &[f64],
+    s: &[f64],
+    n: usize,
+    a_dim: usize,
+    s_dim: usize,
+    d: usize,
+) -> Option<Vec<LagFit>> {
+    if n < MIN_STEPS {
+        return None;
+    }
+    let (t0, t1) = ((SHIFT_MAX) as usize, n - (-SHIFT_MIN) as usize);
+    let y: Vec<f64> = (t0..t1)
+        .map(|t| s[(t + 1) * s_dim + d] - s[t * s_dim + d])
+        .collect();
+    let x2: Vec<f64> = (t0..t1).map(|t| s[t * s_dim + d]).collect();
+    let next: Vec<f64> = (t0..t1).map(|t| s[(t + 1) * s_dim + d]).collect();
+    let centred = |v: &[f64]| {
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        v.iter().map(|x| x - m).collect::<Vec<f64>>()
+    };
+    let (yc, x2c) = (centred(&y), centred(&x2));
+    let dot = |p: &[f64], q: &[f64]| p.iter().zip(q).map(|(a, b)| a * b).sum::<f64>();
+    let syy = dot(&yc, &yc);
+    if syy.is_nan() || syy <= 0.0 {
+        return None;
+    }
+    let s22 = dot(&x2c, &x2c);
+    let s2y = dot(&x2c, &yc);
+    let mut out = Vec::new();
+    for shift in SHIFT_MIN..=SHIFT_MAX {
+        let x1: Vec<f64> = (t0..t1)
+            .map(|t| a[(t as i64 - shift) as usize * a_dim + d])
+            .collect();
+        let x1c = centred(&x1);
+        let s11 = dot(&x1c, &x1c);
+        let s12 = dot(&x1c, &x2c);
+        let s1y = dot(&x1c, &yc);
+        let det = s11 * s22 - s12 * s12;
+        let (alpha, explained) = if s11 <= 0.0 {
+            (0.0, if s22 > 0.0 { s2y * s2y / s22 } else { 0.0 })
+        } else if det > 1e-12 * s11 * s22 {
+            let alpha = (s22 * s1y - s12 * s2y) / det;
+            let beta = (s11 * s2y - s12 * s1y) / det;
+            (alpha, alpha * s1y + beta * s2y)
+        } else {
+            (s1y / s11, s1y * s1y / s11)
+        };
+        let convention = super::stats::corr(&x1, &next).abs() - super::stats::corr(&x1, &y).abs();
+        out.push(LagFit {
+            unexplained: ((syy - explained) / syy).clamp(0.0, 1.0),
+            alpha,
+            convention,
+        });
+    }
+    Some(out)
+}
+
+/// The reported lag of shift index `i` (into a fit vector).
+pub fn lag_of(i: usize) -> i32 {
+    (SHIFT_MIN + i as i64 + 1) as i32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tracking(n: usize, late: usize) -> (Vec<f64>, Vec<f64>) {
+        let cmd: Vec<f64> = (0..n + late)
+            .map(|t| (t as f64 * 0.07).sin() + 0.4 * (t as f64 * 0.19).cos())
+            .collect();
+        let mut s = vec![0.0; n];
+        let mut x = cmd[0];
+        for t in 0..n {
+            s[t] = x;
+            x += 0.3 * (cmd[t + late] - x);
+        }
+        // The recorded action is `late` steps behind what drove the state.
+        let a: Vec<f64> = cmd[..n].to_vec();
+        (a, s)
+    }
+
+    #[test]
+    fn finds_the_lag_of_a_first_order_tracker() {
+        for late in [0usize, 3] {
+            let (a, s) = tracking(200, late);
+            let fits = fit_dim(&a, &s, 200, 1, 1, 0).unwrap();
+            let best = (0..fits.len())
+                .min_by(|&i, &j| fits[i].unexplained.total_cmp(&fits[j].unexplained))
+                .unwrap();
+            assert_eq!(lag_of(best), 1 - late as i32, "late {late}");
+            assert!(fits[best].convention > 0.3);
+            assert!((fits[best].alpha - 0.3).abs() < 0.01);
+        }
+    }
+}

@@ -1,0 +1,75 @@
+//! Robust statistics the checks share: medians and MAD-based standard deviations, so that the
+//! faulty episodes a check looks for do not move the reference they are measured against.
+
+/// The median (mean of the middle two for an even count); NaN when empty. Ignores NaNs.
+pub fn median(values: impl IntoIterator<Item = f64>) -> f64 {
+    let mut v: Vec<f64> = values.into_iter().filter(|x| !x.is_nan()).collect();
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// 1.4826 × the median absolute deviation: the standard deviation of normal data, unmoved by a
+/// minority of outliers.
+pub fn mad_sigma(values: &[f64]) -> f64 {
+    let m = median(values.iter().copied());
+    1.4826 * median(values.iter().map(|x| (x - m).abs()))
+}
+
+/// Pearson's correlation; 0 when either side is constant.
+pub fn corr(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len());
+    if n < 2 {
+        return 0.0;
+    }
+    let mx = x[..n].iter().sum::<f64>() / n as f64;
+    let my = y[..n].iter().sum::<f64>() / n as f64;
+    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        let (dx, dy) = (x[i] - mx, y[i] - my);
+        sxy += dx * dy;
+        sxx += dx * dx;
+        syy += dy * dy;
+    }
+    if sxx <= 0.0 || syy <= 0.0 {
+        0.0
+    } else {
+        sxy / (sxx * syy).sqrt()
+    }
+}
+
+/// The most common value; ties go to the smallest.
+pub fn mode<T: Ord + Copy>(values: impl IntoIterator<Item = T>) -> Option<T> {
+    let mut counts = std::collections::BTreeMap::new();
+    for v in values {
+        *counts.entry(v).or_insert(0u64) += 1;
+    }
+    let best = counts.values().copied().max()?;
+    counts.into_iter().find(|(_, c)| *c == best).map(|(v, _)| v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn robust_against_outliers() {
+        assert_eq!(median([3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median([4.0, 1.0, 2.0, 3.0]), 2.5);
+        let mut v: Vec<f64> = (0..100).map(|i| (i % 10) as f64).collect();
+        let clean = mad_sigma(&v);
+        v[0] = 1e9;
+        assert!((mad_sigma(&v) - clean).abs() < 1.5);
+        assert_eq!(mode([3, 1, 3, 1, 2]), Some(1));
+        let x: Vec<f64> = (0..10).map(f64::from).collect();
+        let y: Vec<f64> = x.iter().map(|v| 2.0 * v + 1.0).collect();
+        assert!((corr(&x, &y) - 1.0).abs() < 1e-12);
+    }
+}
