@@ -81,6 +81,10 @@ impl Source for Subset {
         self.inner.read_timestamps(self.positions[index])
     }
 
+    fn read_lowdim(&self, index: usize, channels: &[usize]) -> Result<Vec<Vec<f32>>> {
+        self.inner.read_lowdim(self.positions[index], channels)
+    }
+
     fn decode_counts(&self) -> DecodeCounts {
         self.inner.decode_counts()
     }

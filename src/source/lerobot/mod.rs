@@ -28,7 +28,7 @@ use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::parquet_read::{self, read_columns};
 use super::video as codec;
 use super::VideoCheck;
-use super::{fingerprint, Episode, EpisodeInfo, Manifest, Source, SourceSplit};
+use super::{fingerprint, ChannelData, Episode, EpisodeInfo, Manifest, Source, SourceSplit};
 use crate::error::{Error, Result};
 use crate::spec::{BadVideo, LoadedSpec, SourceFormat};
 use rayon::prelude::*;
@@ -339,78 +339,22 @@ impl Source for LerobotSource {
     }
 
     fn read_episode(&self, index: usize) -> Result<Episode> {
-        let info = &self.manifest.episodes[index];
-        let (rel, _) = &self.locations[index];
-        let path = self.root.join(rel);
-        let place = format!("{}: episode {}", path.display(), info.id);
-        let all_keys = self.mapped.keys();
-        let (video_keys, keys): (Vec<String>, Vec<String>) =
-            all_keys.into_iter().partition(|k| self.videos.is_video(k));
-        let widths: BTreeMap<&str, usize> = self
-            .mapped
-            .recipes
+        self.read(index, true)
+    }
+
+    /// The low-dim channels only: the videos are not decoded (the doctor reads every episode's
+    /// low-dim values before the build).
+    fn read_lowdim(&self, index: usize, channels: &[usize]) -> Result<Vec<Vec<f32>>> {
+        let mut episode = self.read(index, false)?;
+        Ok(channels
             .iter()
-            .flat_map(|r| r.parts.iter().map(|p| (p.key.as_str(), p.width)))
-            .collect();
-        let mut wanted: Vec<(&str, usize)> = keys
-            .iter()
-            .map(|k| (k.as_str(), widths[k.as_str()]))
-            .collect();
-        let kept = self.stamps[index].get();
-        if self.has_timestamp && kept.is_none() {
-            wanted.push(("timestamp", 1));
-        }
-        // Through the decoded row groups; on a bad value, read the episode's own rows again the
-        // plain way, so that the message names the step in this episode (or, when the bad row
-        // is another episode's, this one reads fine).
-        let mut cols = match self.columns(index, &wanted) {
-            Ok(cols) => cols,
-            Err(_) => self.columns_of_episode(index, &wanted, &place)?,
-        };
-        let timestamps = match kept {
-            Some(t) => Some(t.clone()),
-            None if self.has_timestamp => cols.pop(),
-            None => None,
-        };
-        let mut by_key: BTreeMap<&str, Vec<f64>> =
-            keys.iter().map(String::as_str).zip(cols).collect();
-        // Cameras side by side, each file decoded sequentially (see `video`).
-        let mut frames: BTreeMap<&str, Vec<u8>> = BTreeMap::new();
-        if !video_keys.is_empty() {
-            let stamps = self.row_times(index, timestamps.as_deref());
-            let shapes: BTreeMap<&str, [usize; 3]> = self
-                .mapped
-                .channels
-                .iter()
-                .filter(|c| c.shape.len() == 3)
-                .map(|c| (c.key.as_str(), [c.shape[0], c.shape[1], c.shape[2]]))
-                .collect();
-            let decoded: Vec<Result<Vec<u8>>> = video_keys
-                .par_iter()
-                .map(|k| {
-                    let shape = shapes.get(k.as_str()).copied().ok_or_else(|| {
-                        Error::source(format!("{place}: `{k}` is not an (H, W, C) video"))
-                    })?;
-                    self.videos.decode(index, info.id, k, &stamps, shape)
-                })
-                .collect();
-            for (k, d) in video_keys.iter().zip(decoded) {
-                frames.insert(k.as_str(), d?);
-            }
-        }
-        let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
-            if let Some(f) = frames.remove(key) {
-                return Ok(Raw::U8(f));
-            }
-            let values = by_key.remove(key).expect("every mapped key was read");
-            Ok(Raw::F32(values.into_iter().map(|v| v as f32).collect()))
-        })?;
-        Ok(Episode {
-            id: info.id,
-            len: info.len,
-            timestamps,
-            channels,
-        })
+            .map(|&c| {
+                match std::mem::replace(&mut episode.channels[c], ChannelData::Image(Vec::new())) {
+                    ChannelData::Lowdim(v) => v,
+                    ChannelData::Image(_) => Vec::new(),
+                }
+            })
+            .collect())
     }
 
     fn video_checks(&self, index: usize) -> Result<Vec<VideoCheck>> {
@@ -599,5 +543,94 @@ mod tests {
     fn split_ranges() {
         assert_eq!(split_range("0:100"), Some(0..100));
         assert_eq!(split_range("x"), None);
+    }
+}
+
+impl LerobotSource {
+    /// Reads episode `index`; without `decode_video` its video channels are zeros.
+    // Long function: the parquet columns, the cameras and the channel assembly of one episode.
+    fn read(&self, index: usize, decode_video: bool) -> Result<Episode> {
+        let info = &self.manifest.episodes[index];
+        let (rel, _) = &self.locations[index];
+        let path = self.root.join(rel);
+        let place = format!("{}: episode {}", path.display(), info.id);
+        let all_keys = self.mapped.keys();
+        let (video_keys, keys): (Vec<String>, Vec<String>) =
+            all_keys.into_iter().partition(|k| self.videos.is_video(k));
+        let widths: BTreeMap<&str, usize> = self
+            .mapped
+            .recipes
+            .iter()
+            .flat_map(|r| r.parts.iter().map(|p| (p.key.as_str(), p.width)))
+            .collect();
+        let mut wanted: Vec<(&str, usize)> = keys
+            .iter()
+            .map(|k| (k.as_str(), widths[k.as_str()]))
+            .collect();
+        let kept = self.stamps[index].get();
+        if self.has_timestamp && kept.is_none() {
+            wanted.push(("timestamp", 1));
+        }
+        // Through the decoded row groups; on a bad value, read the episode's own rows again the
+        // plain way, so that the message names the step in this episode (or, when the bad row
+        // is another episode's, this one reads fine).
+        let mut cols = match self.columns(index, &wanted) {
+            Ok(cols) => cols,
+            Err(_) => self.columns_of_episode(index, &wanted, &place)?,
+        };
+        let timestamps = match kept {
+            Some(t) => Some(t.clone()),
+            None if self.has_timestamp => cols.pop(),
+            None => None,
+        };
+        let mut by_key: BTreeMap<&str, Vec<f64>> =
+            keys.iter().map(String::as_str).zip(cols).collect();
+        // Cameras side by side, each file decoded sequentially (see `video`).
+        let mut frames: BTreeMap<&str, Vec<u8>> = BTreeMap::new();
+        if !video_keys.is_empty() && !decode_video {
+            // Frames of the right size, never decoded: the caller keeps only the low-dim values.
+            for c in self.mapped.channels.iter().filter(|c| c.shape.len() == 3) {
+                if video_keys.contains(&c.key) {
+                    frames.insert(
+                        c.key.as_str(),
+                        vec![0u8; info.len * c.shape.iter().product::<usize>()],
+                    );
+                }
+            }
+        } else if !video_keys.is_empty() {
+            let stamps = self.row_times(index, timestamps.as_deref());
+            let shapes: BTreeMap<&str, [usize; 3]> = self
+                .mapped
+                .channels
+                .iter()
+                .filter(|c| c.shape.len() == 3)
+                .map(|c| (c.key.as_str(), [c.shape[0], c.shape[1], c.shape[2]]))
+                .collect();
+            let decoded: Vec<Result<Vec<u8>>> = video_keys
+                .par_iter()
+                .map(|k| {
+                    let shape = shapes.get(k.as_str()).copied().ok_or_else(|| {
+                        Error::source(format!("{place}: `{k}` is not an (H, W, C) video"))
+                    })?;
+                    self.videos.decode(index, info.id, k, &stamps, shape)
+                })
+                .collect();
+            for (k, d) in video_keys.iter().zip(decoded) {
+                frames.insert(k.as_str(), d?);
+            }
+        }
+        let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
+            if let Some(f) = frames.remove(key) {
+                return Ok(Raw::U8(f));
+            }
+            let values = by_key.remove(key).expect("every mapped key was read");
+            Ok(Raw::F32(values.into_iter().map(|v| v as f32).collect()))
+        })?;
+        Ok(Episode {
+            id: info.id,
+            len: info.len,
+            timestamps,
+            channels,
+        })
     }
 }
