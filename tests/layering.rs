@@ -3,7 +3,10 @@
 //! below (which `lib.rs` states); an upward import, or a module missing from the order, fails
 //! with the file and line.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+mod common;
+use common::rust_files;
 
 /// The order, lowest first. Leaf modules (rank 0) may be used by anything; a stage may use the
 /// leaves and every stage before it, never one after it.
@@ -36,17 +39,6 @@ const LAYERS: &[(&str, u32)] = &[
 
 fn rank(module: &str) -> Option<u32> {
     LAYERS.iter().find(|(m, _)| *m == module).map(|&(_, r)| r)
-}
-
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_dir() {
-            rust_files(&path, out);
-        } else if path.extension().is_some_and(|e| e == "rs") {
-            out.push(path);
-        }
-    }
 }
 
 /// The top-level module a file of `src/` belongs to (`None` for lib.rs and main.rs).

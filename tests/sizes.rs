@@ -3,21 +3,13 @@
 //! the line above its `fn`. A long file or function is usually two concepts; the reason says why
 //! this one is not.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+mod common;
+use common::rust_files;
 
 const FILE_LINES: usize = 400;
 const FN_LINES: usize = 80;
-
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_dir() {
-            rust_files(&path, out);
-        } else if path.extension().is_some_and(|e| e == "rs") {
-            out.push(path);
-        }
-    }
-}
 
 /// `(line of the fn, its name, its length in lines)` for every function with a body.
 fn functions(lines: &[&str]) -> Vec<(usize, String, usize)> {

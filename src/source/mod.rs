@@ -149,6 +149,22 @@ pub struct Episode {
     pub channels: Vec<ChannelData>,
 }
 
+impl Episode {
+    /// The low-dimensional values of the channels at `channels` (manifest positions), taken out
+    /// of the episode; an image channel gives an empty vector.
+    pub fn take_lowdim(mut self, channels: &[usize]) -> Vec<Vec<f32>> {
+        channels
+            .iter()
+            .map(|&c| {
+                match std::mem::replace(&mut self.channels[c], ChannelData::Image(Vec::new())) {
+                    ChannelData::Lowdim(v) => v,
+                    ChannelData::Image(_) => Vec::new(),
+                }
+            })
+            .collect()
+    }
+}
+
 /// A dataset on disk, opened. Implementations must be safe to read from several threads.
 pub trait Source: Send + Sync {
     fn manifest(&self) -> &Manifest;
@@ -163,16 +179,7 @@ pub trait Source: Send + Sync {
     /// The low-dimensional channels at `channels` (manifest positions) of the episode at `index`,
     /// time-major (the dataset doctor reads only these): adapters that read per key override it.
     fn read_lowdim(&self, index: usize, channels: &[usize]) -> Result<Vec<Vec<f32>>> {
-        let mut episode = self.read_episode(index)?;
-        Ok(channels
-            .iter()
-            .map(|&c| {
-                match std::mem::replace(&mut episode.channels[c], ChannelData::Image(Vec::new())) {
-                    ChannelData::Lowdim(v) => v,
-                    ChannelData::Image(_) => Vec::new(),
-                }
-            })
-            .collect())
+        Ok(self.read_episode(index)?.take_lowdim(channels))
     }
     /// How many times each storage chunk was decoded so far (see [`block_cache`]); empty for
     /// sources that do not count.

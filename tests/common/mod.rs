@@ -39,3 +39,15 @@ pub fn file_hashes(dir: &Path) -> Option<BTreeMap<PathBuf, String>> {
         out
     })
 }
+
+/// Every `.rs` file under `dir`, recursively (the source-tree checks read them).
+pub fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            rust_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            out.push(path);
+        }
+    }
+}

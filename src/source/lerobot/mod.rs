@@ -28,7 +28,7 @@ use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::parquet_read::{self, read_columns};
 use super::video as codec;
 use super::VideoCheck;
-use super::{fingerprint, ChannelData, Episode, EpisodeInfo, Manifest, Source, SourceSplit};
+use super::{fingerprint, Episode, EpisodeInfo, Manifest, Source, SourceSplit};
 use crate::error::{Error, Result};
 use crate::spec::{BadVideo, LoadedSpec, SourceFormat};
 use rayon::prelude::*;
@@ -345,16 +345,7 @@ impl Source for LerobotSource {
     /// The low-dim channels only: the videos are not decoded (the doctor reads every episode's
     /// low-dim values before the build).
     fn read_lowdim(&self, index: usize, channels: &[usize]) -> Result<Vec<Vec<f32>>> {
-        let mut episode = self.read(index, false)?;
-        Ok(channels
-            .iter()
-            .map(|&c| {
-                match std::mem::replace(&mut episode.channels[c], ChannelData::Image(Vec::new())) {
-                    ChannelData::Lowdim(v) => v,
-                    ChannelData::Image(_) => Vec::new(),
-                }
-            })
-            .collect())
+        Ok(self.read(index, false)?.take_lowdim(channels))
     }
 
     fn video_checks(&self, index: usize) -> Result<Vec<VideoCheck>> {
