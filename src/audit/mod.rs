@@ -1,3 +1,4 @@
+// Long file: the audit's driver (timing, video, doctor) and its summary text share the report.
 //! Stage 3, audit: inter-frame intervals per episode → a verdict (ok, interpolate dropped frames,
 //! resample, exclude) under the thresholds in `[audit]`, and the repairs `build` applies.
 //!
@@ -305,6 +306,7 @@ impl AuditReport {
     }
 
     /// The short text summary `chunkc audit` prints.
+    // Long function: one line per part of the audit (timing, video, doctor), printed in order.
     pub fn summary(&self) -> String {
         let mut s = format!(
             "expected interval {} s ({} Hz){}\n",

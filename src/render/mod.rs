@@ -128,6 +128,7 @@ pub struct ProfileContext<'a> {
 /// `loader.py`, `policy.py`, `validate.py`, `smoke_train.py`, `rollout.py` when the profile names
 /// an `env` (the same for every profile) and the dataset
 /// card `README.md`.
+// Long function: one entry per generated file, rendered in the order the card lists them.
 pub fn profile_files(r: &Renderer, c: &ProfileContext) -> Result<Vec<(&'static str, String)>> {
     let p = c.profile;
     let v = &p.values;

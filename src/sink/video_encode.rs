@@ -1,3 +1,4 @@
+// Long file: one encoder: FFmpeg's set-up, the frame conversion and the muxer, behind the feature and its stub.
 //! Video encoding of camera frames: RGB24 frames → yuv420p (libswscale) → AV1 (SVT-AV1) or
 //! H.264 (x264) in an mp4 (libavformat), one file per camera, as LeRobot records its datasets.
 //!
@@ -249,6 +250,7 @@ mod imp {
     }
 
     impl Inner {
+        // Long function: FFmpeg's set-up sequence (format, stream, codec options, scaler), each step with its own error.
         pub fn create(path: &Path, shape: StreamShape, s: VideoSettings) -> Result<Self, String> {
             init()?;
             fn e(what: &str) -> impl Fn(ff::Error) -> String + '_ {

@@ -220,6 +220,7 @@ impl SynthWriter for LerobotWriter {
         Ok(())
     }
 
+    // Long function: LeRobot v3.0's files (data, episodes, info, stats, tasks, videos) written together, in order.
     fn finish(mut self: Box<Self>) -> Result<()> {
         if let Some(w) = self.writer.take() {
             w.close().map_err(err)?;

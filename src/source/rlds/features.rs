@@ -86,6 +86,7 @@ fn shape(node: Option<&Value>, key: &str) -> Result<Vec<Option<usize>>, String> 
         .collect()
 }
 
+// Long function: one arm per TFDS feature type of features.json (FeaturesDict, Sequence, Tensor, Image, Text, Scalar).
 fn walk(node: &Value, path: &str, per_step: bool, out: &mut Vec<Feature>) -> Result<(), String> {
     let join = |name: &str| {
         if path.is_empty() {

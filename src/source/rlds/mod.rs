@@ -1,3 +1,4 @@
+// Long file: one adapter's opening, scan and episode reads over the shards; framing, protos, features, images are in their own files.
 //! RLDS / Open X-Embodiment: TFDS-prepared directories read without TensorFlow.
 //!
 //! The largest public robot-learning corpus is published this way: a version directory with
@@ -119,6 +120,7 @@ fn split_role(name: &str) -> Option<bool> {
 }
 
 impl RldsSource {
+    // Long function: opening is one sequence of checks (version dir, dataset_info, features, shards scanned, mapping, split, rate), each with its own message.
     pub fn open(spec: &LoadedSpec, path: &Path) -> Result<Self> {
         let dir = version_dir(path)?;
         let info_path = dir.join("dataset_info.json");
@@ -495,6 +497,7 @@ fn disagrees(place: &str, message: String) -> Error {
 }
 
 /// Checks one record against the feature spec and learns what the manifest needs.
+// Long function: one pass over a record's features, checking each against features.json and keeping what the manifest needs.
 fn scan_record(data: &[u8], declared: &[Feature], place: &str) -> Result<Scanned> {
     let ex = example::parse(data)
         .map_err(|e| Error::source(format!("{place}: not a tf.train.Example: {e}")))?;

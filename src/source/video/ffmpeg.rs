@@ -138,6 +138,7 @@ pub fn timeline(path: &Path) -> Result<Timeline, String> {
 
 /// Decodes the frames rows `targets` (seconds, one per row) select into `out`
 /// (`rows × h × w × 3` bytes), streaming: two RGB frames held at a time.
+// Long function: FFmpeg's demux-decode-convert loop with LeRobot's frame selection streaming through it.
 pub fn decode_rows(
     path: &Path,
     targets: &[f64],
