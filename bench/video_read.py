@@ -1,7 +1,11 @@
-"""Decoding LeRobot AV1 video: chunkc (-j1, -j2) against PyAV in one process (issue 19, a note,
-not a test; results in book/src/video.md).
+"""Decoding LeRobot AV1 video: chunkc (-j1, -j2) against PyAV in one process and against
+iterating `LeRobotDataset` (issue 19; a note, not a test; results in book/src/video.md).
 
-    .venv/bin/python bench/video_read.py DIR [EPISODES ...]   (default: 10 20)
+    .venv/bin/python bench/video_read.py DIR [EPISODES ...]   (default: 10 20 40)
+        env: FRAMES (frames an episode, default 300), FORMAT (the build's output: zarr, the
+        default, or hdf5 for uncompressed frames), LEROBOT_MAX (iterate LeRobotDataset only on
+        sets of at most this many episodes, default 10; 0: never), OUT (the JSON results file,
+        default bench/results-video.json)
 
 For each episode count it writes a LeRobot v3.0 dataset under DIR: two cameras of 480x640
 frames (ffmpeg's testsrc2 and its mirror), FRAMES frames an episode at 10 fps, all episodes in
@@ -9,8 +13,11 @@ one mp4 per camera, encoded as LeRobot encodes (libsvtav1, yuv420p, g=2, crf=30;
 `ffmpeg` CLI). Then it times
 - PyAV alone decoding every frame of both files to rgb24 (`frame.to_ndarray(format="rgb24")`),
   sequentially, in one process: the floor for anything built on PyAV;
-- `chunkc build` of an HDF5 profile (every frame decoded and written uncompressed) with -j1 and
-  -j2, its peak RSS (getrusage of the child) and the "read episodes" phase (CHUNKC_TIMINGS).
+- `chunkc build` of one profile (every frame decoded, selected against the parquet timestamps
+  and written: Zarr with Blosc lz4, Diffusion Policy's default, or uncompressed HDF5) with -j1
+  and -j2, its peak RSS (getrusage of the child) and the "read episodes" phase (CHUNKC_TIMINGS);
+- `LeRobotDataset(video_backend="pyav")` indexed over every row (`ds[i]` for all i: both
+  cameras' frames, as a training loop without workers reads them).
 """
 import json
 import os
@@ -25,7 +32,8 @@ import pyarrow.parquet as pq
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = os.environ.get("CHUNKC_BIN", str(REPO / "target/release/chunkc"))
-FRAMES = int(os.environ.get("FRAMES", "150"))
+FRAMES = int(os.environ.get("FRAMES", "300"))
+FORMAT = os.environ.get("FORMAT", "zarr")
 H, W, FPS = 480, 640, 10
 KEYS = ["observation.images.top", "observation.images.wrist"]
 
@@ -115,7 +123,7 @@ dir = "{work}/out_j{threads}"
 preset = "act"
 fps = 10
 chunk = 10
-format = "hdf5"
+format = "{FORMAT}"
 """)
     subprocess.run(["rm", "-rf", str(work / f"out_j{threads}")], check=True)
     # A fresh Python parent per run, so that its children's peak RSS is this build's alone.
@@ -134,19 +142,46 @@ format = "hdf5"
     return wall, rss, read
 
 
+def lerobot_fps(root: Path):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    ds = LeRobotDataset("bench/av1", root=root, video_backend="pyav")
+    t0 = time.perf_counter()
+    for i in range(len(ds)):
+        item = ds[i]
+        assert tuple(item[KEYS[0]].shape) == (3, H, W)
+    wall = time.perf_counter() - t0
+    return wall, len(ds) * len(KEYS) / wall
+
+
 def main():
     work = Path(sys.argv[1]).resolve()
-    counts = [int(c) for c in sys.argv[2:]] or [10, 20]
+    counts = [int(c) for c in sys.argv[2:]] or [10, 20, 40]
+    lerobot_max = int(os.environ.get("LEROBOT_MAX", "10"))
+    out = Path(os.environ.get("OUT", REPO / "bench" / "results-video.json"))
+    results = {"frames_per_episode": FRAMES, "cameras": len(KEYS), "resolution": f"{W}x{H}",
+               "codec": "libsvtav1 yuv420p g=2 crf=30", "format": FORMAT, "cpus": os.cpu_count(),
+               "load_before": os.getloadavg(), "sets": []}
     for e in counts:
-        root = work / f"av1_{e}ep"
+        root = work / f"av1_{e}ep_{FRAMES}f"
         write_dataset(root, e)
         frames = e * FRAMES * len(KEYS)
+        row = {"episodes": e, "frames": frames}
         print(f"{e} episodes x {FRAMES} frames x {len(KEYS)} cameras at {W}x{H}: {frames} frames")
-        print(f"  PyAV, one process: {pyav_fps(root):.0f} frames/s")
+        row["pyav_fps"] = pyav_fps(root)
+        print(f"  PyAV, one process: {row['pyav_fps']:.0f} frames/s")
         for j in (1, 2):
             wall, rss, read = chunkc(root, work, j)
-            shown = f"{rss / 1024:.0f} MB"
-            print(f"  chunkc build -j{j}: {wall:.1f} s, {frames / wall:.0f} frames/s, peak RSS {shown}; {read}")
+            row[f"chunkc_j{j}"] = {"wall_s": wall, "fps": frames / wall, "peak_rss_mb": rss / 1024,
+                                   "timings": read}
+            print(f"  chunkc build -j{j} ({FORMAT}): {wall:.1f} s, {frames / wall:.0f} frames/s, "
+                  f"peak RSS {rss / 1024:.0f} MB; {read}")
+        if e <= lerobot_max:
+            wall, fps = lerobot_fps(root)
+            row["lerobot_dataset"] = {"wall_s": wall, "fps": fps}
+            print(f"  LeRobotDataset[i] over every row (pyav): {wall:.1f} s, {fps:.0f} frames/s")
+        results["sets"].append(row)
+        out.write_text(json.dumps(results, indent=2) + "\n")
         sys.stdout.flush()
 
 

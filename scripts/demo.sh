@@ -36,8 +36,13 @@ s = ds[0]
 print(f"episode {s['episode_index']}, frame {s['frame_index']}: "
       f"action {s['action'].shape} in [{s['action'].min():.3f}, {s['action'].max():.3f}] (normalized)")
 print("first action, raw units:", ds.denormalize("action", s["action"][0]).round(2))
-batch = next(iter(make_dataloader("out/pusht/dp", "train", batch_size=8)))
-print({k: tuple(v.shape) for k, v in batch.items()})
+try:
+    import torch  # noqa: F401  (the model tier of tests/python/requirements.txt)
+except ImportError:
+    print("torch is not installed (setup installed the core Python tier): no DataLoader batch")
+else:
+    batch = next(iter(make_dataloader("out/pusht/dp", "train", batch_size=8)))
+    print({k: tuple(v.shape) for k, v in batch.items()})
 PY
 
 printf '\ndemo: done; outputs in out/pusht/, lock in specs/chunkc.lock\n'

@@ -11,14 +11,16 @@
 #      for the `video` feature), with apt-get as root; elsewhere it says what to install;
 #   1. create the project virtualenv `.venv` (python3 -m venv) if there is none;
 #   2. install tests/python/requirements.txt into it, only when that file changed since the last
-#      successful install (its hash is kept in .venv/.chunkc-requirements.sha256);
+#      successful install (its hash and tier are kept in .venv/.chunkc-requirements.sha256): the
+#      core always, the target-model tier (torch, LeRobot, gym-pusht) when the disk has room;
 #   3. put .venv/bin first on PATH: the bundled HDF5 build needs cmake >= 3.26, which comes from
 #      the venv;
 #   4. build chunkc with `cargo build --release --locked --features video` (the first build
 #      compiles HDF5).
 #
 # Environment: PYTHON (the interpreter that creates the venv; default python3),
-# CHUNKC_VERBOSE=1 (show pip's and cargo's full output), CHUNKC_VIDEO=0 (build without the
+# CHUNKC_VERBOSE=1 (show pip's and cargo's full output), CHUNKC_PY_TIER=core|models (the Python
+# tier; default: models where the disk has room), CHUNKC_VIDEO=0 (build without the
 # `video` feature: no FFmpeg needed, LeRobot videos cannot be read; see book/src/video.md for
 # why the feature is off by default: Debian's libavcodec is GPL).
 #
@@ -100,33 +102,78 @@ if [ ! -x "$venv/bin/python" ]; then
     fi
 fi
 
-# 2. The Python packages, when the requirements changed.
+# 2. The Python packages, in two tiers (see the head of tests/python/requirements.txt): the
+#    core always, the target-model tier (torch, LeRobot, gym-pusht: ~8 GB installed, ~11 GB at
+#    the install's peak) when the disk has room for it, the Rust build and the tests' scratch.
+#    A tier is installed again only when the file changed or a larger tier became possible; what
+#    was installed and why is kept in $stamp ("<sha256 of the file> <tier>") and $tier_file.
+#    torch and its CUDA libraries are most of it; pip's cache would hold a second copy of the
+#    downloads, so it is not used, and pip unpacks into the project's own disk, not /tmp (which
+#    can be a small tmpfs).
+free_mb() { df -Pm . | awk 'NR==2 {print $4}'; }
+pip_install() {
+    mkdir -p "$venv/.pip-tmp"
+    local rc=0
+    TMPDIR="$CHUNKC_ROOT/$venv/.pip-tmp" "$venv/bin/python" -m pip install "${quiet[@]}" \
+        --disable-pip-version-check --no-cache-dir -r "$1" || rc=$?
+    rm -rf "$venv/.pip-tmp"
+    return "$rc"
+}
+core_requirements=$venv/.chunkc-requirements-core.txt
+tier_file=$venv/.chunkc-tier
+# Measured on Debian 12 (MB): the model tier's install peak; target/ after the release build and
+# the release test binaries; the Python suite's scratch directories.
+models_peak_mb=11500
+target_mb=6000
+scratch_mb=2500
 want=$("$venv/bin/python" -c 'import hashlib, sys
 print(hashlib.sha256(open(sys.argv[1], "rb").read()).hexdigest())' "$requirements")
-have=$(cat "$stamp" 2>/dev/null || true)
-if [ "$want" != "$have" ]; then
-    if [ -z "$have" ]; then
-        say "installing $requirements into $venv (first time: ~3 GB of downloads, torch included)"
+have_sha='' have_tier=''
+[ -f "$stamp" ] && read -r have_sha have_tier <"$stamp"
+free=$(free_mb)
+need=$((models_peak_mb + scratch_mb))
+[ -d target/release/deps ] || need=$((need + target_mb))
+tier=${CHUNKC_PY_TIER:-auto}
+case "$tier" in
+    core | models) reason="CHUNKC_PY_TIER=$tier" ;;
+    auto)
+        if [ "$have_tier" = models ] || [ "$free" -ge "$need" ]; then
+            tier=models reason="$free MB free"
+        else
+            tier=core reason="only $free MB free on $(df -P . | awk 'NR==2 {print $6}'); the model tier needs ~$need MB"
+        fi
+        ;;
+    *) die "CHUNKC_PY_TIER must be core or models, not '$tier'" ;;
+esac
+if [ "$want" != "$have_sha" ] || [ "$tier" != "$have_tier" ]; then
+    if [ -z "$have_sha" ]; then
+        say "installing the $tier tier of $requirements into $venv ($reason)"
     else
-        say "$requirements changed: updating $venv"
+        say "$requirements or its tier changed: updating $venv to the $tier tier ($reason)"
     fi
-    # torch and its CUDA libraries need ~6 GB installed; pip's cache would hold a second copy of
-    # the downloads, so it is not used, and pip unpacks into the project's own disk, not /tmp
-    # (which can be a small tmpfs).
-    free_mb=$(df -Pm . | awk 'NR==2 {print $4}')
-    if [ -n "$free_mb" ] && [ "$free_mb" -lt 9000 ]; then
-        say "warning: only ${free_mb} MB free on $(df -P . | awk 'NR==2 {print $6}'); the install needs ~9 GB at its peak"
-    fi
-    mkdir -p "$venv/.pip-tmp"
-    if ! TMPDIR="$CHUNKC_ROOT/$venv/.pip-tmp" "$venv/bin/python" -m pip install "${quiet[@]}" \
-        --disable-pip-version-check --no-cache-dir -r "$requirements"; then
-        rm -rf "$venv/.pip-tmp"
+    sed '/^# tier: models/,$d' "$requirements" >"$core_requirements"
+    if ! pip_install "$core_requirements"; then
         df -h . >&2 || true
-        die "pip could not install $requirements (see above; free disk space is shown)"
+        die "pip could not install the core of $requirements (see above; free disk space is shown)"
     fi
-    rm -rf "$venv/.pip-tmp"
+    if [ "$tier" = models ] && ! pip_install "$requirements"; then
+        df -h . >&2 || true
+        [ "${CHUNKC_PY_TIER:-auto}" = models ] \
+            && die "pip could not install the model tier of $requirements (see above)"
+        # A half-installed torch is worse than none: start again with the core only.
+        say "warning: the model tier did not install (see above); $venv gets the core only, and the tests that need torch or LeRobot will skip"
+        rm -rf "$venv"
+        "$python" -m venv "$venv" || die "'$python -m venv' failed"
+        pip_install "$core_requirements" \
+            || die "pip could not install the core of $requirements (see above)"
+        tier=core reason="the model tier's install failed with $free MB free"
+    fi
     # Written only after a successful install, so an interrupted install is retried next time.
-    printf '%s\n' "$want" >"$stamp"
+    printf '%s %s\n' "$want" "$tier" >"$stamp"
+    printf '%s\n%s\n' "$tier" "$reason" >"$tier_file"
+fi
+if [ "$tier" = core ]; then
+    say "warning: Python tier 'core' ($(sed -n 2p "$tier_file")): the target-model tests (torch, LeRobot, gym-pusht) will skip; free disk and run setup again, or set CHUNKC_PY_TIER=models"
 fi
 
 # 3. cmake (and python) from the venv.

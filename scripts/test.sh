@@ -110,6 +110,9 @@ fi
 
 elapsed=$((SECONDS - start))
 echo
+if [ "$(head -n1 .venv/.chunkc-tier 2>/dev/null)" = core ]; then
+    echo "test.sh: note: Python tier 'core' ($(sed -n 2p .venv/.chunkc-tier)): the tests that need torch, LeRobot or gym-pusht were skipped (pytest's summary counts them)"
+fi
 if [ "${#failed[@]}" -eq 0 ]; then
     echo "test.sh: all ${#passed[@]} checks passed (${passed[*]}) in $((elapsed / 60))m$((elapsed % 60))s"
 else

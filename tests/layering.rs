@@ -192,3 +192,34 @@ fn an_upward_import_is_caught() {
         "{found:?}"
     );
 }
+
+#[test]
+fn the_books_architecture_page_names_every_module() {
+    let page = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("book/src/architecture.md"),
+    )
+    .unwrap();
+    let diagram = &page[page.find("```text").unwrap()..];
+    let diagram = &diagram[..diagram[7..].find("```").unwrap() + 7];
+    for (module, _) in LAYERS {
+        assert!(
+            page.contains(&format!("| `{module}` |")),
+            "book/src/architecture.md: the table has no row for `{module}`"
+        );
+        assert!(
+            diagram
+                .split(|c: char| !c.is_alphanumeric() && c != '_')
+                .any(|w| w == *module),
+            "book/src/architecture.md: the stage diagram does not name `{module}`"
+        );
+    }
+    // The diagram's pipeline line lists the stages in the order above.
+    let line = diagram.lines().find(|l| l.starts_with("spec ")).unwrap();
+    let names: Vec<&str> = line.split(" ─▶ ").map(str::trim).collect();
+    let stages: Vec<&str> = LAYERS
+        .iter()
+        .filter(|(_, r)| (1..=10).contains(r))
+        .map(|(m, _)| *m)
+        .collect();
+    assert_eq!(names, stages, "book/src/architecture.md: the pipeline line");
+}

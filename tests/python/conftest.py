@@ -13,6 +13,25 @@ REPO = Path(__file__).resolve().parents[2]
 PUSHT = REPO / "tests" / "data" / "pusht_subset.zarr"
 
 
+def model_tier(module: str):
+    """`module` from the Python model tier (torch, LeRobot, gym-pusht), or a skip that says why it
+    is missing: scripts/setup.sh installs that tier only where the disk has room for it."""
+    return pytest.importorskip(module, reason=f"{module} is not installed: {tier_line()}")
+
+
+def tier_line() -> str:
+    """What scripts/setup.sh installed into the venv, and why (its .chunkc-tier file)."""
+    marker = Path(sys.prefix) / ".chunkc-tier"
+    if not marker.exists():
+        return "this interpreter was not set up by scripts/setup.sh"
+    tier, _, reason = marker.read_text().partition("\n")
+    return f"Python tier '{tier}' ({reason.strip()})"
+
+
+def pytest_report_header(config):
+    return tier_line()
+
+
 def chunkc_bin() -> str:
     path = os.environ.get("CHUNKC_BIN", str(REPO / "target" / "release" / "chunkc"))
     if not Path(path).exists():

@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import run_chunkc, write_spec
+from conftest import model_tier, run_chunkc, write_spec
 
 PROFILES = """
 [profiles.act]
@@ -35,7 +35,7 @@ def train_values(raw, built, profile, key):
 
 
 def test_act_pickle_is_numpy_and_matches_json_and_act_math(built, raw):
-    torch = pytest.importorskip("torch")
+    torch = model_tier("torch")
     with open(built / "act" / "dataset_stats.pkl", "rb") as f:
         stats = pickle.load(f)
     as_json = json.loads((built / "act" / "dataset_stats.json").read_text())
@@ -56,7 +56,7 @@ def test_act_pickle_is_numpy_and_matches_json_and_act_math(built, raw):
 
 
 def test_dp_state_dict_maps_training_actions_into_unit_range(built, raw):
-    torch = pytest.importorskip("torch")
+    torch = model_tier("torch")
     sys.path.insert(0, str(built / "dp"))
     try:
         import dp_normalizer
@@ -94,7 +94,7 @@ def linear_normalizer_fit(torch, data, range_eps=1e-4, output_min=-1.0, output_m
 
 
 def test_dp_normalizer_json_is_what_linear_normalizer_fit_stores(built, raw):
-    torch = pytest.importorskip("torch")
+    torch = model_tier("torch")
     params = json.loads((built / "dp" / "dp_normalizer.json").read_text())
     for key, source_key in (("action", "action"), ("state", "state")):
         x, _ = train_values(raw, built, "dp", source_key)

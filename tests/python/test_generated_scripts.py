@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import run_chunkc, write_spec
+from conftest import model_tier, run_chunkc, write_spec
 
 PROFILES = """
 [profiles.dp]
@@ -56,7 +56,7 @@ def test_validate_animates_image_channels(tmp_path):
 
 
 def test_smoke_training_learns_and_error_grows_with_horizon(tmp_path, lowdim):
-    pytest.importorskip("torch")
+    model_tier("torch")
     out = tmp_path / "smoke"
     proc = subprocess.run(
         [sys.executable, str(lowdim / "smoke_train.py"), "--out", str(out), "--epochs", "25", "--batch-size", "128"],

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import import_loader, run_chunkc, write_spec
+from conftest import model_tier, import_loader, run_chunkc, write_spec
 
 PROFILES = """
 [profiles.dp]
@@ -50,7 +50,7 @@ def test_loader_works_without_torch(built):
 
 @pytest.mark.parametrize("profile", ["dp", "act"])
 def test_torch_dataloader_full_epoch_with_workers(built, profile):
-    torch = pytest.importorskip("torch")
+    torch = model_tier("torch")
     loader = import_loader(built / profile)
     ds = loader.ChunkedDataset(str(built / profile), "train")
     assert isinstance(ds, torch.utils.data.Dataset)
@@ -118,7 +118,7 @@ def every_format(tmp_path_factory):
 def test_full_epoch_with_two_workers_in_every_format(every_format, arch, fmt):
     """A DataLoader with 2 workers iterates a whole epoch of each format, and its batches equal the
     HDF5 layout's batch for batch."""
-    torch = pytest.importorskip("torch")
+    torch = model_tier("torch")
     root, reference = every_format / f"{arch}_{fmt}", every_format / f"{arch}_hdf5"
     loader = import_loader(root)
     assert loader.ChunkedDataset(str(root)).meta["data_format"] == fmt

@@ -10,7 +10,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import import_loader, run_chunkc, write_spec
+from conftest import model_tier, import_loader, run_chunkc, write_spec
 
 PROFILES = """
 [profiles.act]
@@ -235,7 +235,7 @@ def test_frames_read_from_file_offsets_equal_h5py(built, tmp_path, storage):
 @pytest.mark.parametrize("workers", [0, 2])
 @pytest.mark.parametrize("profile,options", [("hier", {}), ("dp", {"in_memory": True}), ("zero_zarr", {})])
 def test_dataloader_batches_equal_manual_collation(built, profile, options, workers):
-    torch = pytest.importorskip("torch")
+    torch = model_tier("torch")
     from torch.utils.data import DataLoader, default_collate
 
     loader = import_loader(built / profile)
@@ -254,7 +254,7 @@ def test_dataloader_batches_equal_manual_collation(built, profile, options, work
 
 
 def test_make_dataloader_default_workers_fit_the_machine(built):
-    pytest.importorskip("torch")
+    model_tier("torch")
     import os
 
     loader = import_loader(built / "act")

@@ -13,10 +13,10 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import REPO, run_chunkc
+from conftest import model_tier, REPO, run_chunkc
 
-pytest.importorskip("torch")
-pytest.importorskip("lerobot")
+model_tier("torch")
+model_tier("lerobot")
 
 # One thread per script: on a shared 2-core machine torch's own threads only contend.
 ENV = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}

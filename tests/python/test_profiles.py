@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import import_loader, make_replay_buffer, run_chunkc, write_spec
+from conftest import model_tier, import_loader, make_replay_buffer, run_chunkc, write_spec
 from reference import norm_params, normalize
 
 
@@ -74,7 +74,7 @@ def test_diffusion_policy_windows_equal_its_sampler_one_for_one(tmp_path, raw):
 
 
 def test_act_stats_match_torch_unbiased_std_with_floor(tmp_path):
-    torch = pytest.importorskip("torch")
+    torch = model_tier("torch")
     rng = np.random.default_rng(0)
     episodes = []
     for length in (120, 90, 150, 60):

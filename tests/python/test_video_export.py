@@ -16,7 +16,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import PUSHT, load_dataset, run_chunkc, write_spec
+from conftest import PUSHT, load_dataset, model_tier, run_chunkc, write_spec
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
@@ -35,8 +35,7 @@ def video_build(tmp_path_factory):
 
 
 def lerobot_dataset(root):
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
+    LeRobotDataset = model_tier("lerobot.datasets.lerobot_dataset").LeRobotDataset
     return LeRobotDataset("chunkc/test", root=root, video_backend="pyav")
 
 
@@ -65,7 +64,7 @@ def decode_all(path):
 
 def check_video_features(root):
     """`meta/info.json`'s video features against the files, as LeRobot reads them."""
-    from lerobot.datasets.video_utils import get_video_info
+    get_video_info = model_tier("lerobot.datasets.video_utils").get_video_info
 
     info = json.loads((root / "meta" / "info.json").read_text())
     videos = {k: f for k, f in info["features"].items() if f["dtype"] == "video"}

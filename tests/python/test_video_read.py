@@ -22,7 +22,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import REPO, run_chunkc
+from conftest import REPO, model_tier, run_chunkc
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
@@ -101,8 +101,7 @@ def v3_build(tmp_path_factory):
 
 
 def test_v3_av1_frames_equal_lerobot(v3_build):
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
+    LeRobotDataset = model_tier("lerobot.datasets.lerobot_dataset").LeRobotDataset
     ds = LeRobotDataset("chunkc/pusht_video_v3", root=V3, video_backend="pyav")
     ours = {c: frames_by_episode(v3_build, c) for c in ("observation.image", "observation.wrist")}
     differing = 0
@@ -116,7 +115,7 @@ def test_v3_av1_frames_equal_lerobot(v3_build):
 
 
 def v21_reference(root: Path, e: int):
-    from lerobot.datasets.video_utils import decode_video_frames
+    decode_video_frames = model_tier("lerobot.datasets.video_utils").decode_video_frames
 
     ts = pq.read_table(root / f"data/chunk-000/episode_{e:06d}.parquet")["timestamp"].to_pylist()
     video = root / f"videos/chunk-000/{TOP}/episode_{e:06d}.mp4"
