@@ -97,3 +97,13 @@ impl From<hdf5::Error> for Error {
         Error::Output(format!("HDF5: {e}"))
     }
 }
+
+/// The results of a parallel map, in item order, or the first error in item order. rayon's own
+/// `collect::<Result<_>>()` returns whichever failure a thread met first, so when several items
+/// fail (two episodes reading one damaged chunk, two damaged shards) the message would depend on
+/// timing; every parallel map over episodes, files or shards gathers through here instead.
+pub fn in_order<T: Send, E: Send>(
+    results: impl rayon::iter::IndexedParallelIterator<Item = std::result::Result<T, E>>,
+) -> std::result::Result<Vec<T>, E> {
+    results.collect::<Vec<_>>().into_iter().collect()
+}

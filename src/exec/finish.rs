@@ -58,10 +58,8 @@ pub(super) fn all(
         by_rate[r].push((i, sink, dir));
     }
     type Finished = Vec<(usize, Result<BTreeMap<String, String>>)>;
-    let finished: Vec<Finished> = rates
-        .par_iter()
-        .zip(by_rate)
-        .map(|(rate, profiles)| -> Result<Vec<_>> {
+    let finished: Vec<Finished> = crate::error::in_order(rates.par_iter().zip(by_rate).map(
+        |(rate, profiles)| -> Result<Vec<_>> {
             let stats = {
                 let _statistics = timings::phase("statistics");
                 rate.stats(manifest, &train_mask)?
@@ -70,11 +68,8 @@ pub(super) fn all(
                 .into_par_iter()
                 .map(|(i, sink, dir)| (i, profile(shared, stale[i], rate, &stats, sink, &dir)))
                 .collect())
-        })
-        // The first failing rate in plan order, whatever finished first.
-        .collect::<Vec<Result<_>>>()
-        .into_iter()
-        .collect::<Result<_>>()?;
+        },
+    ))?;
     let mut finished: Finished = finished.into_iter().flatten().collect();
     finished.sort_by_key(|(i, _)| *i);
     let mut hashes = BTreeMap::new();
@@ -146,15 +141,12 @@ fn write_data(
     // Each episode's samples, counted on every thread (kept only for segments).
     let per_episode: Vec<(usize, Option<Vec<[usize; 2]>>)> = {
         let index = &index;
-        (0..p.episodes.len())
-            .into_par_iter()
-            .map(|e| -> Result<_> {
-                let samples = index.samples(e)?;
-                let kept = matches!(p.sampling, Sampling::Segment { .. })
-                    .then(|| samples.iter().map(|s| [s.t, s.t + s.limit]).collect());
-                Ok((samples.len(), kept))
-            })
-            .collect::<Result<_>>()?
+        crate::error::in_order((0..p.episodes.len()).into_par_iter().map(|e| -> Result<_> {
+            let samples = index.samples(e)?;
+            let kept = matches!(p.sampling, Sampling::Segment { .. })
+                .then(|| samples.iter().map(|s| [s.t, s.t + s.limit]).collect());
+            Ok((samples.len(), kept))
+        }))?
     };
     for ((ep, (count, kept)), e) in p.episodes.iter().zip(per_episode).zip(0..) {
         segments.extend(kept);
@@ -294,13 +286,12 @@ fn hash_and_sync(dir: &Path) -> Result<BTreeMap<String, String>> {
             })
             .collect();
         // Small files side by side; a large one is hashed on every thread by `hash_file` itself.
-        let hashed: Result<BTreeMap<String, String>> = listed
-            .par_iter()
-            .map(|rel| -> Result<(String, String)> {
+        let hashed: Result<BTreeMap<String, String>> =
+            crate::error::in_order(listed.par_iter().map(|rel| -> Result<(String, String)> {
                 let name = rel.to_string_lossy().replace('\\', "/");
                 Ok((name, lock::hash_file(&dir.join(rel))?))
-            })
-            .collect();
+            }))
+            .map(|pairs| pairs.into_iter().collect());
         let synced = syncing
             .into_iter()
             .map(|t| {

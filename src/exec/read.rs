@@ -151,35 +151,28 @@ pub(super) fn read_batch(
     let positions: Vec<usize> = batch.collect();
     // Storage chunks the batch's episodes share are decoded side by side first.
     pass.source.prefetch(&positions);
-    positions
-        .par_iter()
-        .map(|&i| {
-            let id = manifest.episodes[i].id;
-            let train = pass.plan.split.is_train(id);
-            pass.reads[i].fetch_add(1, Ordering::Relaxed);
-            episode_job(id, || {
-                let ep = pass.source.read_episode(i)?;
-                if panic_on == Some(id) {
-                    panic!("CHUNKC_TEST_PANIC_EPISODE={id}");
-                }
-                let place = format!("{}: episode {id}", pass.source_path);
-                Ok(
-                    match source::check::episode(&ep, manifest, pass.non_finite, &place)? {
-                        source::check::Verdict::Exclude(reason) => Read::Excluded(reason),
-                        source::check::Verdict::Keep if checking_only => Read::Checked,
-                        source::check::Verdict::Keep => {
-                            Read::Kept(process(ep, pass.source, pass.jobs, train))
-                        }
-                    },
-                )
-            })
+    // When several episodes of a batch fail, the error reported is the first in episode order.
+    crate::error::in_order(positions.par_iter().map(|&i| {
+        let id = manifest.episodes[i].id;
+        let train = pass.plan.split.is_train(id);
+        pass.reads[i].fetch_add(1, Ordering::Relaxed);
+        episode_job(id, || {
+            let ep = pass.source.read_episode(i)?;
+            if panic_on == Some(id) {
+                panic!("CHUNKC_TEST_PANIC_EPISODE={id}");
+            }
+            let place = format!("{}: episode {id}", pass.source_path);
+            Ok(
+                match source::check::episode(&ep, manifest, pass.non_finite, &place)? {
+                    source::check::Verdict::Exclude(reason) => Read::Excluded(reason),
+                    source::check::Verdict::Keep if checking_only => Read::Checked,
+                    source::check::Verdict::Keep => {
+                        Read::Kept(process(ep, pass.source, pass.jobs, train))
+                    }
+                },
+            )
         })
-        // Collect every episode's result before looking at any: when several episodes of a
-        // batch fail, the error reported is the first in episode order, whatever finished
-        // first (rayon's `collect::<Result<_>>` would return whichever failure it met).
-        .collect::<Vec<Result<_>>>()
-        .into_iter()
-        .collect()
+    }))
 }
 
 /// The sequential part of a batch, in episode order: statistics partials merged, frames written

@@ -42,13 +42,7 @@ pub struct Fingerprint {
 
 /// Fingerprint of the given files (relative to `root`).
 pub fn of_files(root: &Path, files: &[PathBuf]) -> Result<Fingerprint> {
-    let hashes = files
-        .par_iter()
-        .map(|rel| {
-            let path = root.join(rel);
-            hash_file(&path)
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let hashes = crate::error::in_order(files.par_iter().map(|rel| hash_file(&root.join(rel))))?;
     let mut all = blake3::Hasher::new();
     let mut each = BTreeMap::new();
     for (rel, h) in files.iter().zip(&hashes) {

@@ -86,16 +86,13 @@ pub fn lowdim_from<E: Send>(
     each: impl Fn(usize, &mut dyn FnMut(&[f32])) -> Result<(), E> + Sync,
 ) -> Result<ChannelStats, E> {
     let rows = m.count;
-    let pct: Vec<Vec<f64>> = (0..dims)
-        .into_par_iter()
-        .map(|d| {
-            if rows == 0 {
-                Ok(vec![f64::NAN; PERCENTILES.len()])
-            } else {
-                percentiles_streamed(rows, &PERCENTILES, |f| each(d, f))
-            }
-        })
-        .collect::<Result<_, E>>()?;
+    let pct: Vec<Vec<f64>> = crate::error::in_order((0..dims).into_par_iter().map(|d| {
+        if rows == 0 {
+            Ok(vec![f64::NAN; PERCENTILES.len()])
+        } else {
+            percentiles_streamed(rows, &PERCENTILES, |f| each(d, f))
+        }
+    }))?;
     let pct: Vec<Vec<f64>> = (0..PERCENTILES.len())
         .map(|k| pct.iter().map(|p| p[k]).collect())
         .collect();

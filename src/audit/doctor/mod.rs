@@ -213,26 +213,26 @@ pub fn run(
     }
     let wanted: Vec<usize> = std::iter::once(ai).chain(si).collect();
     let shown = &spec.spec.source.path;
-    let feats: Vec<Features> = (0..manifest.episodes.len())
-        .into_par_iter()
-        .map(|i| {
-            let mut data = source.read_lowdim(i, &wanted)?;
-            let to64 = |v: Vec<f32>| v.into_iter().map(f64::from).collect::<Vec<f64>>();
-            let a = to64(std::mem::take(&mut data[0]));
-            let s = si.map(|_| to64(std::mem::take(&mut data[1])));
-            let n = a.len() / a_dim;
-            // Non-finite values are `[audit] non_finite`'s to judge (an error naming the step,
-            // or the episode left out) when the build reads the episode: here each is held at
-            // the last finite value of its column, so that it sets off no check.
-            let mut a = a;
-            let mut s = s;
-            hold_finite(&mut a, a_dim);
-            if let Some(s) = s.as_mut() {
-                hold_finite(s, s_dim);
-            }
-            Ok(features(&a, s.as_deref(), n, a_dim, s_dim))
-        })
-        .collect::<Result<_>>()?;
+    let feats: Vec<Features> =
+        crate::error::in_order((0..manifest.episodes.len()).into_par_iter().map(
+            |i| -> Result<Features> {
+                let mut data = source.read_lowdim(i, &wanted)?;
+                let to64 = |v: Vec<f32>| v.into_iter().map(f64::from).collect::<Vec<f64>>();
+                let a = to64(std::mem::take(&mut data[0]));
+                let s = si.map(|_| to64(std::mem::take(&mut data[1])));
+                let n = a.len() / a_dim;
+                // Non-finite values are `[audit] non_finite`'s to judge (an error naming the step,
+                // or the episode left out) when the build reads the episode: here each is held at
+                // the last finite value of its column, so that it sets off no check.
+                let mut a = a;
+                let mut s = s;
+                hold_finite(&mut a, a_dim);
+                if let Some(s) = s.as_mut() {
+                    hold_finite(s, s_dim);
+                }
+                Ok(features(&a, s.as_deref(), n, a_dim, s_dim))
+            },
+        ))?;
     let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
     let episodes = feats.len();
     let mut found: Vec<Vec<Finding>> = vec![Vec::new(); episodes];

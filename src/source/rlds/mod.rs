@@ -200,9 +200,9 @@ impl RldsSource {
         }
 
         // The scan: every record of every shard, shards side by side.
-        let scanned: Vec<(Vec<tfrecord::Record>, Vec<Scanned>)> = shards
+        let scanned: Vec<(Vec<tfrecord::Record>, Vec<Scanned>)> = crate::error::in_order(shards
             .par_iter()
-            .map(|(shown, _, _, expected)| {
+            .map(|(shown, _, _, expected)| -> Result<_> {
                 let mut eps = Vec::new();
                 let records = tfrecord::scan(Path::new(shown), shown, |i, r, data| {
                     let place = format!("{shown}: record {i} at byte offset {}", r.offset);
@@ -216,8 +216,7 @@ impl RldsSource {
                     )));
                 }
                 Ok((records, eps))
-            })
-            .collect::<Result<_>>()?;
+            }))?;
 
         let mut episodes = Vec::new();
         let mut places = Vec::new();
