@@ -100,3 +100,24 @@ fn a_flipped_byte_names_the_shard_and_record() {
     );
     assert!(!dir.path().join("out/act/meta.json").exists());
 }
+
+#[test]
+fn the_doctors_low_dim_read_equals_the_episodes_values() {
+    // The doctor reads `read_lowdim` (no JPEG decoded) before the build's `read_episode`: the
+    // same values, every channel, every episode of both splits.
+    let dir = tempfile::tempdir().unwrap();
+    let spec = chunkc::spec::LoadedSpec::load(&spec(dir.path(), &bridge(), Some(5))).unwrap();
+    let source = chunkc::source::open(&spec).unwrap();
+    let manifest = source.manifest();
+    let lowdim: Vec<usize> = (0..manifest.channels.len())
+        .filter(|&c| manifest.channels[c].shape.len() < 3)
+        .collect();
+    assert_eq!(lowdim.len(), 2);
+    assert_eq!(manifest.episodes.len(), 50);
+    for i in 0..manifest.episodes.len() {
+        let read = source.read_lowdim(i, &lowdim).unwrap();
+        let whole = source.read_episode(i).unwrap().take_lowdim(&lowdim);
+        assert_eq!(read, whole, "episode {i}");
+        assert!(read.iter().all(|v| !v.is_empty()), "episode {i}");
+    }
+}

@@ -17,7 +17,9 @@
 //!   The reference is the median over episodes of each episode's MAD of step changes, after
 //!   dividing every episode by its units factor, so a units-changed episode is not "full of
 //!   jumps", and a few spikes do not inflate it. Both flanks must be steep: a gripper or hand
-//!   closing in one step is a step, not a glitch.
+//!   closing in one step is a step, not a glitch. And both must be over twice the steps that
+//!   lead into and out of them: the turning point of a fast motion (the G1 set's hand joints
+//!   closing and opening within a few steps, in a dimension that is otherwise still) is not one.
 
 /// One episode's per-dimension signal features.
 #[derive(Debug, Clone, Default)]
@@ -104,9 +106,23 @@ pub fn dim_signal(a: &[f64], n: usize, width: usize, d: usize) -> DimSignal {
         .map(|t| {
             let (before, after) = (x[t] - x[t - 1], x[t] - x[t + 1]);
             let flank = before.abs().min(after.abs());
-            // ... and its neighbours agree with each other (a glitch returns to the signal).
+            // ... and its neighbours agree with each other (a glitch returns to the signal) ...
             let returns = (x[t + 1] - x[t - 1]).abs() <= 0.5 * flank;
-            let size = if before * after > 0.0 && returns {
+            // ... and it stands out from the motion around it: the turning point of a fast
+            // motion (a hand closing and opening again) has flanks no steeper than the steps
+            // that lead into and out of it.
+            let lead_in = if t >= 2 {
+                (x[t - 1] - x[t - 2]).abs()
+            } else {
+                0.0
+            };
+            let lead_out = if t + 2 < n {
+                (x[t + 2] - x[t + 1]).abs()
+            } else {
+                0.0
+            };
+            let stands_out = flank > 2.0 * lead_in.max(lead_out);
+            let size = if before * after > 0.0 && returns && stands_out {
                 flank
             } else {
                 0.0
@@ -133,6 +149,11 @@ mod tests {
         assert!(s.spikes[0].0 > 4.0);
         let step: Vec<f64> = (0..100).map(|t| if t < 50 { 0.0 } else { 1.0 }).collect();
         assert_eq!(dim_signal(&step, 100, 1, 0).spikes[0].0, 0.0);
+        // A still dimension that closes and opens fast (as G1's hand joints do): a V, not a spike.
+        let v: Vec<f64> = (0..100)
+            .map(|t| 0.6 - 0.1 * (5.0 - (t as f64 - 50.0).abs()).max(0.0))
+            .collect();
+        assert_eq!(dim_signal(&v, 100, 1, 0).spikes[0].0, 0.0);
         let held: Vec<f64> = (0..100)
             .map(|t| if t < 30 { t as f64 } else { 30.0 })
             .collect();

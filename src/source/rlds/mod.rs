@@ -661,6 +661,20 @@ impl Source for RldsSource {
     }
 
     fn read_episode(&self, index: usize) -> Result<Episode> {
+        self.read(index, true)
+    }
+
+    /// The low-dim channels only: no JPEG is decoded (the doctor reads every episode's low-dim
+    /// values before the build).
+    fn read_lowdim(&self, index: usize, channels: &[usize]) -> Result<Vec<Vec<f32>>> {
+        Ok(self.read(index, false)?.take_lowdim(channels))
+    }
+}
+
+impl RldsSource {
+    /// The episode at `index`; without `decode_images`, its frames are zeros of the right size
+    /// (for a caller that keeps only the low-dim values).
+    fn read(&self, index: usize, decode_images: bool) -> Result<Episode> {
         let info = &self.manifest.episodes[index];
         let p = self.places[index];
         let (shown, file) = &self.shards[p.shard];
@@ -676,6 +690,10 @@ impl Source for RldsSource {
                 _ => key.to_string(),
             };
             match (&f.kind, ex.get(&stored)) {
+                (Kind::Image { .. }, Some(Values::Bytes(_))) if !decode_images => {
+                    let shape = self.manifest_shape(key);
+                    Ok(Raw::U8(vec![0u8; len * shape.iter().product::<usize>()]))
+                }
                 (Kind::Image { .. }, Some(Values::Bytes(frames))) => {
                     let info = self.manifest_shape(key);
                     let (h, w, c) = (info[0], info[1], info[2]);
@@ -707,9 +725,7 @@ impl Source for RldsSource {
             channels,
         })
     }
-}
 
-impl RldsSource {
     /// The per-step shape of an image key, as the mapping resolved it.
     fn manifest_shape(&self, key: &str) -> Vec<usize> {
         self.manifest
