@@ -95,7 +95,7 @@ def main():
               + (", ".join(f"{f}: {len(v)}" for f, v in sorted(flagged.items()) if f in DOCTOR_FLAGS) or "none"))
         print(f"  lag mode {doctor.get('lag_mode')}, convention {doctor.get('convention')}")
         for w in audit.get("warnings", []):
-            if "doctor" in w or "dimension" in w or "shift" in w:
+            if "doctor" in w or "dimension" in w or "shift" in w or "holds still" in w:
                 print(f"  warning: {w[:300]}")
         print("lerobot-doctor on G1 (not PASS):")
         for name, sev, msg in lerobot_doctor(g1):

@@ -7,8 +7,8 @@
 #
 # Steps:
 #   0. install the Debian packages the tests need when they are missing (headless `chromium` and
-#      its fonts, for the HTML report tests; FFmpeg's development libraries, clang and pkg-config,
-#      for the `video` feature), with apt-get as root; elsewhere it says what to install;
+#      its fonts, for the HTML report tests; `nasm`, for libjpeg-turbo's SIMD decoders; FFmpeg's
+#      development libraries, clang and pkg-config, for the `video` feature), with apt-get as root; elsewhere it says what to install;
 #   1. create the project virtualenv `.venv` (python3 -m venv) if there is none;
 #   2. install tests/python/requirements.txt into it, only when that file changed since the last
 #      successful install (its hash and tier are kept in .venv/.chunkc-requirements.sha256): the
@@ -66,6 +66,9 @@ command -v cc >/dev/null || command -v gcc >/dev/null \
 debian=()
 command -v chromium >/dev/null || command -v chromium-browser >/dev/null || debian+=(chromium)
 [ -e /usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf ] || debian+=(fonts-liberation)
+# libjpeg-turbo (the turbojpeg crate builds it) needs nasm for its SIMD decoders; without, it
+# builds the C ones, slower on RLDS and JPEG-compressed HDF5 frames (the same pixels).
+command -v nasm >/dev/null || debian+=(nasm)
 # The `video` feature: ffmpeg-sys-next finds FFmpeg with pkg-config and binds it with bindgen
 # (libclang). Debian 12's FFmpeg is 5.1, which ffmpeg-next 7.1 supports.
 features=(--features video)
@@ -183,6 +186,10 @@ export PATH="$CHUNKC_ROOT/$venv/bin:$PATH"
 say "building chunkc (cargo build --release --locked ${features[*]}; $(cmake --version | head -n1))"
 if [ ! -d target/release/build ]; then
     say "first build: compiling HDF5 and ~220 crates takes a while"
+    free=$(free_mb)
+    if [ "$free" -lt "$target_mb" ]; then
+        say "warning: only $free MB free; the build and the test binaries need ~$target_mb MB in target/"
+    fi
 fi
 cargo build --release --locked "${features[@]}" "${quiet[@]}"
 say "ready: $(target/release/chunkc --version) at target/release/chunkc"
