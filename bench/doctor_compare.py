@@ -12,12 +12,13 @@ per fault kind, the injected episodes each tool flags; then each tool's findings
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-BIN = REPO / "target" / "release" / "chunkc"
+BIN = Path(os.environ.get("CHUNKC_BIN", REPO / "target" / "release" / "chunkc"))
 DOCTOR = Path(sys.executable).parent / "lerobot-doctor"
 sys.path.insert(0, str(REPO / "tests" / "python"))
 from test_doctor import DOCTOR_FLAGS, FAULTS, FLAG_OF  # noqa: E402

@@ -12,9 +12,10 @@ shard, JPEG cameras at quality 95), then it times
   record, one process (what the tests use as the independent reader), no image decoded;
 - `reader_decode`: the same, plus every JPEG decoded to an (H, W, 3) uint8 array with Pillow
   (libjpeg-turbo): the floor for reading the set in Python with one process;
-- `chunkc_j1`, `chunkc_j2`: `chunkc build` of the synth spec's `act` profile as Zarr (Blosc
-  lz4; every frame decoded with TensorFlow's DCT settings, windows, statistics, written), with
-  its peak RSS (getrusage of the child).
+- `chunkc_j1`, `chunkc_j2`: `chunkc build` of the synth spec's `act` profile (HDF5, frames
+  uncompressed; every frame decoded with TensorFlow's DCT settings, windows, statistics,
+  written), with its peak RSS (getrusage of the child) and its "read episodes" phase
+  (CHUNKC_TIMINGS: read, decode, check, statistics partials, frames written).
 """
 
 import argparse
@@ -48,7 +49,8 @@ def run(cmd, env=None):
     if p.returncode:
         raise SystemExit(f"{' '.join(map(str, cmd))} failed:\n{p.stderr[-3000:]}")
     rss = int(next(l for l in p.stderr.splitlines() if l.startswith("peak_rss_kb")).split()[1])
-    return wall, rss / 1024
+    read = next((l.split(None, 3)[3].strip() for l in p.stderr.splitlines() if "read episodes" in l), "")
+    return wall, rss / 1024, read
 
 
 def read_all(version: Path, decode: bool):
@@ -86,12 +88,12 @@ def main():
         src = work / f"rlds-{n}x{args.steps}-c{args.cameras}-{args.resolution}"
         if not (src / "spec.toml").exists():
             shutil.rmtree(src, ignore_errors=True)
-            run([BIN, "synth", src, "--format", "rlds", "--episodes", n, "--steps", args.steps,
+            _ = run([BIN, "synth", src, "--format", "rlds", "--episodes", n, "--steps", args.steps,
                  "--cameras", args.cameras, "--resolution", args.resolution, "--seed", "0"])
         version = src / "rlds" / "1.0.0"
         text = (src / "spec.toml").read_text()
         spec = src / "bench.toml"
-        spec.write_text(text.replace('format = "hdf5"', 'format = "zarr"').replace('dir = "out"', 'dir = "bench-out"'))
+        spec.write_text(text.replace('dir = "out"', 'dir = "bench-out"'))
         row = {"episodes": n, "source_bytes": sum(p.stat().st_size for p in version.iterdir())}
         wall, steps, frames = read_all(version, decode=False)
         row["reader_parse"] = {"wall_s": wall, "steps_per_s": steps / wall}
@@ -101,14 +103,17 @@ def main():
         for j in (1, 2):
             shutil.rmtree(src / "bench-out", ignore_errors=True)
             (src / "chunkc.lock").unlink(missing_ok=True)
-            wall, rss = run([BIN, "-j", j, "build", "-q", spec])
-            row[f"chunkc_j{j}"] = {"wall_s": wall, "steps_per_s": steps / wall, "peak_rss_mb": rss}
+            wall, rss, read = run([BIN, "-j", j, "build", "-q", spec], env={**os.environ, "CHUNKC_TIMINGS": "1"})
+            row[f"chunkc_j{j}"] = {"wall_s": wall, "steps_per_s": steps / wall, "peak_rss_mb": rss,
+                                   "read_episodes": read}
         row["output_bytes"] = sum(p.stat().st_size for p in (src / "bench-out").rglob("*") if p.is_file())
         shutil.rmtree(src / "bench-out", ignore_errors=True)
         print(f"{n} episodes, {steps} steps, {frames} frames: "
               f"reader parse {row['reader_parse']['wall_s']:.1f} s, +decode {row['reader_decode']['wall_s']:.1f} s; "
-              f"chunkc -j1 {row['chunkc_j1']['wall_s']:.1f} s ({row['chunkc_j1']['peak_rss_mb']:.0f} MB), "
-              f"-j2 {row['chunkc_j2']['wall_s']:.1f} s ({row['chunkc_j2']['peak_rss_mb']:.0f} MB)", flush=True)
+              f"chunkc -j1 {row['chunkc_j1']['wall_s']:.1f} s ({row['chunkc_j1']['peak_rss_mb']:.0f} MB; "
+              f"read {row['chunkc_j1']['read_episodes']}), "
+              f"-j2 {row['chunkc_j2']['wall_s']:.1f} s ({row['chunkc_j2']['peak_rss_mb']:.0f} MB; "
+              f"read {row['chunkc_j2']['read_episodes']})", flush=True)
         results["sets"].append(row)
         args.out.write_text(json.dumps(results, indent=2) + "\n")
 

@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-BIN = REPO / "target" / "release" / "chunkc"
+BIN = Path(os.environ.get("CHUNKC_BIN", REPO / "target" / "release" / "chunkc"))
 DRIVER = REPO / "scripts" / "chunkc_ray.py"
 PROFILE = '[profiles.act]\npreset = "act"\nfps = 50\nchunk = 100\nformat = "hdf5"\nimage_compression = "gzip"\n'
 

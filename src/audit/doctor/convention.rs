@@ -5,7 +5,8 @@
 //!   change ([`TRACKED_R2`]); the rest (an action in another space than the state, a gripper)
 //!   take no part in the lag, convention and units judgements.
 //! - **Lag**: per episode, the shift minimizing the mean unexplained share over the tracked
-//!   dimensions (when it explains at least [`MIN_R2`]); the dataset's lag is the mode.
+//!   dimensions (when it explains at least [`MIN_R2`] and is not an end of the range tried,
+//!   where the fit has no peak); the dataset's lag is the mode.
 //! - **Convention**: the median over tracked dimensions of `|corr(a, s_next)| - |corr(a, Δs)|` at
 //!   the episode's lag: above [`CONVENTION_MARGIN`] an absolute target, below its negative a
 //!   delta; the majority of the classified episodes is the dataset's convention.
@@ -103,7 +104,9 @@ pub fn judge(fits: &[Vec<Option<Vec<LagFit>>>], stds: &[Vec<f64>], units_ratio: 
             let best = (0..shifts)
                 .min_by(|&i, &j| unexplained[i].total_cmp(&unexplained[j]))
                 .unwrap_or(0);
-            if 1.0 - unexplained[best] < MIN_R2 {
+            // A fit that explains too little, or whose best shift is an end of the range (it
+            // would keep improving past it: no peak, so no lag), estimates nothing.
+            if 1.0 - unexplained[best] < MIN_R2 || best == 0 || best + 1 == shifts {
                 continue;
             }
             for (s, u) in sums.iter_mut().zip(&unexplained) {
