@@ -100,6 +100,13 @@ pub fn dim_signal(a: &[f64], n: usize, width: usize, d: usize) -> DimSignal {
             (lo as f64 / n as f64, out.min, "min")
         };
     }
+    out.spikes = spikes(&x);
+    out
+}
+
+/// The three largest one-step spikes of `x`: (size, step), largest first (size 0: none).
+fn spikes(x: &[f64]) -> Vec<(f64, usize)> {
+    let n = x.len();
     // A spike leaves both neighbours on the same side: its size is the smaller flank (a step,
     // a gripper closing, has one flank only).
     let mut spikes: Vec<(f64, usize)> = (1..n.saturating_sub(1))
@@ -132,8 +139,7 @@ pub fn dim_signal(a: &[f64], n: usize, width: usize, d: usize) -> DimSignal {
         .collect();
     spikes.sort_by(|p, q| q.0.total_cmp(&p.0).then(p.1.cmp(&q.1)));
     spikes.truncate(3);
-    out.spikes = spikes;
-    out
+    spikes
 }
 
 #[cfg(test)]
