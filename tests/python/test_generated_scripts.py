@@ -24,6 +24,7 @@ def lowdim(tmp_path_factory):
 
 
 def test_validate_writes_plots_and_runs_a_forward_pass(tmp_path, lowdim):
+    model_tier("torch")  # validate.py runs the target policy forward
     out = tmp_path / "validate"
     proc = subprocess.run(
         [sys.executable, str(lowdim / "validate.py"), "--out", str(out)], capture_output=True, text=True
@@ -42,6 +43,7 @@ def test_validate_writes_plots_and_runs_a_forward_pass(tmp_path, lowdim):
 
 
 def test_validate_animates_image_channels(tmp_path):
+    model_tier("torch")  # validate.py runs the target policy forward
     spec = write_spec(tmp_path, PROFILES)
     run_chunkc("build", "-q", spec)
     out = tmp_path / "v"
