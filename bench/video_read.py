@@ -49,6 +49,14 @@ def encode(out: Path, n: int, mirror: bool):
     )
 
 
+def write_tasks(root: Path):
+    """meta/tasks.parquet as LeRobot writes it: the task strings are the DataFrame's index
+    (`ds[i]["task"]` is `tasks.iloc[task_index].name`); without it LeRobotDataset asks the Hub."""
+    import pandas as pd
+
+    pd.DataFrame({"task_index": [0]}, index=["bench"]).to_parquet(root / "meta/tasks.parquet")
+
+
 def write_dataset(root: Path, episodes: int):
     if (root / "meta/info.json").exists():
         return
@@ -81,24 +89,34 @@ def write_dataset(root: Path, episodes: int):
     video = {"dtype": "video", "shape": [H, W, 3], "names": ["height", "width", "channels"],
              "info": {"video.codec": "av1", "video.fps": FPS}}
     info = {
-        "codebase_version": "v3.0", "fps": FPS, "chunks_size": 1000,
+        "codebase_version": "v3.0", "fps": FPS, "chunks_size": 1000, "robot_type": None,
+        "total_episodes": episodes, "total_frames": n, "total_tasks": 1,
+        "splits": {"train": f"0:{episodes}"},
         "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
         "video_path": "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4",
         "features": {**{k: video for k in KEYS},
                      "observation.state": {"dtype": "float32", "shape": [2]},
                      "action": {"dtype": "float32", "shape": [2]},
-                     "timestamp": {"dtype": "float32", "shape": [1]}},
+                     "timestamp": {"dtype": "float32", "shape": [1]},
+                     **{k: {"dtype": "int64", "shape": [1]}
+                        for k in ("frame_index", "episode_index", "index", "task_index")}},
     }
+    write_tasks(root)
     (root / "meta/info.json").write_text(json.dumps(info))
 
 
-def pyav_fps(root: Path) -> float:
+def pyav_fps(root: Path, threads: int | None) -> float:
+    """PyAV decoding every frame to rgb24; `threads` None: PyAV's default (its decoder context
+    asks for FFmpeg's automatic thread count, so dav1d uses every core), else that many."""
     import av
 
     t0, n = time.perf_counter(), 0
     for key in KEYS:
         with av.open(str(root / f"videos/{key}/chunk-000/file-000.mp4")) as c:
-            for frame in c.decode(video=0):
+            stream = c.streams.video[0]
+            if threads is not None:
+                stream.codec_context.thread_count = threads
+            for frame in c.decode(stream):
                 frame.to_ndarray(format="rgb24")
                 n += 1
     return n / (time.perf_counter() - t0)
@@ -168,8 +186,10 @@ def main():
         frames = e * FRAMES * len(KEYS)
         row = {"episodes": e, "frames": frames}
         print(f"{e} episodes x {FRAMES} frames x {len(KEYS)} cameras at {W}x{H}: {frames} frames")
-        row["pyav_fps"] = pyav_fps(root)
-        print(f"  PyAV, one process: {row['pyav_fps']:.0f} frames/s")
+        row["pyav_fps"] = pyav_fps(root, None)
+        print(f"  PyAV, one process, its default threads: {row['pyav_fps']:.0f} frames/s")
+        row["pyav_1thread_fps"] = pyav_fps(root, 1)
+        print(f"  PyAV, one process, one decoder thread: {row['pyav_1thread_fps']:.0f} frames/s")
         for j in (1, 2):
             wall, rss, read = chunkc(root, work, j)
             row[f"chunkc_j{j}"] = {"wall_s": wall, "fps": frames / wall, "peak_rss_mb": rss / 1024,

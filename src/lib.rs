@@ -20,6 +20,8 @@
 //!   budget its caller decides (exec fills it, the sinks read it).
 //! - [`timings`]: wall time per phase, printed when `CHUNKC_TIMINGS` is set.
 //! - [`files`]: where chunkc may write (never into the source), and several files written as one.
+//! - [`recycle`]: large byte buffers handed back after use (an episode's frames), so that the
+//!   next episode's decode writes into memory already mapped.
 //!
 //! **The stages**, in order:
 //!
@@ -99,6 +101,7 @@ pub mod files;
 pub mod fuzzing;
 pub mod lock;
 pub mod plan;
+pub mod recycle;
 pub mod render;
 pub mod report;
 pub mod sink;

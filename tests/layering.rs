@@ -17,6 +17,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("store", 0),
     ("timings", 0),
     ("files", 0),
+    ("recycle", 0),
     // the pipeline, in order
     ("spec", 1),
     ("source", 2),

@@ -15,6 +15,7 @@ use super::rate::RateState;
 use super::{progress, Excluded};
 use crate::error::Result;
 use crate::plan::{Conversion, Plan};
+use crate::recycle;
 use crate::sink::{FrameEncoding, Sink};
 use crate::source::{self, ChannelKind, Manifest, Source};
 use crate::spec::NonFinite;
@@ -91,6 +92,7 @@ pub(super) fn read_all(
         push_rows(rates, pending)?;
     }
     bar.finish_and_clear();
+    recycle::clear();
     Ok(excluded)
 }
 
@@ -212,6 +214,12 @@ fn consume(
                                 .find(|(e, _)| *e == enc)
                                 .expect("frames encoded for every sink");
                             sink.write_frames(c, row, frames)?;
+                        }
+                        // The uncompressed frames' memory takes the next episode's decode.
+                        for (enc, frames) in encoded {
+                            if enc == FrameEncoding::Raw {
+                                recycle::give(frames.into_bytes());
+                            }
                         }
                     }
                 }

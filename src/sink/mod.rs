@@ -87,6 +87,11 @@ impl Frames {
         }
     }
 
+    /// The frames' bytes, one after another (to hand the memory on).
+    pub fn into_bytes(self) -> Vec<u8> {
+        self.bytes
+    }
+
     /// Frames of `shape` (HWC) each, encoded (in parallel when compressed).
     pub fn encode(encoding: FrameEncoding, pixels: &[u8], shape: &[usize]) -> Frames {
         use rayon::prelude::*;

@@ -12,6 +12,7 @@ use std::sync::{Arc, OnceLock};
 
 use super::VideoRef;
 use crate::error::{Error, Result};
+use crate::recycle;
 use crate::source::video::{self, DecodeFailure, Miss, Timeline, VideoCheck, TOLERANCE_S};
 
 /// The videos of the episodes a source reads.
@@ -161,14 +162,19 @@ impl Videos {
         if !path.exists() {
             return Err(Error::source(format!("{place}: the file is missing")));
         }
-        let mut out = vec![0u8; stamps.len() * shape.iter().product::<usize>()];
-        video::decode_rows(&path, &Self::targets(r, stamps), shape, &mut out).map_err(|f| {
-            Error::source(match f {
-                DecodeFailure::Unreadable(why) => format!("{place}: {why}"),
-                DecodeFailure::Miss(miss) => format!("{place}: {}", miss_sentence(&miss)),
-            })
-        })?;
-        Ok(out)
+        // A recycled buffer: a successful decode writes every row (each row gets its frame or
+        // the episode fails), so no byte of a previous episode survives into this one.
+        let mut out = recycle::take(stamps.len() * shape.iter().product::<usize>());
+        match video::decode_rows(&path, &Self::targets(r, stamps), shape, &mut out) {
+            Ok(()) => Ok(out),
+            Err(f) => {
+                recycle::give(out);
+                Err(Error::source(match f {
+                    DecodeFailure::Unreadable(why) => format!("{place}: {why}"),
+                    DecodeFailure::Miss(miss) => format!("{place}: {}", miss_sentence(&miss)),
+                }))
+            }
+        }
     }
 }
 
