@@ -9,8 +9,8 @@ iterating `LeRobotDataset` (issue 19; a note, not a test; results in book/src/vi
 
 For each episode count it writes a LeRobot v3.0 dataset under DIR: two cameras of 480x640
 frames (ffmpeg's testsrc2 and its mirror), FRAMES frames an episode at 10 fps, all episodes in
-one mp4 per camera, encoded as LeRobot encodes (libsvtav1, yuv420p, g=2, crf=30; needs the
-`ffmpeg` CLI). Then it times
+one mp4 per camera; one episode encoded as LeRobot encodes (libsvtav1, yuv420p, g=2, crf=30;
+needs the `ffmpeg` CLI) and repeated for every episode by stream copy. Then it times
 - PyAV alone decoding every frame of both files to rgb24 (`frame.to_ndarray(format="rgb24")`),
   sequentially, in one process: the floor for anything built on PyAV;
 - `chunkc build` of one profile (every frame decoded, selected against the parquet timestamps
@@ -38,15 +38,25 @@ H, W, FPS = 480, 640, 10
 KEYS = ["observation.images.top", "observation.images.wrist"]
 
 
-def encode(out: Path, n: int, mirror: bool):
+def encode(out: Path, episodes: int, mirror: bool):
+    """One episode's FRAMES frames encoded as LeRobot encodes, then that stream repeated for
+    every episode (stream copy, no re-encode): each episode starts on a key frame, as in a
+    LeRobot v3.0 file, and encoding 120,000 frames with SVT-AV1 would take an hour on 2 cores."""
     out.parent.mkdir(parents=True, exist_ok=True)
+    one = out.with_name("episode.mp4")
     vf = "hflip," if mirror else ""
     subprocess.run(
         ["ffmpeg", "-v", "error", "-y", "-f", "lavfi", "-i",
-         f"testsrc2=size={W}x{H}:rate={FPS}", "-frames:v", str(n), "-vf", f"{vf}format=yuv420p",
-         "-c:v", "libsvtav1", "-g", "2", "-crf", "30", "-preset", "10", str(out)],
-        check=True,
+         f"testsrc2=size={W}x{H}:rate={FPS}", "-frames:v", str(FRAMES), "-vf", f"{vf}format=yuv420p",
+         "-c:v", "libsvtav1", "-g", "2", "-crf", "30", "-preset", "10", str(one)],
+        check=True, stderr=subprocess.DEVNULL,
     )
+    listing = out.with_name("episodes.txt")
+    listing.write_text(f"file '{one.name}'\n" * episodes)
+    subprocess.run(["ffmpeg", "-v", "error", "-y", "-f", "concat", "-safe", "0", "-i", str(listing),
+                    "-c", "copy", str(out)], check=True)
+    one.unlink()
+    listing.unlink()
 
 
 def write_tasks(root: Path):
@@ -62,7 +72,7 @@ def write_dataset(root: Path, episodes: int):
         return
     n = episodes * FRAMES
     for i, key in enumerate(KEYS):
-        encode(root / f"videos/{key}/chunk-000/file-000.mp4", n, mirror=i == 1)
+        encode(root / f"videos/{key}/chunk-000/file-000.mp4", episodes, mirror=i == 1)
     ep = np.repeat(np.arange(episodes), FRAMES)
     k = np.tile(np.arange(FRAMES), episodes)
     rng = np.random.default_rng(0)

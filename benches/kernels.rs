@@ -213,6 +213,7 @@ fn writers(c: &mut Criterion) {
                 scratch: out.path(),
                 episode_ends: &ends,
                 episode_ids: &ids,
+                tasks: &Default::default(),
                 spill_budget: chunkc::exec::spill_budget(),
             };
             sink::create(&ctx).expect("sink").frame_encoding()
@@ -242,6 +243,7 @@ fn writers(c: &mut Criterion) {
                     scratch: &dir.join(".scratch"),
                     episode_ends: &ends,
                     episode_ids: &ids,
+                    tasks: &Default::default(),
                     spill_budget: chunkc::exec::spill_budget(),
                 };
                 let mut s = sink::create(&ctx).expect("sink");

@@ -117,6 +117,7 @@ fn set_up(
             scratch: &staging.scratch_dir(),
             episode_ends: &rates[rate].ends,
             episode_ids: &ids,
+            tasks: &manifest.tasks,
             spill_budget: budget,
         })?;
         sinks.push((rate, sink));

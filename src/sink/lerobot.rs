@@ -6,10 +6,13 @@
 //!                                   <channel> FixedSizeList<float32> raw (low-dim) or
 //!                                   struct {bytes: PNG, path: null} (images), timestamp
 //!                                   float32 = frame_index / fps, frame_index, episode_index
-//!                                   (source id), index (global row), task_index = 0 (int64)
+//!                                   (source id), index (global row), task_index (int64)
 //! meta/info.json                    codebase_version "v3.0", fps, features, totals, paths
 //! meta/episodes/chunk-000/file-000.parquet  one row per episode
-//! meta/tasks.parquet                task_index, task ("chunkc")
+//! meta/tasks.parquet                task_index, the task strings as pandas' index (LeRobot's
+//!                                   `tasks.iloc[task_index].name`): each episode's task from
+//!                                   the source (an RLDS language instruction, a LeRobot
+//!                                   source's own task), else "chunkc"
 //! meta/stats.json                   written by `exec` (LeRobot's statistics layout)
 //! chunkc_index.parquet              chunkc's window index: split, episode, t, limit, sub
 //! videos/<channel>/chunk-000/file-000.mp4   with `image_encoding = "video"`: every frame of
@@ -75,6 +78,8 @@ pub struct LerobotWriter {
     props: WriterProperties,
     ends: Vec<u64>,
     ids: Vec<u64>,
+    /// The tasks, in the order their first episode is stored, and each stored episode's.
+    tasks: Tasks,
     /// Per channel: the name, its shape, its kind.
     channels: Vec<(String, Vec<usize>, ChannelKind)>,
     raw: Vec<Option<Arc<LowdimStore>>>,
@@ -203,13 +208,14 @@ fn item() -> Arc<Field> {
     Arc::new(Field::new("item", DataType::Float32, true))
 }
 
-/// The per-step shape's axes (a scalar is one value): LeRobot stores a `(a, b)` feature as a list
-/// of `a` lists of `b` values, so each axis is one level of fixed-size list.
+/// The per-step shape's axes as list levels: LeRobot stores a `(a, b)` feature as a list of `a`
+/// lists of `b` values, so each axis is one level of fixed-size list, and a one-value feature
+/// (`shape: [1]` in info.json, or a scalar) as a plain `float32` column: its `datasets`
+/// features make `(1,)` a `Value`, and `LeRobotDataset` cannot cast a one-item list to it.
 fn axes(shape: &[usize]) -> Vec<i32> {
-    if shape.is_empty() {
-        vec![1]
-    } else {
-        shape.iter().map(|&d| d as i32).collect()
+    match shape {
+        [] | [1] => Vec::new(),
+        _ => shape.iter().map(|&d| d as i32).collect(),
     }
 }
 
@@ -254,6 +260,76 @@ fn video_shape(name: &str, shape: &[usize], fps: f64) -> Result<StreamShape> {
              and this channel's frames are {shape:?}; use `image_encoding = \"png\"`"
         ))),
     }
+}
+
+/// The export's tasks: each distinct task once, numbered in the order of the first stored
+/// episode that has it, and each stored episode's number.
+struct Tasks {
+    names: Vec<String>,
+    of_episode: Vec<usize>,
+}
+
+impl Tasks {
+    /// Episodes without a task of their own get [`TASK`] (LeRobot needs one for every frame).
+    fn of(ids: &[u64], tasks: &std::collections::BTreeMap<u64, String>) -> Tasks {
+        let mut names: Vec<String> = Vec::new();
+        let of_episode = ids
+            .iter()
+            .map(|id| {
+                let task = tasks.get(id).map_or(TASK, String::as_str);
+                match names.iter().position(|t| t == task) {
+                    Some(i) => i,
+                    None => {
+                        names.push(task.to_string());
+                        names.len() - 1
+                    }
+                }
+            })
+            .collect();
+        if names.is_empty() {
+            names.push(TASK.to_string());
+        }
+        Tasks { names, of_episode }
+    }
+}
+
+/// `meta/tasks.parquet` as LeRobot writes it (`pandas.DataFrame.to_parquet` of a frame whose
+/// index is the task strings): `task_index`, then the strings in `__index_level_0__`, with
+/// the `pandas` schema metadata that makes `pd.read_parquet` give them back as the index.
+pub fn tasks_table(names: &[String]) -> Result<(Arc<Schema>, RecordBatch)> {
+    const INDEX: &str = "__index_level_0__";
+    let pandas = json!({
+        "index_columns": [INDEX],
+        "column_indexes": [{"name": null, "field_name": null, "pandas_type": "unicode",
+                            "numpy_type": "object", "metadata": {"encoding": "UTF-8"}}],
+        "columns": [
+            {"name": "task_index", "field_name": "task_index", "pandas_type": "int64",
+             "numpy_type": "int64", "metadata": null},
+            {"name": null, "field_name": INDEX, "pandas_type": "unicode",
+             "numpy_type": "object", "metadata": null},
+        ],
+        "attributes": {},
+        "creator": {"library": CREATED_BY, "version": env!("CARGO_PKG_VERSION")},
+    });
+    let metadata = [("pandas".to_string(), pandas.to_string())].into();
+    let schema = Arc::new(Schema::new_with_metadata(
+        vec![
+            Field::new("task_index", DataType::Int64, false),
+            Field::new(INDEX, DataType::LargeUtf8, false),
+        ],
+        metadata,
+    ));
+    let batch = RecordBatch::try_new(
+        schema.clone(),
+        vec![
+            i64_col(0..names.len() as i64),
+            Arc::new(arrow_array::LargeStringArray::from_iter_values(
+                names.iter(),
+            )),
+        ],
+    )
+    .map_err(err)?;
+    Ok((schema, batch))
 }
 
 impl LerobotWriter {
@@ -315,6 +391,7 @@ impl LerobotWriter {
             props,
             ends: ctx.episode_ends.to_vec(),
             ids: ctx.episode_ids.to_vec(),
+            tasks: Tasks::of(ctx.episode_ids, ctx.tasks),
             raw: channels.iter().map(|_| None).collect(),
             frames: channels
                 .iter()
@@ -429,7 +506,8 @@ impl LerobotWriter {
             cols.push(i64_col((0..n).map(|i| i as i64)));
             cols.push(i64_col((0..n).map(|_| this.ids[e] as i64)));
             cols.push(i64_col((lo..hi).map(|i| i as i64)));
-            cols.push(i64_col((0..n).map(|_| 0)));
+            let task = this.tasks.of_episode[e] as i64;
+            cols.push(i64_col((0..n).map(|_| task)));
             RecordBatch::try_new(schema.clone(), cols).map_err(err)
         });
         this.write_parquet(DATA_PATH, schema.clone(), batches)
@@ -466,8 +544,8 @@ impl LerobotWriter {
             .take(n)
             .collect();
         let mut tasks = ListBuilder::new(StringBuilder::new());
-        for _ in 0..n {
-            tasks.values().append_value(TASK);
+        for &t in &self.tasks.of_episode {
+            tasks.values().append_value(&self.tasks.names[t]);
             tasks.append(true);
         }
         let tasks = tasks.finish();
@@ -500,15 +578,7 @@ impl LerobotWriter {
             [Ok(batch)],
         )?;
 
-        let schema = Arc::new(Schema::new(vec![
-            Field::new("task_index", DataType::Int64, false),
-            Field::new("task", DataType::Utf8, false),
-        ]));
-        let batch = RecordBatch::try_new(
-            schema.clone(),
-            vec![i64_col([0]), Arc::new(StringArray::from(vec![TASK]))],
-        )
-        .map_err(err)?;
+        let (schema, batch) = tasks_table(&self.tasks.names)?;
         self.write_parquet("meta/tasks.parquet", schema, [Ok(batch)])
     }
 
@@ -570,7 +640,7 @@ impl LerobotWriter {
             "robot_type": null,
             "total_episodes": n,
             "total_frames": self.ends.last().copied().unwrap_or(0),
-            "total_tasks": 1,
+            "total_tasks": self.tasks.names.len(),
             "chunks_size": 1000,
             "fps": self.fps,
             "splits": {"train": format!("0:{n}")},
@@ -683,5 +753,20 @@ impl Sink for LerobotWriter {
         self.episodes()?;
         self.info()?;
         self.chunkc_index()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tasks_are_numbered_by_first_stored_episode_and_default_to_chunkc() {
+        let tasks = [(7u64, "stack".to_string()), (3, "pick".to_string())].into();
+        let t = Tasks::of(&[7, 5, 3, 9, 7], &tasks);
+        assert_eq!(t.names, ["stack", TASK, "pick"]);
+        assert_eq!(t.of_episode, [0, 1, 2, 1, 0]);
+        let none = Tasks::of(&[], &Default::default());
+        assert_eq!(none.names, [TASK]);
     }
 }

@@ -30,6 +30,7 @@ pub mod video_encode;
 pub mod zarr;
 mod zarr_store;
 
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -169,6 +170,9 @@ pub struct SinkContext<'a> {
     pub episode_ends: &'a [u64],
     /// Source episode ids, in stored order.
     pub episode_ids: &'a [u64],
+    /// Each episode's task (a language instruction), by source id; episodes without one are
+    /// absent (the LeRobot export gives them its default task).
+    pub tasks: &'a BTreeMap<u64, String>,
     /// The row store's memory budget, decided by exec (`CHUNKC_SPILL_BYTES`); a sink that
     /// buffers rows of its own keeps within it too.
     pub spill_budget: usize,

@@ -79,6 +79,43 @@ pub fn read_columns(
         .collect())
 }
 
+/// Per row, the first string of list-of-strings column `name` (LeRobot's `tasks` in
+/// `meta/episodes`), or the string itself in a string column; `None` when the file has no such
+/// column, and `None` for a row whose list is empty or null.
+pub fn first_strings(path: &Path, name: &str) -> Result<Option<Vec<Option<String>>>> {
+    if builder(path)?.schema().index_of(name).is_err() {
+        return Ok(None);
+    }
+    let not_strings = |t: &DataType| {
+        Error::source(format!(
+            "{}: `{name}` is {t}, not a list of strings",
+            path.display()
+        ))
+    };
+    let first = |a: &dyn Array| -> Result<Option<String>> {
+        let at = (0..a.len()).find(|&i| a.is_valid(i));
+        Ok(match (a.data_type(), at) {
+            (_, None) => None,
+            (DataType::Utf8, Some(i)) => Some(a.as_string::<i32>().value(i).to_string()),
+            (DataType::LargeUtf8, Some(i)) => Some(a.as_string::<i64>().value(i).to_string()),
+            (DataType::Utf8View, Some(i)) => Some(a.as_string_view().value(i).to_string()),
+            (t, _) => return Err(not_strings(t)),
+        })
+    };
+    let mut out = Vec::new();
+    for a in &read_columns(path, &[name], None)?[0] {
+        for i in 0..a.len() {
+            out.push(match a.data_type() {
+                _ if a.is_null(i) => None,
+                DataType::List(_) => first(a.as_list::<i32>().value(i).as_ref())?,
+                DataType::LargeList(_) => first(a.as_list::<i64>().value(i).as_ref())?,
+                _ => first(a.slice(i, 1).as_ref())?,
+            });
+        }
+    }
+    Ok(Some(out))
+}
+
 /// A scalar numeric array's values as `f64` (`None` for an unsupported type).
 fn scalars(a: &dyn Array) -> Option<Vec<f64>> {
     macro_rules! prim {

@@ -10,7 +10,7 @@
 //! meta/episodes/chunk-000/file-000.parquet  episode_index, tasks, length,
 //!                                  data/chunk_index, data/file_index,
 //!                                  dataset_from_index, dataset_to_index
-//! meta/tasks.parquet               task_index, task
+//! meta/tasks.parquet               task_index, the task as pandas' index (as LeRobot writes it)
 //! meta/info.json                   codebase_version v3.0, fps, features, totals
 //! videos/observation.images.cam<c>/chunk-000/file-000.mp4   row `i` of the dataset at
 //!                                  `i / fps`; meta/episodes gains videos/<key>/chunk_index,
@@ -25,9 +25,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use arrow_array::builder::{ListBuilder, StringBuilder};
-use arrow_array::{
-    ArrayRef, FixedSizeListArray, Float32Array, Int64Array, RecordBatch, StringArray,
-};
+use arrow_array::{ArrayRef, FixedSizeListArray, Float32Array, Int64Array, RecordBatch};
 use arrow_schema::{DataType, Field, Schema};
 use parquet::arrow::ArrowWriter;
 use parquet::basic::Compression;
@@ -295,11 +293,7 @@ impl SynthWriter for LerobotWriter {
             meta,
             &self.props,
         )?;
-        let tasks = RecordBatch::try_from_iter(vec![
-            ("task_index", i64s([0])),
-            ("task", Arc::new(StringArray::from(vec![TASK])) as ArrayRef),
-        ])
-        .map_err(err)?;
+        let (_, tasks) = crate::sink::lerobot::tasks_table(&[TASK.to_string()])?;
         write_table(&self.root.join("meta/tasks.parquet"), tasks, &self.props)?;
         let o = &self.opts;
         let scalar = |dtype: &str| json!({"dtype": dtype, "shape": [1], "names": null});

@@ -53,6 +53,8 @@ struct Listing {
     /// Per episode, the video file of each media feature.
     video_files: Vec<BTreeMap<String, VideoRef>>,
     read_files: Vec<PathBuf>,
+    /// Each episode's task (the first of its `tasks`), by id; absent when the layout lists none.
+    tasks: BTreeMap<u64, String>,
 }
 
 /// Where one episode's camera is: its file (relative to the root) and, in v3.0's shared files,
@@ -137,6 +139,7 @@ impl LerobotSource {
             episodes,
             locations,
             video_files,
+            tasks,
         } = listing;
         read_files.push(PathBuf::from("meta/info.json"));
         if episodes.is_empty() {
@@ -301,7 +304,7 @@ impl LerobotSource {
                 timestamps: has_timestamp,
                 source_split,
                 warnings,
-                tasks: Default::default(),
+                tasks,
             },
             mapped,
             locations,

@@ -1,5 +1,6 @@
 //! LeRobot v2.0 / v2.1: one parquet file per episode (`data_path` in info.json), episodes listed
-//! in `meta/episodes.jsonl` (`episode_index`, `length`).
+//! in `meta/episodes.jsonl` (`episode_index`, `length`, and `tasks`, whose first is the
+//! episode's task).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -26,28 +27,8 @@ pub(super) fn list(root: &Path, info: &Info, media: &[&KeyInfo]) -> Result<Listi
     );
     let list = root.join("meta/episodes.jsonl");
     read_files.push(PathBuf::from("meta/episodes.jsonl"));
-    let text = std::fs::read_to_string(&list)
-        .map_err(|e| Error::source(format!("{}: cannot read: {e}", list.display())))?;
-    let mut rows: Vec<(u64, usize)> = Vec::new();
-    for (n, line) in text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-    {
-        let v: Value = serde_json::from_str(line).map_err(|e| {
-            Error::source(format!("{}:{}: invalid JSON: {e}", list.display(), n + 1))
-        })?;
-        match (v["episode_index"].as_u64(), v["length"].as_u64()) {
-            (Some(e), Some(len)) => rows.push((e, len as usize)),
-            _ => {
-                return Err(Error::source(format!(
-                    "{}:{}: needs `episode_index` and `length`",
-                    list.display(),
-                    n + 1
-                )))
-            }
-        }
-    }
+    let (mut rows, tasks) = episodes_jsonl(&list)?;
+    l.tasks = tasks;
     rows.sort();
     for (e, len) in rows {
         let values = [
@@ -89,4 +70,34 @@ pub(super) fn list(root: &Path, info: &Info, media: &[&KeyInfo]) -> Result<Listi
         locations.push((rel, None));
     }
     Ok(l)
+}
+
+/// `meta/episodes.jsonl`: each episode's id and length, and its task (the first of `tasks`).
+type Listed = (Vec<(u64, usize)>, BTreeMap<u64, String>);
+
+fn episodes_jsonl(list: &Path) -> Result<Listed> {
+    let text = std::fs::read_to_string(list)
+        .map_err(|e| Error::source(format!("{}: cannot read: {e}", list.display())))?;
+    let (mut rows, mut tasks) = (Vec::new(), BTreeMap::new());
+    for (n, line) in text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+    {
+        let v: Value = serde_json::from_str(line).map_err(|e| {
+            Error::source(format!("{}:{}: invalid JSON: {e}", list.display(), n + 1))
+        })?;
+        let (Some(e), Some(len)) = (v["episode_index"].as_u64(), v["length"].as_u64()) else {
+            return Err(Error::source(format!(
+                "{}:{}: needs `episode_index` and `length`",
+                list.display(),
+                n + 1
+            )));
+        };
+        rows.push((e, len as usize));
+        if let Some(task) = v["tasks"].get(0).and_then(Value::as_str) {
+            tasks.insert(e, task.to_string());
+        }
+    }
+    Ok((rows, tasks))
 }

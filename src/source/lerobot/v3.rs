@@ -1,7 +1,7 @@
 //! LeRobot v3.0: many episodes per `data/chunk-XXX/file-XXX.parquet`; `meta/episodes/**.parquet`
-//! has one row per episode with its `length` and data file (`data/chunk_index`,
-//! `data/file_index`). An episode's rows are found from the data file's `episode_index` column,
-//! and must be contiguous.
+//! has one row per episode with its `length`, data file (`data/chunk_index`, `data/file_index`)
+//! and `tasks` (the first is the episode's task). An episode's rows are found from the data
+//! file's `episode_index` column, and must be contiguous.
 
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -77,6 +77,7 @@ pub(super) fn list(root: &Path, info: &Info, media: &[&KeyInfo]) -> Result<Listi
             names.extend(cols.iter().map(String::as_str));
         }
         let cols = read_columns(&path, &names, None)?;
+        let tasks = parquet_read::first_strings(&path, "tasks")?;
         let ints = |i: usize| -> Result<Vec<u64>> {
             parquet_read::to_f64_rows(&cols[i], 1, &format!("{}: `{}`", path.display(), names[i]))
                 .map(|v| v.into_iter().map(|x| x as u64).collect())
@@ -93,6 +94,9 @@ pub(super) fn list(root: &Path, info: &Info, media: &[&KeyInfo]) -> Result<Listi
             })
             .collect::<Result<_>>()?;
         for r in 0..ids.len() {
+            if let Some(task) = tasks.as_ref().and_then(|t| t.get(r).cloned().flatten()) {
+                l.tasks.insert(ids[r], task);
+            }
             let mut videos = BTreeMap::new();
             if let Some(template) = &info.video_path {
                 for (j, (key, _)) in video_cols.iter().enumerate() {
