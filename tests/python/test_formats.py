@@ -312,7 +312,12 @@ def test_parquet_is_a_lerobot_v3_dataset_of_raw_values(built, raw):
     assert episodes["dataset_from_index"] == list(raw.starts)
     assert episodes["dataset_to_index"] == list(raw.ends)
     assert episodes["data/chunk_index"] == [0] * n and episodes["data/file_index"] == [0] * n
-    assert pq.read_table(out / "meta/tasks.parquet").to_pydict() == {"task_index": [0], "task": ["chunkc"]}
+    # As LeRobot's writer leaves it: the task strings are pandas' index (LeRobot reads
+    # `tasks.iloc[task_index].name`).
+    import pandas as pd
+
+    tasks = pd.read_parquet(out / "meta/tasks.parquet")
+    assert list(tasks.index) == ["chunkc"] and list(tasks.task_index) == [0]
     stats = json.loads((out / "meta/stats.json").read_text())
     assert set(stats) == {"action", "observation.state", "observation.image"}
     assert len(stats["action"]["mean"]) == 2
