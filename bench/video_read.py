@@ -3,9 +3,10 @@ iterating `LeRobotDataset` (issue 19; a note, not a test; results in book/src/vi
 
     .venv/bin/python bench/video_read.py DIR [EPISODES ...]   (default: 10 20 40)
         env: FRAMES (frames an episode, default 300), FORMAT (the build's output: zarr, the
-        default, or hdf5 for uncompressed frames), LEROBOT_MAX (iterate LeRobotDataset only on
-        sets of at most this many episodes, default 10; 0: never), OUT (the JSON results file,
-        default bench/results-video.json)
+        default, or hdf5 for uncompressed frames), LEROBOT_MAX (iterate LeRobotDataset over
+        every row only on sets of at most this many episodes, default 10; 0: never),
+        LEROBOT_SAMPLE (on larger sets, time that many rows spread evenly instead; default 0:
+        none), OUT (the JSON results file, default bench/results-video.json)
 
 For each episode count it writes a LeRobot v3.0 dataset under DIR: two cameras of 480x640
 frames (ffmpeg's testsrc2 and its mirror), FRAMES frames an episode at 10 fps, all episodes in
@@ -170,22 +171,25 @@ format = "{FORMAT}"
     return wall, rss, read
 
 
-def lerobot_fps(root: Path):
+def lerobot_fps(root: Path, sample: int = 0):
+    """`ds[i]` for every row, or (`sample` > 0) for that many rows spread evenly over the set."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     ds = LeRobotDataset("bench/av1", root=root, video_backend="pyav")
+    rows = range(len(ds)) if sample <= 0 else np.linspace(0, len(ds) - 1, sample).astype(int)
     t0 = time.perf_counter()
-    for i in range(len(ds)):
-        item = ds[i]
+    for i in rows:
+        item = ds[int(i)]
         assert tuple(item[KEYS[0]].shape) == (3, H, W)
     wall = time.perf_counter() - t0
-    return wall, len(ds) * len(KEYS) / wall
+    return wall, len(rows) * len(KEYS) / wall
 
 
 def main():
     work = Path(sys.argv[1]).resolve()
     counts = [int(c) for c in sys.argv[2:]] or [10, 20, 40]
     lerobot_max = int(os.environ.get("LEROBOT_MAX", "10"))
+    sample = int(os.environ.get("LEROBOT_SAMPLE", "0"))
     out = Path(os.environ.get("OUT", REPO / "bench" / "results-video.json"))
     results = {"frames_per_episode": FRAMES, "cameras": len(KEYS), "resolution": f"{W}x{H}",
                "codec": "libsvtav1 yuv420p g=2 crf=30", "format": FORMAT, "cpus": os.cpu_count(),
@@ -210,6 +214,11 @@ def main():
             wall, fps = lerobot_fps(root)
             row["lerobot_dataset"] = {"wall_s": wall, "fps": fps}
             print(f"  LeRobotDataset[i] over every row (pyav): {wall:.1f} s, {fps:.0f} frames/s")
+        elif sample:
+            wall, fps = lerobot_fps(root, sample)
+            row["lerobot_dataset_sample"] = {"rows": sample, "wall_s": wall, "fps": fps}
+            print(f"  LeRobotDataset[i] over {sample} rows spread over the set (pyav): {wall:.1f} s, "
+                  f"{fps:.0f} frames/s")
         results["sets"].append(row)
         out.write_text(json.dumps(results, indent=2) + "\n")
         sys.stdout.flush()
