@@ -272,18 +272,17 @@ struct Tasks {
 impl Tasks {
     /// Episodes without a task of their own get [`TASK`] (LeRobot needs one for every frame).
     fn of(ids: &[u64], tasks: &std::collections::BTreeMap<u64, String>) -> Tasks {
+        // Looked up by string: OXE sets have tens of thousands of distinct instructions.
+        let mut numbers: std::collections::HashMap<&str, usize> = Default::default();
         let mut names: Vec<String> = Vec::new();
         let of_episode = ids
             .iter()
             .map(|id| {
                 let task = tasks.get(id).map_or(TASK, String::as_str);
-                match names.iter().position(|t| t == task) {
-                    Some(i) => i,
-                    None => {
-                        names.push(task.to_string());
-                        names.len() - 1
-                    }
-                }
+                *numbers.entry(task).or_insert_with(|| {
+                    names.push(task.to_string());
+                    names.len() - 1
+                })
             })
             .collect();
         if names.is_empty() {

@@ -79,19 +79,15 @@ pub fn read_columns(
         .collect())
 }
 
-/// Per row, the first string of list-of-strings column `name` (LeRobot's `tasks` in
-/// `meta/episodes`), or the string itself in a string column; `None` when the file has no such
-/// column, and `None` for a row whose list is empty or null.
-pub fn first_strings(path: &Path, name: &str) -> Result<Option<Vec<Option<String>>>> {
-    if builder(path)?.schema().index_of(name).is_err() {
-        return Ok(None);
-    }
-    let not_strings = |t: &DataType| {
-        Error::source(format!(
-            "{}: `{name}` is {t}, not a list of strings",
-            path.display()
-        ))
-    };
+/// Whether the parquet file has a column `name` (from its footer).
+pub fn has_column(path: &Path, name: &str) -> Result<bool> {
+    Ok(builder(path)?.schema().index_of(name).is_ok())
+}
+
+/// Per row of a column (its batches, in order), the first string of each list of strings
+/// (LeRobot's `tasks` in `meta/episodes`), or the string itself in a string column; `None` for
+/// a row whose list is empty or null. `what` names the column in messages.
+pub fn first_strings(batches: &[ArrayRef], what: &str) -> Result<Vec<Option<String>>> {
     let first = |a: &dyn Array| -> Result<Option<String>> {
         let at = (0..a.len()).find(|&i| a.is_valid(i));
         Ok(match (a.data_type(), at) {
@@ -99,11 +95,15 @@ pub fn first_strings(path: &Path, name: &str) -> Result<Option<Vec<Option<String
             (DataType::Utf8, Some(i)) => Some(a.as_string::<i32>().value(i).to_string()),
             (DataType::LargeUtf8, Some(i)) => Some(a.as_string::<i64>().value(i).to_string()),
             (DataType::Utf8View, Some(i)) => Some(a.as_string_view().value(i).to_string()),
-            (t, _) => return Err(not_strings(t)),
+            (t, _) => {
+                return Err(Error::source(format!(
+                    "{what} is {t}, not a list of strings"
+                )))
+            }
         })
     };
     let mut out = Vec::new();
-    for a in &read_columns(path, &[name], None)?[0] {
+    for a in batches {
         for i in 0..a.len() {
             out.push(match a.data_type() {
                 _ if a.is_null(i) => None,
@@ -113,7 +113,7 @@ pub fn first_strings(path: &Path, name: &str) -> Result<Option<Vec<Option<String
             });
         }
     }
-    Ok(Some(out))
+    Ok(out)
 }
 
 /// A scalar numeric array's values as `f64` (`None` for an unsupported type).

@@ -76,8 +76,18 @@ pub(super) fn list(root: &Path, info: &Info, media: &[&KeyInfo]) -> Result<Listi
         for (_, cols) in &video_cols {
             names.extend(cols.iter().map(String::as_str));
         }
+        // `tasks` read with the rest, when the table has it (hand-made sets may not).
+        let has_tasks = parquet_read::has_column(&path, "tasks")?;
+        if has_tasks {
+            names.push("tasks");
+        }
         let cols = read_columns(&path, &names, None)?;
-        let tasks = parquet_read::first_strings(&path, "tasks")?;
+        let tasks = if has_tasks {
+            let what = format!("{}: `tasks`", path.display());
+            Some(parquet_read::first_strings(&cols[names.len() - 1], &what)?)
+        } else {
+            None
+        };
         let ints = |i: usize| -> Result<Vec<u64>> {
             parquet_read::to_f64_rows(&cols[i], 1, &format!("{}: `{}`", path.display(), names[i]))
                 .map(|v| v.into_iter().map(|x| x as u64).collect())
