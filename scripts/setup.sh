@@ -8,7 +8,9 @@
 # Steps:
 #   0. install the Debian packages the tests need when they are missing (headless `chromium` and
 #      its fonts, for the HTML report tests; `nasm`, for libjpeg-turbo's SIMD decoders; FFmpeg's
-#      development libraries, clang and pkg-config, for the `video` feature), with apt-get as root; elsewhere it says what to install;
+#      development libraries, clang and pkg-config, for the `video` feature; FFmpeg's runtime
+#      libraries torchcodec, LeRobot's default video backend, loads), with apt-get as root;
+#      elsewhere it says what to install;
 #   1. create the project virtualenv `.venv` (python3 -m venv) if there is none;
 #   2. install tests/python/requirements.txt into it, only when that file changed since the last
 #      successful install (its hash and tier are kept in .venv/.chunkc-requirements.sha256): the
@@ -81,15 +83,30 @@ else
         pkg-config --exists "$lib" 2>/dev/null || debian+=("$lib-dev")
     done
 fi
-if [ "${#debian[@]}" -gt 0 ]; then
+# torchcodec, LeRobot's default video backend, dlopens the system FFmpeg: all seven of its
+# libraries, libavdevice, libavfilter and libswresample too (readelf -d of torchcodec 0.10's
+# libtorchcodec_core5.so). Without them every `LeRobotDataset` over a video set fails to load.
+# Their runtime packages carry the FFmpeg major in their names (Debian 12: libavdevice59), so
+# each missing one is named by what its -dev package depends on, once apt's lists are fresh.
+runtime=()
+for lib in libavutil libavcodec libavformat libavdevice libavfilter libswscale libswresample; do
+    /sbin/ldconfig -p 2>/dev/null | grep -q "[[:space:]]$lib\.so\.[0-9]" || runtime+=("$lib")
+done
+if [ "${#debian[@]}" -gt 0 ] || [ "${#runtime[@]}" -gt 0 ]; then
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
-        say "installing Debian packages: ${debian[*]} (apt-get)"
         export DEBIAN_FRONTEND=noninteractive
-        apt-get update -qq >&2 \
-            && apt-get install -y -qq --no-install-recommends "${debian[@]}" >&2 \
+        apt-get update -qq >&2 || die "apt-get update failed"
+        for lib in "${runtime[@]}"; do
+            pkg=$(apt-cache depends "$lib-dev" 2>/dev/null \
+                | awk -v l="$lib" '$1 == "Depends:" && $2 ~ "^" l "[0-9]+$" {print $2; exit}')
+            debian+=("${pkg:-$lib-dev}")
+        done
+        say "installing Debian packages: ${debian[*]} (apt-get)"
+        apt-get install -y -qq --no-install-recommends "${debian[@]}" >&2 \
             || die "apt-get could not install ${debian[*]}"
     else
-        say "warning: missing Debian packages ${debian[*]}: install them (apt-get install ${debian[*]}); the report tests need chromium, the \`video\` feature the others (or set CHUNKC_VIDEO=0)"
+        [ "${#runtime[@]}" -gt 0 ] && debian+=("${runtime[@]/%/ (runtime)}")
+        say "warning: missing Debian packages ${debian[*]}: install them (apt-get install ...); the report tests need chromium, the \`video\` feature FFmpeg's -dev packages (or set CHUNKC_VIDEO=0), LeRobot's default video backend (torchcodec) FFmpeg's runtime libraries"
     fi
 fi
 
