@@ -45,6 +45,20 @@ pub enum Error {
     Busy(String),
     #[error("internal error: {0}")]
     Internal(String),
+    /// Not a failure: a source opened with an empty `[source.channels]` (a spec always maps
+    /// `action`; only `chunkc init` and `inspect` open one so) stops where its channels would be
+    /// mapped and hands back every key it offers (`source::offered`).
+    #[error("{}: the source offers {} keys and the spec maps none", .0.place, .0.keys.len())]
+    Offered(Box<Offer>),
+}
+
+/// The keys a source offers, as `Error::Offered` carries them.
+#[derive(Debug, Clone)]
+pub struct Offer {
+    /// The file or table the keys were listed from (shown in messages).
+    pub place: String,
+    /// Each key, its per-step shape and its element type as the source names it.
+    pub keys: Vec<(String, Vec<usize>, String)>,
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -52,7 +66,7 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 impl Error {
     pub fn exit_code(&self) -> i32 {
         match self {
-            Error::Spec(_) => exit::SPEC,
+            Error::Spec(_) | Error::Offered(_) => exit::SPEC,
             Error::Source(_) => exit::SOURCE,
             Error::Output(_) | Error::Io { .. } => exit::OUTPUT,
             Error::Locked(_) => exit::LOCKED,

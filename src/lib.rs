@@ -58,10 +58,11 @@
 //! **Beside the pipeline**: [`analyze`] suggests a chunk length K from the action channel's
 //! autocorrelation; [`report`] draws the self-contained HTML pages of `audit` and `analyze`;
 //! [`synth`] writes synthetic sources in every input layout (`chunkc synth`, for the benchmarks
-//! and tests); [`fuzzing`] has the fuzz targets' bodies (one per input parser; see `fuzz/`).
+//! and tests); [`fuzzing`] has the fuzz targets' bodies (one per input parser; see `fuzz/`);
+//! [`init`] inspects a dataset and drafts its first spec (`chunkc init`, `chunkc inspect`).
 //!
-//! **On top**: [`commands`], the drivers of `check`, `plan`, `audit`, `analyze`, `build` and
-//! `merge` (re-planning after an exclusion, the sharded build, the commit, the lock update). `main.rs` is the command line
+//! **On top**: [`commands`], the drivers of `check`, `plan`, `audit`, `analyze`, `build`,
+//! `merge` and `init` (re-planning after an exclusion, the sharded build, the commit, the lock update). `main.rs` is the command line
 //! only: it parses arguments, sizes the thread pool, calls a driver and prints its result.
 //!
 //! # Threads
@@ -99,6 +100,7 @@ pub mod error;
 pub mod exec;
 pub mod files;
 pub mod fuzzing;
+pub mod init;
 pub mod lock;
 pub mod plan;
 pub mod recycle;

@@ -8,7 +8,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use chunkc::commands::{self, BuildOptions};
 use chunkc::spec::{self, LoadedSpec, SourceFormat};
-use chunkc::{analyze, plan, synth, Error};
+use chunkc::{analyze, init, plan, synth, Error};
 
 #[derive(Parser)]
 #[command(
@@ -80,6 +80,30 @@ enum Command {
     },
     /// Audit the timing of every episode; write `<output.dir>/audit/audit.json` and `report.html`.
     Audit { spec: PathBuf },
+    /// Write a first spec for the dataset at PATH: its format, channels, rate, timing audit and
+    /// a chunk length per profile from the action's autocorrelation, as a commented spec that
+    /// `chunkc check` accepts. Never overwrites a file.
+    Init {
+        /// The dataset: a LeRobot folder, a Diffusion Policy zarr, a folder of ALOHA
+        /// episode_<i>.hdf5 files, a robomimic/robosuite HDF5 file, or an RLDS (TFDS) folder.
+        path: PathBuf,
+        /// Where to write the spec.
+        #[arg(long, default_value = "spec.toml")]
+        out: PathBuf,
+        /// The recording rate in Hz, for a source that stores none (else chunkc guesses and says so).
+        #[arg(long)]
+        fps: Option<f64>,
+    },
+    /// Print what `chunkc init` would find in the dataset at PATH, writing nothing.
+    Inspect {
+        path: PathBuf,
+        /// The recording rate in Hz, for a source that stores none.
+        #[arg(long)]
+        fps: Option<f64>,
+        /// Print JSON instead of the summary.
+        #[arg(long)]
+        json: bool,
+    },
     /// Print the JSON Schema of the spec format.
     Schema,
     /// Write a synthetic source (with a matching spec.toml) into a new directory.
@@ -262,6 +286,25 @@ fn run(cli: Cli) -> Result<(), Error> {
                 tidy(&paths[1]).display()
             );
         }
+        Command::Init { path, out, fps } => {
+            let options = init_options(fps)?;
+            let (inspection, written) = commands::init(&path, &out, &options)?;
+            eprint!("{}", init::summary::summary(&inspection));
+            eprintln!(
+                "wrote {}: `chunkc check {0}` then `chunkc build {0}`",
+                tidy(&written).display()
+            );
+        }
+        Command::Inspect { path, fps, json } => {
+            let options = init_options(fps)?;
+            // Nothing is written: the drafts' output directory only has to lie outside the source.
+            let inspection = init::inspect(&path, &std::env::temp_dir(), &options)?;
+            if json {
+                print!("{}", inspection.to_json());
+            } else {
+                print!("{}", init::summary::summary(&inspection));
+            }
+        }
         Command::Schema => print!("{}", spec::json_schema()),
         Command::Synth(args) => {
             let opts = synth_options(&args)?;
@@ -270,6 +313,18 @@ fn run(cli: Cli) -> Result<(), Error> {
         }
     }
     Ok(())
+}
+
+/// `--fps` of `init` and `inspect`, checked.
+fn init_options(fps: Option<f64>) -> Result<init::InitOptions, Error> {
+    if let Some(f) = fps {
+        if !(f.is_finite() && f > 0.0) {
+            return Err(Error::Spec(format!(
+                "error: --fps must be a positive rate in Hz, not {f}"
+            )));
+        }
+    }
+    Ok(init::InitOptions { fps })
 }
 
 /// `chunkc plan [--shards N]`: the plan, and the shard assignment when asked.

@@ -34,6 +34,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("report", 12),
     ("synth", 12),
     ("fuzzing", 12),
+    ("init", 12),
     // the command drivers, on top
     ("commands", 13),
 ];

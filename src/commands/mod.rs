@@ -10,11 +10,13 @@
 //! - `analyze`: the chunk-length analysis and its report.
 //! - `build`: the stale profiles built, committed and locked.
 //! - `shard`: a sharded build: one shard's partial (`build --shard`), and the merge of all.
+//! - `init`: a dataset inspected and a first spec written from it, once it checks.
 
 mod analyze;
 mod audit;
 mod build;
 mod check;
+mod init;
 mod plan;
 mod shard;
 
@@ -22,5 +24,6 @@ pub use analyze::analyze;
 pub use audit::{audit, audit_report, Audit};
 pub use build::{build, BuildOptions, BuildReport};
 pub use check::check;
+pub use init::init;
 pub use plan::plan;
 pub use shard::{build_shard, merge};

@@ -92,8 +92,20 @@ impl Raw {
 
 /// Checks the spec's channel mapping against the keys of the source at `place` (a path shown in
 /// messages). A key that is missing is a spec error listing the keys that exist.
+///
+/// An empty mapping (a valid spec always maps `action`; `chunkc init` and `inspect` open a
+/// source so to learn what it holds) stops here with `Error::Offered` and every key.
 // Long function: one arm per mapping form (rename, columns, concat, kind), each with its own messages.
 pub fn resolve(spec: &LoadedSpec, place: &str, available: &[KeyInfo]) -> Result<Mapped> {
+    if spec.spec.source.channels.is_empty() {
+        return Err(Error::Offered(Box::new(crate::error::Offer {
+            place: place.to_string(),
+            keys: available
+                .iter()
+                .map(|k| (k.key.clone(), k.shape.clone(), k.dtype.clone()))
+                .collect(),
+        })));
+    }
     let mut mapped = Mapped {
         channels: Vec::new(),
         recipes: Vec::new(),

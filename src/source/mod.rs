@@ -29,11 +29,14 @@
 //! - `parquet_read`: parquet columns (scalars, fixed- and variable-size lists) as rows of numbers.
 //! - `subset`: `[source] episodes = […]`, a view of some episodes of any source.
 //! - `fingerprint`: the content hash that tells the plan whether a source changed.
+//! - `detect`: which layout a path holds, and the keys a source offers before any is mapped
+//!   (`chunkc init`, `chunkc inspect`).
 
 mod aloha;
 pub mod block_cache;
 pub mod block_map;
 pub mod check;
+pub mod detect;
 mod dp_zarr;
 pub mod fingerprint;
 mod h5;

@@ -19,6 +19,23 @@ def model_tier(module: str):
     return pytest.importorskip(module, reason=f"{module} is not installed: {tier_line()}")
 
 
+# LeRobot's video backends, its default first. `LeRobotDataset(video_backend=None)` takes
+# torchcodec whenever it is installed (lerobot.datasets.video_utils.get_safe_default_codec), and
+# torchcodec loads the system FFmpeg: a test that only tried pyav would pass on a machine where
+# every user with LeRobot's defaults fails to read a frame.
+VIDEO_BACKENDS = [pytest.param(None, id="default-torchcodec"), pytest.param("pyav", id="pyav")]
+
+
+def lerobot_dataset(repo_id: str, root, backend=None):
+    """`LeRobotDataset` over a local set with the video backend `backend` (None: LeRobot's
+    default, which must then be torchcodec, the model tier installs it)."""
+    LeRobotDataset = model_tier("lerobot.datasets.lerobot_dataset").LeRobotDataset
+    ds = LeRobotDataset(repo_id, root=root, video_backend=backend)
+    if backend is None:
+        assert ds.video_backend == "torchcodec", f"LeRobot's default backend is {ds.video_backend}"
+    return ds
+
+
 def tier_line() -> str:
     """What scripts/setup.sh installed into the venv, and why (its .chunkc-tier file)."""
     marker = Path(sys.prefix) / ".chunkc-tier"

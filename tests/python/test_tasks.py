@@ -15,7 +15,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import REPO, model_tier, run_chunkc, write_spec
+import conftest
+from conftest import REPO, run_chunkc, write_spec
 from test_rlds import BRIDGE, BRIDGE_CHANNELS, VERSION, read_split, rlds_spec
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
@@ -32,9 +33,8 @@ def exported_tasks(root: Path):
     return [(int(e), tasks.iloc[int(t)].name) for e, t in zip(data.episode_index, data.task_index)]
 
 
-def lerobot_dataset(root: Path):
-    LeRobotDataset = model_tier("lerobot.datasets.lerobot_dataset").LeRobotDataset
-    return LeRobotDataset("chunkc/tasks", root=root)
+def lerobot_dataset(root: Path, backend=None):
+    return conftest.lerobot_dataset("chunkc/tasks", root, backend)
 
 
 @pytest.fixture(scope="module")
@@ -93,9 +93,12 @@ def test_a_lerobot_sources_tasks_carry_over(tmp_path, fixture):
     meta_json = json.loads((tmp_path / "out" / "h" / "meta.json").read_text())
     assert meta_json["tasks"] == {str(e): t for e, t in want.items()}
     if fixture.endswith("av1"):
-        # LeRobot on both sides: the source's item["task"] is the export's.
-        src, out = lerobot_dataset(source), lerobot_dataset(tmp_path / "out" / "lr")
-        assert [src[i]["task"] for i in range(len(src))] == [out[i]["task"] for i in range(len(out))]
+        # LeRobot on both sides, with each video backend (its default first): the source's
+        # item["task"] is the export's.
+        for backend in (None, "pyav"):
+            src = lerobot_dataset(source, backend)
+            out = lerobot_dataset(tmp_path / "out" / "lr", backend)
+            assert [src[i]["task"] for i in range(len(src))] == [out[i]["task"] for i in range(len(out))]
 
 
 def test_a_source_without_tasks_gets_the_default_task_as_a_string(tmp_path):

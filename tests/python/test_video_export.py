@@ -1,5 +1,6 @@
 """LeRobot exports with video (`format = "parquet"`, `image_encoding = "video"`) and `chunkc synth
---format lerobot --cameras N`: LeRobot's own `LeRobotDataset` (pyav backend) opens them, the
+--format lerobot --cameras N`: LeRobot's own `LeRobotDataset` opens them with both its video
+backends (its default, torchcodec, and pyav), the
 low-dim values are the source's exactly, every frame is within PSNR 35 dB of the source frame,
 `meta/info.json`'s video block is what LeRobot's `get_video_info` reads from the file, and the
 bytes do not depend on the thread count.
@@ -16,7 +17,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import PUSHT, load_dataset, model_tier, run_chunkc, write_spec
+from conftest import (PUSHT, VIDEO_BACKENDS, lerobot_dataset, load_dataset, model_tier,
+                      run_chunkc, write_spec)
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
@@ -32,11 +34,6 @@ def video_build(tmp_path_factory):
     if proc.returncode != 0 and "`video` cargo feature" in proc.stderr:
         pytest.skip("chunkc was built without the `video` cargo feature")
     assert proc.returncode == 0, proc.stderr
-
-
-def lerobot_dataset(root):
-    LeRobotDataset = model_tier("lerobot.datasets.lerobot_dataset").LeRobotDataset
-    return LeRobotDataset("chunkc/test", root=root, video_backend="pyav")
 
 
 def as_uint8(chw):
@@ -94,7 +91,8 @@ def build_aloha(tmp_path, name, threads, crf=None):
     return source, work / "out" / "lr"
 
 
-def test_aloha_export_opens_with_lerobot_exact_low_dim_and_psnr(tmp_path):
+@pytest.mark.parametrize("backend", VIDEO_BACKENDS)
+def test_aloha_export_opens_with_lerobot_exact_low_dim_and_psnr(tmp_path, backend):
     source, root = build_aloha(tmp_path, "a", 2)
     check_video_features(root)
     meta = json.loads((root / "meta.json").read_text())
@@ -103,7 +101,7 @@ def test_aloha_export_opens_with_lerobot_exact_low_dim_and_psnr(tmp_path):
     state = np.concatenate([f["observations/qpos"][:] for f in files])
     cams = {c: np.concatenate([f[f"observations/images/cam{c}"][:] for f in files]) for c in range(2)}
 
-    ds = lerobot_dataset(root)
+    ds = lerobot_dataset("chunkc/test", root, backend)
     assert len(ds) == len(action) == ds.meta.total_frames
     assert ds.meta.video_keys == ["observation.cam0", "observation.cam1"]
     worst = np.inf
@@ -151,7 +149,8 @@ def test_episode_video_columns_locate_every_episode(tmp_path):
     assert "observation.cam0" not in names and "action" in names
 
 
-def test_pusht_export(tmp_path, raw):
+@pytest.mark.parametrize("backend", VIDEO_BACKENDS)
+def test_pusht_export(tmp_path, raw, backend):
     """Push-T's 96x96 renderings have hard edges; at LeRobot's crf 30 the worst frame is about
     33 dB (see video-export.md), so this profile asks for crf 15."""
     spec = write_spec(tmp_path, '[profiles.lr]\npreset = "lerobot_act"\nformat = "parquet"\n'
@@ -168,7 +167,7 @@ def test_pusht_export(tmp_path, raw):
     assert frames.shape == img.shape
     worst = min(psnr(f, np.asarray(s, dtype=np.uint8)) for f, s in zip(frames, img))
     assert worst >= PSNR_DB, f"worst frame {worst:.2f} dB"
-    ds = lerobot_dataset(root)
+    ds = lerobot_dataset("chunkc/test", root, backend)
     assert len(ds) == len(img)
     for i in sorted({0, 1, len(ds) - 1, *meta["episode_ends"][:-1], *range(0, len(ds), 101)}):
         item = ds[i]
@@ -178,7 +177,8 @@ def test_pusht_export(tmp_path, raw):
         np.testing.assert_array_equal(as_uint8(item["observation.image"]), frames[i])
 
 
-def test_synth_lerobot_cameras_open_with_lerobot(tmp_path):
+@pytest.mark.parametrize("backend", VIDEO_BACKENDS)
+def test_synth_lerobot_cameras_open_with_lerobot(tmp_path, backend):
     """`synth --format lerobot --cameras 2`: the same options give the same trajectories and
     frames in every layout, so the ALOHA files of the same seed are the oracle."""
     opts = ["--episodes", 3, "--steps", 30, "--cameras", 2, "--action-dim", 4, "--state-dim", 4,
@@ -187,7 +187,7 @@ def test_synth_lerobot_cameras_open_with_lerobot(tmp_path):
     run_chunkc("synth", tmp_path / "al", "--format", "aloha-hdf5", *opts)
     root = tmp_path / "le" / "lerobot"
     check_video_features(root)
-    ds = lerobot_dataset(root)
+    ds = lerobot_dataset("chunkc/test", root, backend)
     assert len(ds) == 90
     assert ds.meta.video_keys == ["observation.images.cam0", "observation.images.cam1"]
     worst = np.inf

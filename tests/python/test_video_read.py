@@ -1,8 +1,9 @@
 """Reading LeRobot camera videos (issue 19): every frame chunkc decodes equals LeRobot's own.
 
-The oracle is LeRobot 0.4.4 itself: `LeRobotDataset(..., video_backend="pyav")[i]` for the
-v3.0 AV1 fixture (written by LeRobot's writer), and `decode_video_frames(..., "pyav")`, the
-function `LeRobotDataset` calls, for the v2.1 H.264 / MPEG-4 fixture (lerobot 0.4.4 no longer
+The oracle is LeRobot 0.4.4 itself, with each of its video backends (its default, torchcodec,
+then pyav): `LeRobotDataset(..., video_backend=...)[i]` for the v3.0 AV1 fixture (written by
+LeRobot's writer), and `decode_video_frames(..., backend)`, the function `LeRobotDataset` calls,
+for the v2.1 H.264 / MPEG-4 fixture (lerobot 0.4.4 no longer
 opens v2.1 datasets). uint8 = round(float frame x 255). chunkc's frames are read back from an
 HDF5 profile with h5py. Fixtures: tests/fixtures/make_video.py.
 
@@ -22,7 +23,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import REPO, model_tier, run_chunkc
+from conftest import REPO, VIDEO_BACKENDS, lerobot_dataset, model_tier, run_chunkc
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
@@ -100,9 +101,9 @@ def v3_build(tmp_path_factory):
     return d / "out"
 
 
-def test_v3_av1_frames_equal_lerobot(v3_build):
-    LeRobotDataset = model_tier("lerobot.datasets.lerobot_dataset").LeRobotDataset
-    ds = LeRobotDataset("chunkc/pusht_video_v3", root=V3, video_backend="pyav")
+@pytest.mark.parametrize("backend", VIDEO_BACKENDS)
+def test_v3_av1_frames_equal_lerobot(v3_build, backend):
+    ds = lerobot_dataset("chunkc/pusht_video_v3", V3, backend)
     ours = {c: frames_by_episode(v3_build, c) for c in ("observation.image", "observation.wrist")}
     differing = 0
     for i in range(len(ds)):
@@ -114,22 +115,23 @@ def test_v3_av1_frames_equal_lerobot(v3_build):
     print(f"v3 AV1: {differing} values differ")
 
 
-def v21_reference(root: Path, e: int):
+def v21_reference(root: Path, e: int, backend: str):
     decode_video_frames = model_tier("lerobot.datasets.video_utils").decode_video_frames
 
     ts = pq.read_table(root / f"data/chunk-000/episode_{e:06d}.parquet")["timestamp"].to_pylist()
     video = root / f"videos/chunk-000/{TOP}/episode_{e:06d}.mp4"
-    return to_u8(decode_video_frames(video, ts, 1e-4, "pyav").numpy())
+    return to_u8(decode_video_frames(video, ts, 1e-4, backend).numpy())
 
 
-def test_v21_h264_and_mpeg4_frames_equal_lerobot(tmp_path):
+@pytest.mark.parametrize("backend", ["torchcodec", "pyav"])
+def test_v21_h264_and_mpeg4_frames_equal_lerobot(tmp_path, backend):
     proc = build(spec(tmp_path, V21, {"observation.image": TOP}))
     # info.json says h264; episode 2 holds MPEG-4 part 2: the stream wins, with a warning.
     assert "says `video.codec` is `h264`" in proc.stderr and "mpeg4" in proc.stderr, proc.stderr
     ours = frames_by_episode(tmp_path / "out", "observation.image")
     assert sorted(ours) == [0, 1, 2]
     for e in ours:
-        n = compare(ours[e], v21_reference(V21, e), f"v2.1 episode {e}")
+        n = compare(ours[e], v21_reference(V21, e, backend), f"v2.1 episode {e} ({backend})")
         print(f"v2.1 episode {e}: {n} values differ")
 
 

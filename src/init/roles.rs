@@ -1,0 +1,340 @@
+//! What each key a source offers is for, and the chunkc channel name it gets: the one `action`,
+//! the robot state the presets call `observation.state`, cameras, point clouds, other
+//! observations, and the bookkeeping columns a spec never maps.
+//!
+//! Names follow the sources' own conventions: a LeRobot dataset's keys are already chunkc names
+//! and are kept; elsewhere one camera is `observation.image` (Push-T's and Diffusion Policy's
+//! name), several are `observation.images.<leaf>` (LeRobot's), the state is
+//! `observation.state`, any other observation `observation.<leaf>`.
+
+use serde::Serialize;
+
+use crate::source::mapping::KeyInfo;
+use crate::source::{kind_for_shape, ChannelKind};
+use crate::spec::SourceFormat;
+
+/// What a key holds, as `chunkc inspect` lists it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    Action,
+    State,
+    /// A camera: frames in the source (`image`) or in video files (`video`).
+    Image,
+    Video,
+    PointCloud,
+    /// Another low-dimensional observation (mapped).
+    Observation,
+    /// Low-dimensional, but not under an observation group: listed, commented out in the spec.
+    Unmapped,
+    /// Indices, timestamps, rewards, episode markers: never a channel.
+    Bookkeeping,
+    /// A shape chunkc cannot read as a channel.
+    Unusable,
+}
+
+impl Role {
+    pub fn word(self) -> &'static str {
+        match self {
+            Role::Action => "action",
+            Role::State => "state",
+            Role::Image => "image",
+            Role::Video => "video",
+            Role::PointCloud => "point cloud",
+            Role::Observation => "observation",
+            Role::Unmapped => "low-dim (not mapped)",
+            Role::Bookkeeping => "bookkeeping",
+            Role::Unusable => "unusable",
+        }
+    }
+
+    pub fn is_camera(self) -> bool {
+        matches!(self, Role::Image | Role::Video)
+    }
+}
+
+/// One key, what it is for, and how the spec maps it.
+#[derive(Debug, Clone, Serialize)]
+pub struct KeyRole {
+    pub key: String,
+    pub shape: Vec<usize>,
+    pub dtype: String,
+    pub role: Role,
+    /// The channel name it maps to (`None`: not mapped).
+    pub channel: Option<String>,
+    /// Only some columns (`[start, end)`), when the key holds more than the channel.
+    pub columns: Option<[usize; 2]>,
+    /// Why it was mapped or left out, where that was a guess.
+    pub note: Option<String>,
+}
+
+/// The last path component: `observations/images/top` -> `top`, `observation.images.top` -> `top`.
+fn leaf(key: &str) -> &str {
+    key.rsplit(['/', '.']).next().unwrap_or(key)
+}
+
+fn clean(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' || c == '.' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+const BOOKKEEPING: &[&str] = &[
+    "timestamp",
+    "timestamps",
+    "frame_index",
+    "episode_index",
+    "index",
+    "task_index",
+    "is_first",
+    "is_last",
+    "is_terminal",
+    "discount",
+    "reward",
+    "rewards",
+    "done",
+    "dones",
+    "success",
+    // ALOHA's JPEG episodes: each frame's compressed length, per camera.
+    "compress_len",
+];
+
+const STATE_NAMES: &[&str] = &[
+    "state",
+    "qpos",
+    "proprio",
+    "proprioception",
+    "robot_state",
+    "joint_positions",
+    "joint_pos",
+    "joint_position",
+];
+
+/// Whether a key sits in an observation group (`obs/…`, `observations/…`,
+/// `steps/observation/…`, LeRobot's `observation.…`) or is a Diffusion Policy zarr array (whose
+/// arrays are all per-step data).
+fn in_observation_group(key: &str, format: SourceFormat) -> bool {
+    format == SourceFormat::DiffusionPolicyZarr
+        || key
+            .split(['/', '.'])
+            .any(|p| matches!(p, "obs" | "observation" | "observations"))
+}
+
+fn is_point_cloud(shape: &[usize], key: &str) -> bool {
+    let named = key.contains("point_cloud") || key.contains("pointcloud") || leaf(key) == "pcd";
+    shape.len() == 2 && matches!(shape[1], 3 | 6) && (shape[0] >= 16 || named)
+}
+
+/// Decides every key's role and channel name.
+// Long function: the action, then the state, then every other channel's name, each pass seeing what the one before took.
+pub fn assign(format: SourceFormat, keys: &[KeyInfo], robosuite_clock: bool) -> Vec<KeyRole> {
+    let mut rows: Vec<KeyRole> = keys
+        .iter()
+        .map(|k| KeyRole {
+            key: k.key.clone(),
+            shape: k.shape.clone(),
+            dtype: k.dtype.clone(),
+            role: first_role(format, k),
+            channel: None,
+            columns: None,
+            note: None,
+        })
+        .collect();
+
+    // The action: the shortest key whose leaf is `action` / `actions`.
+    let action = rows
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.role == Role::Observation || r.role == Role::Unmapped)
+        .filter(|(_, r)| matches!(leaf(&r.key), "action" | "actions"))
+        .min_by_key(|(_, r)| r.key.len())
+        .map(|(i, _)| i);
+    if let Some(i) = action {
+        rows[i].role = Role::Action;
+        rows[i].channel = Some("action".into());
+    }
+
+    // The state: a key named like one, in an observation group, else robosuite's `states`.
+    let state = rows
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.role == Role::Observation && r.shape.len() == 1)
+        .filter(|(_, r)| STATE_NAMES.contains(&leaf(&r.key)))
+        .min_by_key(|(_, r)| r.key.len())
+        .map(|(i, _)| i);
+    if let Some(i) = state {
+        rows[i].role = Role::State;
+        rows[i].channel = Some("observation.state".into());
+    } else if robosuite_clock {
+        if let Some(r) = rows
+            .iter_mut()
+            .find(|r| r.key == "states" && r.shape.len() == 1)
+        {
+            r.role = Role::State;
+            r.channel = Some("observation.state".into());
+            r.columns = Some([1, r.shape[0]]);
+            r.note = Some(
+                "robosuite's simulator state without its clock (column 0 is the time chunkc reads as timestamps)"
+                    .into(),
+            );
+        }
+    }
+
+    let cameras = rows.iter().filter(|r| r.role.is_camera()).count();
+    let lerobot = format == SourceFormat::Lerobot;
+    let mut taken: Vec<String> = rows.iter().filter_map(|r| r.channel.clone()).collect();
+    for r in rows.iter_mut().filter(|r| r.channel.is_none()) {
+        let mappable = matches!(
+            r.role,
+            Role::Image | Role::Video | Role::PointCloud | Role::Observation
+        );
+        let name = match r.role {
+            _ if !mappable => None,
+            _ if lerobot && r.key.starts_with("observation.") => Some(r.key.clone()),
+            Role::Image | Role::Video if cameras == 1 => Some("observation.image".into()),
+            Role::Image | Role::Video => {
+                Some(format!("observation.images.{}", clean(leaf(&r.key))))
+            }
+            Role::PointCloud => Some(format!("observation.{}", clean(leaf(&r.key)))),
+            Role::Observation => Some(format!("observation.{}", clean(leaf(&r.key)))),
+            _ => None,
+        };
+        let Some(mut name) = name else { continue };
+        if taken.contains(&name) {
+            // Two leaves alike (`obs/a/pos`, `obs/b/pos`): the whole key names it.
+            name = format!("observation.{}", clean(&r.key.replace('/', "_")));
+        }
+        if taken.contains(&name) {
+            continue;
+        }
+        taken.push(name.clone());
+        r.channel = Some(name);
+    }
+    for r in rows.iter_mut().filter(|r| r.role == Role::Unmapped) {
+        r.note = Some(format!(
+            "not in an observation group; uncomment to use it as `observation.{}`",
+            clean(leaf(&r.key))
+        ));
+    }
+    if robosuite_clock {
+        for r in rows.iter_mut().filter(|r| r.role == Role::Unmapped) {
+            r.note = Some("robosuite records it beside the states; uncomment to observe it".into());
+        }
+    }
+    rows
+}
+
+/// The role a key has on its own (before the action and the state are picked).
+fn first_role(format: SourceFormat, k: &KeyInfo) -> Role {
+    if matches!(k.dtype.as_str(), "video") {
+        return Role::Video;
+    }
+    if BOOKKEEPING.contains(&leaf(&k.key)) || k.key.starts_with("next.") {
+        return Role::Bookkeeping;
+    }
+    if k.width() == 0 {
+        return Role::Unusable;
+    }
+    if is_point_cloud(&k.shape, &k.key) {
+        return Role::PointCloud;
+    }
+    match kind_for_shape(&k.shape) {
+        Ok(ChannelKind::Image) => Role::Image,
+        Ok(ChannelKind::Lowdim) if matches!(leaf(&k.key), "action" | "actions") => {
+            Role::Observation
+        }
+        Ok(ChannelKind::Lowdim) if in_observation_group(&k.key, format) => Role::Observation,
+        Ok(ChannelKind::Lowdim) => Role::Unmapped,
+        Err(_) => Role::Unusable,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn key(k: &str, shape: &[usize], dtype: &str) -> KeyInfo {
+        KeyInfo {
+            key: k.into(),
+            shape: shape.to_vec(),
+            dtype: dtype.into(),
+        }
+    }
+
+    fn channel(rows: &[KeyRole], k: &str) -> Option<String> {
+        rows.iter().find(|r| r.key == k).unwrap().channel.clone()
+    }
+
+    #[test]
+    fn aloha_keys() {
+        let rows = assign(
+            SourceFormat::AlohaHdf5,
+            &[
+                key("action", &[14], "float32"),
+                key("observations/qpos", &[14], "float32"),
+                key("observations/qvel", &[14], "float32"),
+                key("observations/images/top", &[480, 640, 3], "uint8"),
+                key("observations/images/left_wrist", &[480, 640, 3], "jpeg"),
+            ],
+            false,
+        );
+        assert_eq!(channel(&rows, "action").as_deref(), Some("action"));
+        assert_eq!(
+            channel(&rows, "observations/qpos").as_deref(),
+            Some("observation.state")
+        );
+        assert_eq!(
+            channel(&rows, "observations/qvel").as_deref(),
+            Some("observation.qvel")
+        );
+        assert_eq!(
+            channel(&rows, "observations/images/top").as_deref(),
+            Some("observation.images.top")
+        );
+    }
+
+    #[test]
+    fn lerobot_keeps_names_and_skips_bookkeeping() {
+        let rows = assign(
+            SourceFormat::Lerobot,
+            &[
+                key("action", &[2], "float32"),
+                key("observation.state", &[2], "float32"),
+                key("observation.image", &[96, 96, 3], "video"),
+                key("timestamp", &[1], "float32"),
+                key("next.reward", &[1], "float32"),
+            ],
+            false,
+        );
+        assert_eq!(
+            channel(&rows, "observation.image").as_deref(),
+            Some("observation.image")
+        );
+        assert_eq!(channel(&rows, "timestamp"), None);
+        assert_eq!(channel(&rows, "next.reward"), None);
+        assert_eq!(rows[2].role, Role::Video);
+    }
+
+    #[test]
+    fn robosuite_states_lose_the_clock() {
+        let rows = assign(
+            SourceFormat::RobomimicHdf5,
+            &[
+                key("actions", &[7], "float32"),
+                key("states", &[32], "float64"),
+                key("joint_torques", &[7], "float64"),
+            ],
+            true,
+        );
+        let s = rows.iter().find(|r| r.key == "states").unwrap();
+        assert_eq!(s.columns, Some([1, 32]));
+        assert_eq!(channel(&rows, "joint_torques"), None);
+        assert_eq!(rows[2].role, Role::Unmapped);
+    }
+}
