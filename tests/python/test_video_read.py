@@ -115,7 +115,7 @@ def test_v3_av1_frames_equal_lerobot(v3_build, backend):
     print(f"v3 AV1: {differing} values differ")
 
 
-def v21_reference(root: Path, e: int, backend: str):
+def v21_reference(root: Path, e: int, backend: str = "pyav"):
     decode_video_frames = model_tier("lerobot.datasets.video_utils").decode_video_frames
 
     ts = pq.read_table(root / f"data/chunk-000/episode_{e:06d}.parquet")["timestamp"].to_pylist()
