@@ -160,17 +160,30 @@ pub fn assign(format: SourceFormat, keys: &[KeyInfo], robosuite_clock: bool) -> 
         rows[i].channel = Some("action".into());
     }
 
-    // The state: a key named like one, in an observation group, else robosuite's `states`.
-    let state = rows
-        .iter()
-        .enumerate()
-        .filter(|(_, r)| r.role == Role::Observation && r.shape.len() == 1)
-        .filter(|(_, r)| STATE_NAMES.contains(&leaf(&r.key)))
-        .min_by_key(|(_, r)| r.key.len())
-        .map(|(i, _)| i);
-    if let Some(i) = state {
+    // The state: a key named like one, in an observation group; else one whose name ends like
+    // one (robomimic's `obs/robot0_joint_pos`); else robosuite's `states`.
+    let candidates = |exact: bool| {
+        rows.iter()
+            .enumerate()
+            .filter(|(_, r)| r.role == Role::Observation && r.shape.len() == 1)
+            .filter(move |(_, r)| {
+                let l = leaf(&r.key);
+                if exact {
+                    STATE_NAMES.contains(&l)
+                } else {
+                    STATE_NAMES.iter().any(|s| l.ends_with(&format!("_{s}")))
+                }
+            })
+            .min_by_key(|(_, r)| r.key.len())
+            .map(|(i, _)| i)
+    };
+    let (exact, suffix) = (candidates(true), candidates(false));
+    if let Some(i) = exact.or(suffix) {
         rows[i].role = Role::State;
         rows[i].channel = Some("observation.state".into());
+        if exact.is_none() {
+            rows[i].note = Some("guessed as the robot state from its name".into());
+        }
     } else if robosuite_clock {
         if let Some(r) = rows
             .iter_mut()
@@ -319,6 +332,32 @@ mod tests {
         assert_eq!(channel(&rows, "timestamp"), None);
         assert_eq!(channel(&rows, "next.reward"), None);
         assert_eq!(rows[2].role, Role::Video);
+    }
+
+    #[test]
+    fn robomimic_joint_positions_are_the_state() {
+        let rows = assign(
+            SourceFormat::RobomimicHdf5,
+            &[
+                key("actions", &[7], "float32"),
+                key("obs/robot0_eef_pos", &[3], "float64"),
+                key("obs/robot0_joint_pos", &[7], "float64"),
+                key("obs/agentview_image", &[84, 84, 3], "uint8"),
+            ],
+            false,
+        );
+        assert_eq!(
+            channel(&rows, "obs/robot0_joint_pos").as_deref(),
+            Some("observation.state")
+        );
+        assert_eq!(
+            channel(&rows, "obs/robot0_eef_pos").as_deref(),
+            Some("observation.robot0_eef_pos")
+        );
+        assert_eq!(
+            channel(&rows, "obs/agentview_image").as_deref(),
+            Some("observation.image")
+        );
     }
 
     #[test]
