@@ -280,6 +280,9 @@ fn run(cli: Cli) -> Result<(), Error> {
             let spec = LoadedSpec::load(&spec)?;
             let (report, paths) = commands::audit_report(&spec)?;
             print!("{}", report.summary());
+            if let Some(doctor) = report.doctor_seconds {
+                eprintln!("the dataset doctor took {doctor:.2} s");
+            }
             eprintln!(
                 "wrote {} and {}",
                 tidy(&paths[0]).display(),
@@ -394,6 +397,12 @@ fn print_build(report: &commands::BuildReport) {
         if !report.up_to_date.is_empty() {
             eprintln!("up to date: {}", report.up_to_date.join(", "));
         }
+    }
+    if let Some(doctor) = report.doctor_seconds {
+        eprintln!(
+            "the dataset doctor took {doctor:.2} s of {:.2} s (on by default; `[audit.doctor] enabled = false` skips it)",
+            report.seconds
+        );
     }
 }
 

@@ -159,8 +159,13 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
         examples: Vec::new(),
         video,
         doctor: None,
+        doctor_seconds: None,
     };
+    let started = std::time::Instant::now();
     doctor::run(spec, source, &mut report, &mut repairs)?;
+    if report.doctor.is_some() {
+        report.doctor_seconds = Some(started.elapsed().as_secs_f64());
+    }
     Ok((report, repairs))
 }
 

@@ -34,6 +34,10 @@ pub struct AuditReport {
     /// The dataset doctor's dataset-wide results (`[audit.doctor]`); absent when it did not run.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub doctor: Option<super::doctor::DoctorSummary>,
+    /// Wall seconds the doctor took (`None`: it did not run). Printed by `build` and `audit`,
+    /// kept out of `audit.json`, whose bytes depend only on the source and the spec.
+    #[serde(skip)]
+    pub doctor_seconds: Option<f64>,
 }
 
 /// One episode's camera video checked against its rows: the frame count and pts regularity

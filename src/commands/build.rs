@@ -37,6 +37,10 @@ pub struct BuildReport {
     /// see [`source::block_cache`]): 1 each when anything was built, whatever the source's
     /// chunking; empty when nothing was.
     pub block_decodes: source::DecodeCounts,
+    /// Wall seconds of the dataset doctor (on by default), when it ran: `build` says what it cost.
+    pub doctor_seconds: Option<f64>,
+    /// Wall seconds of the whole command.
+    pub seconds: f64,
 }
 
 /// A build that committed: the plan it followed, the profiles it built and their files' hashes.
@@ -49,6 +53,7 @@ struct Committed {
 
 pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let whole = timings::phase("whole build");
+    let started = std::time::Instant::now();
     let out_dir = spec.resolve(&spec.spec.output.dir);
     // Never create anything (not even the lock) inside a source.
     spec::check_output_location(spec, &out_dir)?;
@@ -56,6 +61,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     // Repair what an interrupted build left, before the plan compares outputs with the lock.
     Staging::recover(&out_dir)?;
     let (source, plan) = super::plan(spec)?;
+    let doctor_seconds = plan.audit.doctor_seconds;
     let (stale, up_to_date): (Vec<&ProfilePlan>, Vec<&ProfilePlan>) = plan
         .profiles
         .iter()
@@ -68,6 +74,8 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
             up_to_date,
             episode_reads: Vec::new(),
             block_decodes: Default::default(),
+            doctor_seconds,
+            seconds: started.elapsed().as_secs_f64(),
         });
     }
     if opts.locked {
@@ -119,6 +127,8 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         up_to_date,
         episode_reads: reads.into_iter().map(AtomicUsize::into_inner).collect(),
         block_decodes: committed.block_decodes,
+        doctor_seconds,
+        seconds: started.elapsed().as_secs_f64(),
     })
 }
 

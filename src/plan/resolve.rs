@@ -140,6 +140,7 @@ pub fn apply_audit(plan: &mut Plan, report: &AuditReport, applied: bool) {
         repaired_fraction: report.repaired_fraction,
         excluded_fraction: report.excluded_fraction,
         warnings: report.warnings.clone(),
+        doctor_seconds: report.doctor_seconds,
     };
     for p in &mut plan.profiles {
         for e in &report.episodes {

@@ -42,6 +42,10 @@ pub struct AuditSummary {
     pub repaired_fraction: f64,
     pub excluded_fraction: f64,
     pub warnings: Vec<String>,
+    /// Wall seconds the dataset doctor took, when it ran (not in the plan's JSON, which depends
+    /// only on the spec, the source and the lock).
+    #[serde(skip)]
+    pub doctor_seconds: Option<f64>,
 }
 
 /// An episode the audit repaired before anything else happens to it.

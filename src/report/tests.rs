@@ -92,6 +92,7 @@ pub(crate) fn sample_audit() -> AuditReport {
         }],
         video: Vec::new(),
         doctor: None,
+        doctor_seconds: None,
         episodes,
     }
 }

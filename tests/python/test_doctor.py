@@ -127,3 +127,21 @@ if __name__ == "__main__":
     kinds = {v: k for k, v in FLAG_OF.items()}
     for flag, (tp, fn, fp) in table.items():
         print(f"{kinds[flag]:<18} {flag:<17} {tp:>4} {fn:>4} {fp:>4} {tp / max(tp + fn, 1):>7.3f} {tp / max(tp + fp, 1):>9.3f}")
+
+
+def test_build_says_what_the_doctor_cost(tmp_path):
+    """The doctor is on by default, so `build` prints its share of the wall time; with the doctor
+    off it says nothing of it, and audit.json (deterministic) never holds a time."""
+    run_chunkc("synth", tmp_path / "s", "--format", "aloha-hdf5", "--episodes", 6, "--steps", 60)
+    spec = tmp_path / "s" / "spec.toml"
+    proc = run_chunkc("build", "-q", spec)
+    line = [l for l in proc.stderr.splitlines() if l.startswith("the dataset doctor took")]
+    assert len(line) == 1, proc.stderr
+    doctor, whole = (float(w) for w in line[0].split() if w.replace(".", "").isdigit())
+    assert 0 <= doctor <= whole
+    assert "the dataset doctor took" in run_chunkc("audit", spec).stderr
+    audit = (tmp_path / "s" / "out" / "audit" / "audit.json").read_text()
+    assert "seconds" not in audit
+    spec.write_text(spec.read_text() + "\n[audit.doctor]\nenabled = false\n")
+    proc = run_chunkc("build", "-q", spec)
+    assert "doctor" not in proc.stderr, proc.stderr
