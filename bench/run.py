@@ -19,7 +19,10 @@ then measures wall time, CPU time (user + sys) and peak RSS (`/usr/bin/time`) of
 of 400 steps, 14-D action and state, generated with `chunkc synth --format diffusion-policy-zarr`)
 in three chunkings: one chunk per episode (`episode`), 36,000-row chunks (Diffusion Policy's
 ~2 MB target, `dp`), and zarr-python's default for a (2,000,000, 14) float32 array, (125000, 2)
-(`zarr_default`, which also splits the columns). Per layout: chunkc, the numpy pipeline
+(`zarr_default`, which also splits the columns). chunkc builds with the DEFAULT spec (the
+dataset doctor on, as every user gets it) and, beside it, with `[audit.doctor] enabled = false`
+(issue 30: the doctor may add at most 15%); on the one-chunk-per-episode layout also with one
+thread, both ways. Per layout: chunkc, the numpy pipeline
 (`--zarr`: zarr-python reads each array whole), the I/O floor, and chunkc on N/2 episodes (peak
 RSS flat from N/2 to N).
 
@@ -125,10 +128,12 @@ def synth_zarr(work, layout, episodes, steps):
                        args)
 
 
-def zarr_spec(root, out):
+def zarr_spec(root, out, doctor=True):
+    """The DEFAULT spec (the dataset doctor on), or with `[audit.doctor] enabled = false`."""
+    off = "" if doctor else "[audit.doctor]\nenabled = false\n"
     text = (f'version = 1\n[source]\nformat = "diffusion_policy_zarr"\n'
             f'path = "{root / "replay.zarr"}"\nfps = 50\n[source.channels]\naction = "action"\n'
-            f'"observation.state" = "state"\n'
+            f'"observation.state" = "state"\n{off}'
             f'[split]\nval_fraction = 0.1\nseed = 0\n[output]\ndir = "{out}"\n{ONE}')
     path = out.parent / f"{out.name}.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -136,9 +141,9 @@ def zarr_spec(root, out):
     return path
 
 
-def zarr_chunkc(work, label, root):
+def zarr_chunkc(work, label, root, doctor=True, threads=2):
     out = work / "runs" / label
-    path = zarr_spec(root, out)
+    path = zarr_spec(root, out, doctor)
     lock = out.parent / "chunkc.lock"
 
     def clean():
@@ -146,7 +151,7 @@ def zarr_chunkc(work, label, root):
         lock.unlink(missing_ok=True)
 
     clean()
-    return Case(label, [BIN, "build", "-q", "-j", 2, path], before=clean,
+    return Case(label, [BIN, "build", "-q", "-j", threads, path], before=clean,
                 after=lambda: {"output_bytes": du(out)}), out
 
 
@@ -388,10 +393,18 @@ def main():
                             '> /dev/null'], check=True)
             one, out = zarr_chunkc(work, f"zarr_{layout}_1p", root)
             log(f"zarr {layout}, interleaved")
-            measure([zarr_numpy(work, f"zarr_{layout}_numpy", root), one,
+            group = [zarr_numpy(work, f"zarr_{layout}_numpy", root), one,
                      zarr_floor(work, f"zarr_{layout}_floor", root, out),
-                     zarr_chunkc(work, f"zarr_{layout}_1p_half", half)[0]])
-            for label in (f"zarr_{layout}_1p", f"zarr_{layout}_1p_half"):
+                     zarr_chunkc(work, f"zarr_{layout}_1p_half", half)[0],
+                     zarr_chunkc(work, f"zarr_{layout}_nodoctor", root, doctor=False)[0]]
+            if layout == "episode":
+                group.append(zarr_chunkc(work, f"zarr_{layout}_1p_1thread", root, threads=1)[0])
+                group.append(zarr_chunkc(work, f"zarr_{layout}_nodoctor_1thread", root,
+                                         doctor=False, threads=1)[0])
+            measure(group)
+            for label in (f"zarr_{layout}_1p", f"zarr_{layout}_1p_half",
+                          f"zarr_{layout}_nodoctor", f"zarr_{layout}_1p_1thread",
+                          f"zarr_{layout}_nodoctor_1thread"):
                 shutil.rmtree(work / "runs" / label, ignore_errors=True)
     if "images" in parts:
         n = size["images"]["episodes"]
@@ -458,6 +471,16 @@ def main():
                 pair(f"{z}_1p", f"{z}_1p_half", "peak_rss_mib"), "<= 1.1", lambda v: v <= 1.1)
             row(f"zarr {layout}: peak RSS MiB (N, largest run)", peak(f"{z}_1p"), "< 512",
                 lambda v: v < 512)
+            row(f"zarr {layout}: default spec / doctor off (wall)",
+                pair(f"{z}_1p", f"{z}_nodoctor"), "<= 1.15", lambda v: v <= 1.15)
+            row(f"zarr {layout}: numpy pipeline / chunkc doctor off (wall)",
+                pair(f"{z}_numpy", f"{z}_nodoctor"), "(reference)", lambda v: None)
+            if layout == "episode":
+                row(f"zarr {layout}: 1 thread / 2 threads, default spec (wall)",
+                    pair(f"{z}_1p_1thread", f"{z}_1p"), ">= 1.7", lambda v: v >= 1.7)
+                row(f"zarr {layout}: 1 thread / 2 threads, doctor off (wall)",
+                    pair(f"{z}_nodoctor_1thread", f"{z}_nodoctor"), "(reference)",
+                    lambda v: None)
     if "images" in parts:
         row("images: numpy pipeline / chunkc (wall)", pair("images_numpy", "images_1p"),
             ">= 2", lambda v: v >= 2)
