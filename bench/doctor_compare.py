@@ -2,12 +2,18 @@
 not a test; results in book/src/doctor.md).
 
     .venv/bin/python bench/doctor_compare.py [--g1 PATH] [--seeds 0 1 2] [--work DIR]
+    .venv/bin/python bench/doctor_compare.py --tracking [--seeds 0 1 2]
 
 For each synthetic fault set (`chunkc synth --format lerobot`, 200 episodes, the seven faults of
 tests/python/test_doctor.py each in its own known 10%) and, given `--g1`, the LeRobot G1 set
 (e.g. ../shared/data/lerobot-g1), it runs `chunkc audit` (the doctor's flags per episode in
 `audit.json`) and `lerobot-doctor check --json` (every message that is not PASS), and prints:
 per fault kind, the injected episodes each tool flags; then each tool's findings on G1.
+
+`--tracking` does the same on tests/python/tracking_set.py's sets (issue 30: a state that tracks
+the commanded action, spikes and degrees-for-radians planted by a generator independent of
+chunkc's): per doctor flag, chunkc's true positives, misses and false flags, and every
+lerobot-doctor finding that is not PASS.
 """
 
 import argparse
@@ -47,13 +53,55 @@ def lerobot_doctor(root: Path):
             for m in c["messages"] if m["severity"] != "PASS"]
 
 
+def tracking(seeds, work):
+    sys.path.insert(0, str(REPO / "tests" / "python"))
+    import tracking_set
+
+    rows = {flag: [0, 0, 0] for flag in sorted(DOCTOR_FLAGS)}
+    ld_all = set()
+    for seed in seeds:
+        root = work / f"tracking-{seed}"
+        if not (root / "truth.json").exists():
+            tracking_set.write(root, episodes=200, seed=seed)
+        truth = {}
+        for ep, injected in json.loads((root / "truth.json").read_text())["episodes"].items():
+            for f in injected:
+                truth.setdefault({"spike": "jump", "units": "units"}[f["kind"]], set()).add(int(ep))
+        spec = work / f"tracking-{seed}.toml"
+        spec.write_text(f'version = 1\n[source]\nformat = "lerobot"\npath = "{root}"\n'
+                        '[source.channels]\naction = "action"\n"observation.state" = "observation.state"\n'
+                        f'[output]\ndir = "{root}-out"\n[profiles.act]\npreset = "act"\nfps = 10\nchunk = 10\n')
+        flagged, _ = chunkc_flags(spec, Path(f"{root}-out"))
+        for flag, row in rows.items():
+            t, got = truth.get(flag, set()), flagged.get(flag, set())
+            row[0] += len(t & got)
+            row[1] += len(t - got)
+            row[2] += len(got - t)
+        ld_all |= {f"{name}: {sev} {msg}" for name, sev, msg in lerobot_doctor(root)}
+    print(f"Tracking sets, seeds {seeds} (200 episodes each; spikes and units each in 10%)\n")
+    print("| flag | true positives | missed | false positives | recall | precision | lerobot-doctor |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    for flag, (tp, fn, fp) in rows.items():
+        rec = f"{tp / (tp + fn):.3f}" if tp + fn else "-"
+        prec = f"{tp / (tp + fp):.3f}" if tp + fp else "-"
+        print(f"| `{flag}` | {tp} | {fn} | {fp} | {rec} | {prec} | flags no episode |")
+    print("\nlerobot-doctor's findings that are not PASS, on all the tracking sets:")
+    for line in sorted(ld_all):
+        print(f"- {line}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--tracking", action="store_true",
+                    help="the tracking sets of tests/python/tracking_set.py instead")
     ap.add_argument("--g1", type=Path)
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--work", type=Path, default=Path("/tmp/chunkc-doctor-compare"))
     args = ap.parse_args()
     work = args.work.resolve()
+    if args.tracking:
+        work.mkdir(parents=True, exist_ok=True)
+        return tracking(args.seeds, work)
     totals = {flag: [0, 0, 0] for flag in FLAG_OF.values()}  # injected, chunkc found, false flags
     ld_all = set()
     for seed in args.seeds:

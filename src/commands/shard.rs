@@ -77,6 +77,7 @@ fn find_partials(dir: &Path) -> Result<(usize, Vec<PathBuf>)> {
 }
 
 /// `merge --partials DIR`: every profile built from the shards' partials, committed and locked.
+// Long function: the build's sequence (plan, every partial checked, executed from them, commit, lock), each step with its own error.
 pub fn merge(spec: &LoadedSpec, partials: &Path, opts: &BuildOptions) -> Result<BuildReport> {
     let started = std::time::Instant::now();
     let out_dir = spec.resolve(&spec.spec.output.dir);
@@ -85,7 +86,6 @@ pub fn merge(spec: &LoadedSpec, partials: &Path, opts: &BuildOptions) -> Result<
     let mut build_lock = BuildLock::acquire(&out_dir)?;
     Staging::recover(&out_dir)?;
     let (source, plan) = super::plan(spec)?;
-    let doctor_seconds = plan.audit.doctor_seconds;
     let id = shards::plan_id(&plan);
     let lens: Vec<usize> = source.manifest().episodes.iter().map(|e| e.len).collect();
     let assignment = shards::assign(&lens, count);
@@ -156,7 +156,7 @@ pub fn merge(spec: &LoadedSpec, partials: &Path, opts: &BuildOptions) -> Result<
         up_to_date: Vec::new(),
         episode_reads: Vec::new(),
         block_decodes: Default::default(),
-        doctor_seconds,
+        doctor_seconds: plan.audit.doctor_seconds,
         seconds: started.elapsed().as_secs_f64(),
     })
 }

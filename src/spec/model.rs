@@ -304,8 +304,9 @@ pub struct DoctorSpec {
     /// One-step spikes in an action dimension.
     #[serde(default)]
     pub jump: DoctorAction,
-    /// Flag `jump` when a value lies above (or below) both neighbours by more than this many
-    /// robust standard deviations of the dimension's step changes (dataset-wide).
+    /// Flag `jump` when a value lies off the line through its two neighbours by more than this
+    /// many robust standard deviations of the dimension's step changes in the episode (at least
+    /// half the dataset's median), going out and straight back.
     #[serde(default = "default_jump_threshold")]
     pub jump_threshold: f64,
     /// Near-copies of an earlier episode (the later one is flagged).
@@ -360,7 +361,7 @@ fn default_clip_fraction() -> f64 {
     0.05
 }
 fn default_jump_threshold() -> f64 {
-    8.0
+    4.0
 }
 fn default_duplicate_tolerance() -> f64 {
     0.01

@@ -12,9 +12,11 @@
 //!   delta; the majority of the classified episodes is the dataset's convention.
 //! - **Units**: the episode's factor is the median over tracked dimensions of the dataset's median
 //!   gain α over the episode's (a ×10 units change divides α by 10, whatever the convention).
-//!   Without tracked dimensions, the factor is the median over dimensions of the action's standard
-//!   deviation over the dataset's median, and counts only when at least 80% of the dimensions
-//!   agree in direction beyond the threshold (an idle episode moves less, but not in units).
+//!   And in any case from the values: when in at least 80% of the dimensions both the action's
+//!   level (RMS) and spread (standard deviation) are beyond the threshold times the dataset's
+//!   median, the same way, the factor is the median level ratio ([`levels`]): an episode in
+//!   degrees among radians, action and state alike, leaves the gain as it is (an idle episode
+//!   moves less, but holds its level).
 
 use super::alignment::{lag_of, LagFit};
 use super::stats::median;
@@ -63,10 +65,15 @@ pub struct Judged {
     pub majority: Option<Convention>,
 }
 
-/// `fits[e][d]`: episode e's fits of shared dimension d; `stds[e][d]`: the standard deviation
-/// of action dimension d in episode e.
+/// `fits[e][d]`: episode e's fits of shared dimension d; `rms[e][d]` and `stds[e][d]`: the root
+/// mean square (about 0) and the standard deviation of action dimension d in episode e.
 // Long function: tracked dimensions, lags, conventions and units, each from the one before.
-pub fn judge(fits: &[Vec<Option<Vec<LagFit>>>], stds: &[Vec<f64>], units_ratio: f64) -> Judged {
+pub fn judge(
+    fits: &[Vec<Option<Vec<LagFit>>>],
+    rms: &[Vec<f64>],
+    stds: &[Vec<f64>],
+    units_ratio: f64,
+) -> Judged {
     let episodes = fits.len();
     let dims = fits.iter().map(|f| f.len()).max().unwrap_or(0);
     let tracked: Vec<usize> = (0..dims)
@@ -165,27 +172,78 @@ pub fn judge(fits: &[Vec<Option<Vec<LagFit>>>], stds: &[Vec<f64>], units_ratio: 
                 out.units_judged[e] = true;
             }
         }
-    } else {
-        let a_dims = stds.iter().map(|s| s.len()).max().unwrap_or(0);
-        let reference: Vec<f64> = (0..a_dims)
-            .map(|d| median(stds.iter().filter_map(|s| s.get(d).copied())))
-            .collect();
-        for (e, s) in stds.iter().enumerate() {
-            let ratios: Vec<f64> = s
-                .iter()
-                .zip(&reference)
-                .filter(|(x, r)| **x > 0.0 && **r > 0.0)
-                .map(|(x, r)| x / r)
-                .collect();
-            if ratios.is_empty() {
-                continue;
+    }
+    // Units from the values themselves, in either case: an episode recorded in degrees where the
+    // rest are radians (action and state alike, so the gain above does not move) has every
+    // dimension's level and spread scaled together.
+    // The gain, where it already says so, measures the factor more closely (the level compares
+    // against the median episode's positions).
+    let beyond = |u: f64| u > units_ratio || u < 1.0 / units_ratio;
+    for (e, level) in levels(rms, stds, units_ratio).into_iter().enumerate() {
+        if let Some(factor) = level {
+            if !(out.units_judged[e] && beyond(out.units[e])) {
+                out.units[e] = factor;
+                out.units_judged[e] = true;
             }
-            let factor = median(ratios.iter().copied());
-            let up = ratios.iter().filter(|r| **r > units_ratio).count();
-            let down = ratios.iter().filter(|r| **r < 1.0 / units_ratio).count();
-            out.units[e] = factor;
-            out.units_judged[e] = 5 * up.max(down) >= 4 * ratios.len();
         }
     }
     out
+}
+
+/// Per episode, its units factor when the action's values are in other units than the dataset's:
+/// in at least 80% of the dimensions both the level (RMS about 0) and the spread (standard
+/// deviation) are beyond `units_ratio` times the dataset's median, the same way; the factor is
+/// the median over dimensions of the level's ratio. An idle episode moves less, but holds its
+/// level; a larger motion spreads more, but about the same positions.
+fn levels(rms: &[Vec<f64>], stds: &[Vec<f64>], units_ratio: f64) -> Vec<Option<f64>> {
+    let dims = rms.iter().map(Vec::len).max().unwrap_or(0);
+    let reference = |of: &[Vec<f64>]| -> Vec<f64> {
+        (0..dims)
+            .map(|d| median(of.iter().filter_map(|s| s.get(d).copied())))
+            .collect()
+    };
+    let (rms_ref, std_ref) = (reference(rms), reference(stds));
+    rms.iter()
+        .zip(stds)
+        .map(|(r, s)| {
+            let ratios: Vec<(f64, f64)> = (0..r.len().min(s.len()))
+                .filter(|&d| rms_ref[d] > 0.0 && std_ref[d] > 0.0)
+                .map(|d| (r[d] / rms_ref[d], s[d] / std_ref[d]))
+                .collect();
+            if ratios.is_empty() {
+                return None;
+            }
+            let up = ratios
+                .iter()
+                .filter(|(l, s)| *l > units_ratio && *s > units_ratio)
+                .count();
+            let down = ratios
+                .iter()
+                .filter(|(l, s)| *l < 1.0 / units_ratio && *s < 1.0 / units_ratio)
+                .count();
+            (5 * up.max(down) >= 4 * ratios.len()).then(|| median(ratios.iter().map(|p| p.0)))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn levels_find_degrees_not_idle_episodes() {
+        // Joint angles near 0.5 rad moving by 0.2; episode 1 in degrees, episode 2 idle.
+        let mut rms = vec![vec![0.55, 0.6, 0.5]; 10];
+        let mut stds = vec![vec![0.2, 0.25, 0.2]; 10];
+        let deg = 180.0 / std::f64::consts::PI;
+        rms[1] = rms[1].iter().map(|x| x * deg).collect();
+        stds[1] = stds[1].iter().map(|x| x * deg).collect();
+        stds[2] = vec![0.01, 0.01, 0.01];
+        let found = levels(&rms, &stds, 3.0);
+        assert!((found[1].unwrap() - deg).abs() < 1e-9);
+        assert!(found
+            .iter()
+            .enumerate()
+            .all(|(e, f)| f.is_some() == (e == 1)));
+    }
 }

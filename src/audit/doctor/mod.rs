@@ -10,6 +10,7 @@
 //! are judged before anything else ([`convention`]), every other check measures against robust
 //! dataset-wide references (medians, MADs), and so one fault does not set off another check.
 //!
+//! - `features`: what one episode reduces to (read once, in parallel).
 //! - `stats`: medians, MAD, correlation, mode.
 //! - `signal`: frozen, clipped, jump (and the constant dimensions).
 //! - `alignment`: the per-episode lag fits.
@@ -19,6 +20,7 @@
 mod alignment;
 mod convention;
 mod duplicates;
+mod features;
 mod shift;
 mod short;
 mod signal;
@@ -34,6 +36,7 @@ use super::timing::Repair;
 use crate::error::{Error, Result};
 use crate::source::{ChannelKind, Source};
 use crate::spec::{DoctorAction, LoadedSpec};
+use features::{features, hold_finite, Features};
 pub use shift::ShiftDim;
 
 /// `misaligned` needs the dataset's lag to leave at least this many times the unexplained share
@@ -85,100 +88,6 @@ pub struct DoctorSummary {
     /// The thresholds the charts draw (`[audit.doctor]`).
     pub units_ratio: f64,
     pub shift_threshold: f64,
-}
-
-/// What one episode reduces to.
-struct Features {
-    n: usize,
-    signal: Vec<signal::DimSignal>,
-    fits: Vec<Option<Vec<alignment::LagFit>>>,
-    stds: Vec<f64>,
-    action_means: Vec<f64>,
-    state_means: Vec<f64>,
-    state_range: Vec<(f64, f64)>,
-    /// Per state dimension, the longest run of one exact value and the share of unchanged steps.
-    state_runs: Vec<(usize, f64)>,
-    signature: Vec<f64>,
-}
-
-fn column_stats(x: &[f64], n: usize, width: usize) -> (Vec<f64>, Vec<f64>) {
-    let mut means = vec![0.0; width];
-    let mut stds = vec![0.0; width];
-    if n == 0 {
-        return (means, stds);
-    }
-    for d in 0..width {
-        let m = (0..n).map(|t| x[t * width + d]).sum::<f64>() / n as f64;
-        let v = (0..n).map(|t| (x[t * width + d] - m).powi(2)).sum::<f64>() / n as f64;
-        means[d] = m;
-        stds[d] = v.sqrt();
-    }
-    (means, stds)
-}
-
-fn features(a: &[f64], s: Option<&[f64]>, n: usize, a_dim: usize, s_dim: usize) -> Features {
-    let signal = (0..a_dim)
-        .map(|d| signal::dim_signal(a, n, a_dim, d))
-        .collect();
-    let shared = if s.is_some() { a_dim.min(s_dim) } else { 0 };
-    let fits = (0..shared)
-        .map(|d| alignment::fit_dim(a, s.unwrap_or(&[]), n, a_dim, s_dim, d))
-        .collect();
-    let (action_means, stds) = column_stats(a, n, a_dim);
-    let state_runs = match s {
-        Some(s) => (0..s_dim)
-            .map(|d| {
-                let sig = signal::dim_signal(s, n, s_dim, d);
-                (sig.run.0, sig.unchanged)
-            })
-            .collect(),
-        None => Vec::new(),
-    };
-    let (state_means, state_range) = match s {
-        Some(s) => {
-            let (m, _) = column_stats(s, n, s_dim);
-            let r = (0..s_dim)
-                .map(|d| {
-                    (0..n)
-                        .map(|t| s[t * s_dim + d])
-                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-                            (lo.min(v), hi.max(v))
-                        })
-                })
-                .collect();
-            (m, r)
-        }
-        None => (Vec::new(), Vec::new()),
-    };
-    Features {
-        n,
-        signal,
-        fits,
-        stds,
-        action_means,
-        state_means,
-        state_range,
-        state_runs,
-        signature: duplicates::signature(a, n, a_dim),
-    }
-}
-
-/// Replaces each non-finite value of a `(n, width)` array by the last finite value of its column
-/// (0 before the first).
-fn hold_finite(x: &mut [f64], width: usize) {
-    if width == 0 || x.iter().all(|v| v.is_finite()) {
-        return;
-    }
-    for d in 0..width {
-        let mut last = 0.0;
-        for v in x.iter_mut().skip(d).step_by(width) {
-            if v.is_finite() {
-                last = *v;
-            } else {
-                *v = last;
-            }
-        }
-    }
 }
 
 /// Runs the checks and adds their flags, findings, verdicts and summary to `report` (and the
@@ -250,7 +159,17 @@ pub fn run(
     let fits: Vec<Vec<Option<Vec<alignment::LagFit>>>> =
         feats.iter().map(|f| f.fits.clone()).collect();
     let stds: Vec<Vec<f64>> = feats.iter().map(|f| f.stds.clone()).collect();
-    let judged = convention::judge(&fits, &stds, cfg.units_ratio);
+    let rms: Vec<Vec<f64>> = feats
+        .iter()
+        .map(|f| {
+            f.action_means
+                .iter()
+                .zip(&f.stds)
+                .map(|(m, s)| (m * m + s * s).sqrt())
+                .collect()
+        })
+        .collect();
+    let judged = convention::judge(&fits, &rms, &stds, cfg.units_ratio);
     for e in 0..episodes {
         let u = judged.units[e];
         if judged.units_judged[e] && (u > cfg.units_ratio || u < 1.0 / cfg.units_ratio) {
@@ -287,13 +206,27 @@ pub fn run(
         }
     }
 
+    // An episode in other units is measured in the dataset's; any other is taken as it is (a
+    // factor near 1 is the fit's noise, and spikes themselves pull the gain it is fitted from).
+    let scale: Vec<f64> = (0..episodes)
+        .map(|e| {
+            let u = judged.units[e];
+            let other =
+                judged.units_judged[e] && (u > cfg.units_ratio || u < 1.0 / cfg.units_ratio);
+            if other {
+                u
+            } else {
+                1.0
+            }
+        })
+        .collect();
     // Signal quality, per dimension against the dataset.
     let step_sigma: Vec<f64> = (0..a_dim)
         .map(|d| {
             stats::median(
                 feats
                     .iter()
-                    .zip(&judged.units)
+                    .zip(&scale)
                     .map(|(f, u)| f.signal[d].step_sigma / u),
             )
         })
@@ -340,12 +273,16 @@ pub fn run(
             }
             if sigma > 0.0 {
                 if let Some(&(size, step)) = sig.spikes.first() {
-                    let z = size / judged.units[e] / sigma;
+                    // Against the episode's own step changes (the fault is "k of its own
+                    // robust std"), never below half the dataset's: a dimension that holds
+                    // still in this episode does not turn its sensor noise into spikes.
+                    let own = (sig.step_sigma / scale[e]).max(0.5 * sigma);
+                    let z = size / scale[e] / own;
                     if z > cfg.jump_threshold {
                         let count = sig
                             .spikes
                             .iter()
-                            .filter(|s| s.0 / judged.units[e] / sigma > cfg.jump_threshold)
+                            .filter(|s| s.0 / scale[e] / own > cfg.jump_threshold)
                             .count();
                         add(e, Flag::Jump, cfg.jump, format!(
                             "action[{d}] spikes at step {step} by {z:.1} robust std of its step changes ({count} such steps)"),

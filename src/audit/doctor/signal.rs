@@ -12,14 +12,16 @@
 //!   a saturated command runs into it), at a bound inside the range the other episodes reach
 //!   (a hand fully closed sits at the dataset's limit by design), in a dimension whose median
 //!   episode does not sit at its bounds.
-//! - **jump**: a one-step spike, a value above (or below) both neighbours by more than
-//!   `jump_threshold` robust standard deviations of the dimension's step changes on both sides.
-//!   The reference is the median over episodes of each episode's MAD of step changes, after
-//!   dividing every episode by its units factor, so a units-changed episode is not "full of
-//!   jumps", and a few spikes do not inflate it. Both flanks must be steep: a gripper or hand
-//!   closing in one step is a step, not a glitch. And both must be over twice the steps that
-//!   lead into and out of them: the turning point of a fast motion (the G1 set's hand joints
-//!   closing and opening within a few steps, in a dimension that is otherwise still) is not one.
+//! - **jump**: a one-step spike: a value off the line through its two neighbours by more than
+//!   `jump_threshold` robust standard deviations of the dimension's step changes, whose
+//!   neighbours echo it (a step out and straight back) and which stands out from the curvature
+//!   two steps away ([`spikes`]). Measured from the line, not from each neighbour, a spike riding
+//!   on a fast motion is as visible as one on a still signal. The reference is the median over
+//!   episodes of each episode's MAD of step changes, after dividing every episode by its units
+//!   factor, so a units-changed episode is not "full of jumps", and a few spikes do not inflate
+//!   it. A gripper or hand closing in one step is a step (one neighbour on each side of the
+//!   line, no echo), and the turning point of a fast motion (the G1 set's hand joints closing
+//!   and opening within a few steps) bends the steps around it: neither is a spike.
 
 /// One episode's per-dimension signal features.
 #[derive(Debug, Clone, Default)]
@@ -33,8 +35,8 @@ pub struct DimSignal {
     pub unchanged: f64,
     /// 1.4826 × MAD of the step changes.
     pub step_sigma: f64,
-    /// The largest spikes (the smaller flank of a step above or below both neighbours), largest
-    /// first: (size, step).
+    /// The largest spikes (the distance from the line through the neighbours), largest first:
+    /// (size, step).
     pub spikes: Vec<(f64, usize)>,
     pub min: f64,
     pub max: f64,
@@ -105,36 +107,46 @@ pub fn dim_signal(a: &[f64], n: usize, width: usize, d: usize) -> DimSignal {
 }
 
 /// The three largest one-step spikes of `x`: (size, step), largest first (size 0: none).
+///
+/// A spike is judged on the residual `r[t] = x[t] - (x[t-1] + x[t+1]) / 2`, the value's distance
+/// from the line through its neighbours: a smooth motion, however fast, keeps it small (it is
+/// the curvature), a one-step glitch of size s makes it s. The size is `|r[t]|`, when
+/// - it goes out and back: above (or below) both neighbours by at least half its size on each
+///   side (a held sample has one flat flank, an uneven step of a motion lies between its
+///   neighbours: timing artefacts, not glitches of the value);
+/// - both neighbours' residuals are the glitch's echo, of the other sign and at least a quarter
+///   of it (a single step out and back, not a V: a hand closing and opening has its neighbours
+///   on the line through theirs);
+/// - it stands out from the curvature around it: three times the residuals two steps away (the
+///   turning point of a fast motion bends its surroundings too).
 fn spikes(x: &[f64]) -> Vec<(f64, usize)> {
     let n = x.len();
-    // A spike leaves both neighbours on the same side: its size is the smaller flank (a step,
-    // a gripper closing, has one flank only).
+    let r: Vec<f64> = (0..n)
+        .map(|t| {
+            if t == 0 || t + 1 >= n {
+                0.0
+            } else {
+                x[t] - 0.5 * (x[t - 1] + x[t + 1])
+            }
+        })
+        .collect();
     let mut spikes: Vec<(f64, usize)> = (1..n.saturating_sub(1))
         .map(|t| {
+            let size = r[t].abs();
+            let echo = |u: usize| r[u] * r[t] < 0.0 && r[u].abs() >= 0.25 * size;
+            let around = |u: Option<usize>| u.filter(|&u| u < n).map_or(0.0, |u| r[u].abs());
+            let stands_out = 3.0 * around(t.checked_sub(2)).max(around(Some(t + 2))) < size;
+            // Out and back: above (or below) both neighbours, by at least half its size on
+            // each side. A held sample (one flank flat) or an uneven step of a motion (between
+            // its neighbours) is a timing artefact, not a glitch of the value.
             let (before, after) = (x[t] - x[t - 1], x[t] - x[t + 1]);
-            let flank = before.abs().min(after.abs());
-            // ... and its neighbours agree with each other (a glitch returns to the signal) ...
-            let returns = (x[t + 1] - x[t - 1]).abs() <= 0.5 * flank;
-            // ... and it stands out from the motion around it: the turning point of a fast
-            // motion (a hand closing and opening again) has flanks no steeper than the steps
-            // that lead into and out of it.
-            let lead_in = if t >= 2 {
-                (x[t - 1] - x[t - 2]).abs()
-            } else {
-                0.0
-            };
-            let lead_out = if t + 2 < n {
-                (x[t + 2] - x[t + 1]).abs()
-            } else {
-                0.0
-            };
-            let stands_out = flank > 2.0 * lead_in.max(lead_out);
-            let size = if before * after > 0.0 && returns && stands_out {
-                flank
-            } else {
-                0.0
-            };
-            (size, t)
+            let out_and_back = before * after > 0.0 && before.abs().min(after.abs()) >= 0.5 * size;
+            let spike = size > 0.0
+                && out_and_back
+                && (t < 2 || echo(t - 1))
+                && (t + 2 >= n || echo(t + 1))
+                && stands_out;
+            (if spike { size } else { 0.0 }, t)
         })
         .collect();
     spikes.sort_by(|p, q| q.0.total_cmp(&p.0).then(p.1.cmp(&q.1)));
@@ -160,6 +172,19 @@ mod tests {
             .map(|t| 0.6 - 0.1 * (5.0 - (t as f64 - 50.0).abs()).max(0.0))
             .collect();
         assert_eq!(dim_signal(&v, 100, 1, 0).spikes[0].0, 0.0);
+        // A spike riding a fast ramp is as big as on a still signal: its distance from the line.
+        let mut ramp: Vec<f64> = (0..100).map(|t| 0.3 * t as f64).collect();
+        ramp[60] += 1.5;
+        let s = dim_signal(&ramp, 100, 1, 0);
+        assert_eq!(s.spikes[0].1, 60);
+        assert!((s.spikes[0].0 - 1.5).abs() < 1e-9);
+        // Timing artefacts of a motion are not spikes: a held sample, an uneven step.
+        let mut hold: Vec<f64> = (0..100).map(|t| 0.3 * t as f64).collect();
+        hold[60] = hold[59];
+        assert_eq!(dim_signal(&hold, 100, 1, 0).spikes[0].0, 0.0);
+        let mut uneven: Vec<f64> = (0..100).map(|t| 0.3 * t as f64).collect();
+        uneven[60] -= 0.2;
+        assert_eq!(dim_signal(&uneven, 100, 1, 0).spikes[0].0, 0.0);
         let held: Vec<f64> = (0..100)
             .map(|t| if t < 30 { t as f64 } else { 30.0 })
             .collect();
