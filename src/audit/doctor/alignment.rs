@@ -59,15 +59,32 @@ pub fn fit_dim(
     }
     let s22 = dot(&x2c, &x2c);
     let s2y = dot(&x2c, &yc);
-    let mut out = Vec::new();
+    // `corr(x1, next)` needs `next` centred; `corr(x1, y)` is `s1y / sqrt(s11 syy)`.
+    let nextc = centred(&next);
+    let snn = dot(&nextc, &nextc);
+    let corr = |sxy: f64, sxx: f64, syy: f64| {
+        if sxx <= 0.0 || syy <= 0.0 {
+            0.0
+        } else {
+            sxy / (sxx * syy).sqrt()
+        }
+    };
+    let len = t1 - t0;
+    let col: Vec<f64> = (0..n).map(|t| a[t * a_dim + d]).collect();
+    let mut out = Vec::with_capacity((SHIFT_MAX - SHIFT_MIN + 1) as usize);
     for shift in SHIFT_MIN..=SHIFT_MAX {
-        let x1: Vec<f64> = (t0..t1)
-            .map(|t| a[(t as i64 - shift) as usize * a_dim + d])
-            .collect();
-        let x1c = centred(&x1);
-        let s11 = dot(&x1c, &x1c);
-        let s12 = dot(&x1c, &x2c);
-        let s1y = dot(&x1c, &yc);
+        // The shifted action, read in place: the same sums, in the same order, as centring a
+        // copy of it (so every number is the same as the textbook two-pass form), without one.
+        let x1 = |i: usize| col[((t0 + i) as i64 - shift) as usize];
+        let m1 = (0..len).map(x1).sum::<f64>() / len as f64;
+        let (mut s11, mut s12, mut s1y, mut s1n) = (0.0, 0.0, 0.0, 0.0);
+        for i in 0..len {
+            let c = x1(i) - m1;
+            s11 += c * c;
+            s12 += c * x2c[i];
+            s1y += c * yc[i];
+            s1n += c * nextc[i];
+        }
         let det = s11 * s22 - s12 * s12;
         let (alpha, explained) = if s11 <= 0.0 {
             (0.0, if s22 > 0.0 { s2y * s2y / s22 } else { 0.0 })
@@ -78,7 +95,7 @@ pub fn fit_dim(
         } else {
             (s1y / s11, s1y * s1y / s11)
         };
-        let convention = super::stats::corr(&x1, &next).abs() - super::stats::corr(&x1, &y).abs();
+        let convention = corr(s1n, s11, snn).abs() - corr(s1y, s11, syy).abs();
         out.push(LagFit {
             unexplained: ((syy - explained) / syy).clamp(0.0, 1.0),
             alpha,

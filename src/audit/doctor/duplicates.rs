@@ -35,17 +35,17 @@ pub fn pairs(
     lengths: &[usize],
     tolerance: f64,
 ) -> Vec<(usize, usize, f64)> {
-    let key = |s: &Vec<f64>| s.iter().sum::<f64>() / s.len().max(1) as f64;
+    let keys: Vec<f64> = signatures
+        .iter()
+        .map(|s| s.iter().sum::<f64>() / s.len().max(1) as f64)
+        .collect();
+    let key = |s: usize| keys[s];
     let mut order: Vec<usize> = (0..signatures.len()).collect();
-    order.sort_by(|&i, &j| {
-        key(&signatures[i])
-            .total_cmp(&key(&signatures[j]))
-            .then(i.cmp(&j))
-    });
+    order.sort_by(|&i, &j| key(i).total_cmp(&key(j)).then(i.cmp(&j)));
     let mut best: std::collections::BTreeMap<usize, (usize, f64)> = Default::default();
     for (k, &i) in order.iter().enumerate() {
         for &j in &order[k + 1..] {
-            if key(&signatures[j]) - key(&signatures[i]) > tolerance {
+            if key(j) - key(i) > tolerance {
                 break;
             }
             let (li, lj) = (lengths[i] as f64, lengths[j] as f64);

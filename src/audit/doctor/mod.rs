@@ -11,7 +11,7 @@
 //! dataset-wide references (medians, MADs), and so one fault does not set off another check.
 //!
 //! - `features`: what one episode reduces to (read once, in parallel).
-//! - `stats`: medians, MAD, correlation, mode.
+//! - `stats`: medians, MAD, mode.
 //! - `signal`: frozen, clipped, jump (and the constant dimensions).
 //! - `alignment`: the per-episode lag fits.
 //! - `convention`: tracked dimensions, lag mode, conventions, units.
