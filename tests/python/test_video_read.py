@@ -227,3 +227,25 @@ def test_bad_video_excluded_under_the_opt_in(tmp_path, case):
     if fixture == V21:
         for e in (0, 2):
             compare(ours[e], v21_reference(root, e), f"episode {e}")
+
+
+@pytest.mark.parametrize("selected", [[0, 2], [0, 1]])
+def test_source_episodes_are_applied_before_the_videos_are_checked(tmp_path, selected):
+    """`[source] episodes = [0, 2]` over a set whose episode 1 has no mp4 builds (episode 1 is
+    never read); selecting episode 1 still fails naming it (issue 31's defect)."""
+    root = tmp_path / "source"
+    shutil.copytree(V21, root)
+    missing(root)
+    path = spec(tmp_path, root, {"observation.image": TOP})
+    path.write_text(path.read_text().replace('format = "lerobot"\n',
+                                             f'format = "lerobot"\nepisodes = {selected}\n'))
+    proc = build(path, check=False)
+    if 1 in selected:
+        assert proc.returncode != 0 and "episode 1" in proc.stderr and "missing" in proc.stderr
+        return
+    assert proc.returncode == 0, proc.stderr
+    meta = json.loads((tmp_path / "out/h/meta.json").read_text())
+    assert meta["episodes"] == selected
+    ours = frames_by_episode(tmp_path / "out", "observation.image")
+    for e in selected:
+        compare(ours[e], v21_reference(root, e), f"episode {e}")
