@@ -79,6 +79,16 @@ def write_aloha(directory, lengths=(30, 45, 38), compressed=False, height=48, wi
     return written
 
 
+# The columns every LeRobot frame row has, as info.json declares them.
+LEROBOT_INDEX_FEATURES = {
+    "timestamp": {"dtype": "float32", "shape": [1], "names": None},
+    "frame_index": {"dtype": "int64", "shape": [1], "names": None},
+    "episode_index": {"dtype": "int64", "shape": [1], "names": None},
+    "index": {"dtype": "int64", "shape": [1], "names": None},
+    "task_index": {"dtype": "int64", "shape": [1], "names": None},
+}
+
+
 def write_lerobot_v3(root, lengths=(12, 7, 20, 9), per_file=3, fps=15, seed=0):
     """A LeRobot v3.0 dataset: several episodes per data file (one row group each), episodes
     metadata in meta/episodes/chunk-000/file-000.parquet. `action` is a fixed-size list,
@@ -144,11 +154,7 @@ def write_lerobot_v3(root, lengths=(12, 7, 20, 9), per_file=3, fps=15, seed=0):
             "action": {"dtype": "float32", "shape": [3], "names": {"motors": ["x", "y", "z"]}},
             "observation.state": {"dtype": "float32", "shape": [4], "names": ["a", "b", "c", "d"]},
             "observation.gripper pos": {"dtype": "float64", "shape": [1], "names": None},
-            "timestamp": {"dtype": "float32", "shape": [1], "names": None},
-            "frame_index": {"dtype": "int64", "shape": [1], "names": None},
-            "episode_index": {"dtype": "int64", "shape": [1], "names": None},
-            "index": {"dtype": "int64", "shape": [1], "names": None},
-            "task_index": {"dtype": "int64", "shape": [1], "names": None},
+            **LEROBOT_INDEX_FEATURES,
         },
     }
     (root / "meta/info.json").write_text(json.dumps(info, indent=2))

@@ -20,11 +20,15 @@ writes OUT/meta/..., OUT/data/... and OUT/truth.json ({"episodes": {id: [kind, .
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from fixtures import LEROBOT_INDEX_FEATURES  # noqa: E402
 
 KINDS = ("spike", "units")
 
@@ -150,11 +154,7 @@ def write_lerobot(root: Path, data, fps=10):
         "features": {
             "action": {"dtype": "float32", "shape": [dim], "names": names},
             "observation.state": {"dtype": "float32", "shape": [dim], "names": names},
-            "timestamp": {"dtype": "float32", "shape": [1], "names": None},
-            "frame_index": {"dtype": "int64", "shape": [1], "names": None},
-            "episode_index": {"dtype": "int64", "shape": [1], "names": None},
-            "index": {"dtype": "int64", "shape": [1], "names": None},
-            "task_index": {"dtype": "int64", "shape": [1], "names": None},
+            **LEROBOT_INDEX_FEATURES,
         },
     }
     (root / "meta/info.json").write_text(json.dumps(info, indent=2))
