@@ -130,6 +130,9 @@ pub fn inspect(path: &Path, spec_dir: &Path, options: &InitOptions) -> Result<In
     let spec_dir =
         std::path::absolute(spec_dir).map_err(|e| Error::io_path("resolve", spec_dir, e))?;
     let name = dataset_name(&root);
+    if let (SourceFormat::Lerobot, Some(given)) = (found.format, options.fps) {
+        stored_rate_agrees(&root, given)?;
+    }
     let draft = text::Draft {
         format: found.format,
         path: &root,
@@ -309,4 +312,18 @@ fn action_acf(draft: &text::Draft, action: &KeyRole, spec_dir: &Path) -> Result<
         max_lag: a.max_lag,
         mean_acf: a.mean_acf,
     })
+}
+
+/// `--fps` on a LeRobot dataset must be the rate its `meta/info.json` stores.
+fn stored_rate_agrees(root: &Path, given: f64) -> Result<()> {
+    let path = root.join("meta/info.json");
+    let bytes = std::fs::read(&path).map_err(|e| Error::io_path("read", &path, e))?;
+    let info = source::LerobotInfo::parse(&bytes, &path.display().to_string())?;
+    match info.fps {
+        Some(stored) if (stored - given).abs() > 1e-9 => Err(Error::Spec(format!(
+            "error: --fps {given} disagrees with {}, which stores {stored} Hz; LeRobot datasets store their rate: leave --fps out",
+            path.display()
+        ))),
+        _ => Ok(()),
+    }
 }

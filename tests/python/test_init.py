@@ -223,3 +223,10 @@ def test_malformed_inputs_fail_naming_what_is_missing(tmp_path, case):
     assert not (tmp_path / "out").exists()
     proc = run_chunkc("inspect", path, check=False)
     assert proc.returncode != 0 and words in proc.stderr
+
+
+def test_fps_that_contradicts_a_lerobot_dataset_is_refused(tmp_path):
+    out = tmp_path / "spec.toml"
+    proc = run_chunkc("init", DATA / "lerobot_g1_subset", "--out", out, "--fps", 25, check=False)
+    assert proc.returncode != 0 and "--fps 25 disagrees" in proc.stderr and "30" in proc.stderr
+    assert not out.exists()
