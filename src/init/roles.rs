@@ -85,6 +85,15 @@ fn clean(name: &str) -> String {
         .collect()
 }
 
+/// The channel name a key that is not mapped would take when a user uncomments it.
+pub fn suggested_name(r: &KeyRole) -> String {
+    if r.role.is_camera() {
+        format!("observation.images.{}", clean(leaf(&r.key)))
+    } else {
+        format!("observation.{}", clean(leaf(&r.key)))
+    }
+}
+
 const BOOKKEEPING: &[&str] = &[
     "timestamp",
     "timestamps",
@@ -231,8 +240,8 @@ pub fn assign(format: SourceFormat, keys: &[KeyInfo], robosuite_clock: bool) -> 
     }
     for r in rows.iter_mut().filter(|r| r.role == Role::Unmapped) {
         r.note = Some(format!(
-            "not in an observation group; uncomment to use it as `observation.{}`",
-            clean(leaf(&r.key))
+            "not in an observation group; uncomment to use it as `{}`",
+            suggested_name(r)
         ));
     }
     if robosuite_clock {

@@ -225,17 +225,7 @@ pub fn spec(ins: &Inspection, spec_dir: &Path, out_dir: &str) -> String {
     if !left.is_empty() {
         let _ = writeln!(w, "# Not mapped:");
         for r in left {
-            let name = if r.role.is_camera() {
-                format!(
-                    "observation.images.{}",
-                    r.key.rsplit(['/', '.']).next().unwrap_or("")
-                )
-            } else {
-                format!(
-                    "observation.{}",
-                    r.key.rsplit(['/', '.']).next().unwrap_or("")
-                )
-            };
+            let name = super::roles::suggested_name(r);
             let why = r.note.clone().unwrap_or_else(|| r.role.word().to_string());
             let _ = writeln!(
                 w,
