@@ -398,6 +398,12 @@ fn print_build(report: &commands::BuildReport) {
             eprintln!("up to date: {}", report.up_to_date.join(", "));
         }
     }
+    for warning in &report.doctor_warnings {
+        eprintln!("warning: {warning}");
+    }
+    if !report.doctor_warnings.is_empty() {
+        eprintln!("`chunkc audit` writes which episodes the dataset doctor flagged, and why");
+    }
     if let Some(doctor) = report.doctor_seconds {
         eprintln!(
             "the dataset doctor took {doctor:.2} s of {:.2} s (on by default; `[audit.doctor] enabled = false` skips it)",

@@ -37,10 +37,16 @@ use crate::spec::{BadVideo, LoadedSpec};
 /// Above this share of repaired episodes the audit warns.
 pub const REPAIR_WARNING: f64 = 0.1;
 
-/// Audits every episode of `source` from its timestamps (no other data is read). Sources without
+/// Audits every episode of `source` from its timestamps (no other data is read), then, when
+/// `doctor` is set, runs the dataset doctor over the action and state values in a pass of its
+/// own (`build` passes false and folds the doctor into its read instead). Sources without
 /// timestamps are judged at their declared rate: every episode `ok`.
 // Long function: the per-episode loop and the dataset summary share the running totals.
-pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<Repair>)> {
+pub fn run(
+    spec: &LoadedSpec,
+    source: &dyn Source,
+    doctor: bool,
+) -> Result<(AuditReport, Vec<Repair>)> {
     let cfg = &spec.spec.audit;
     let manifest = source.manifest();
     let fps = manifest.fps;
@@ -161,6 +167,9 @@ pub fn run(spec: &LoadedSpec, source: &dyn Source) -> Result<(AuditReport, Vec<R
         doctor: None,
         doctor_seconds: None,
     };
+    if !doctor {
+        return Ok((report, repairs));
+    }
     let started = std::time::Instant::now();
     doctor::run(spec, source, &mut report, &mut repairs)?;
     if report.doctor.is_some() {

@@ -17,14 +17,15 @@ pub struct Audit {
     pub repairs: Vec<audit::Repair>,
 }
 
-/// Opens the source and audits it (after checking where the outputs would go).
-pub fn audit(spec: &LoadedSpec) -> Result<Audit> {
+/// Opens the source and audits it (after checking where the outputs would go); with `doctor`,
+/// the dataset doctor too (see [`audit::run`]).
+pub fn audit(spec: &LoadedSpec, doctor: bool) -> Result<Audit> {
     spec::check_output_location(spec, &spec.resolve(&spec.spec.output.dir))?;
     let opened = timings::phase("open source");
     let source = source::open(spec)?;
     drop(opened);
     let _audit = timings::phase("audit");
-    let (report, repairs) = audit::run(spec, source.as_ref())?;
+    let (report, repairs) = audit::run(spec, source.as_ref(), doctor)?;
     Ok(Audit {
         source,
         report,
@@ -39,7 +40,7 @@ pub fn audit_report(spec: &LoadedSpec) -> Result<(AuditReport, Vec<PathBuf>)> {
         source,
         mut report,
         repairs,
-    } = audit(spec)?;
+    } = audit(spec, true)?;
     report.examples = audit::examples(source.as_ref(), &report, &repairs)?;
     let title = format!("chunkc audit: {}", spec.file.display());
     let html = crate::report::audit_html(&report, &title);

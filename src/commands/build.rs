@@ -1,14 +1,21 @@
 //! `chunkc build`: every stale profile built from one pass over the source, the staging
 //! directory renamed into place, `chunkc.lock` updated.
 //!
-//! When `[audit] non_finite = "exclude_episode"` finds episodes to leave out, which ones
-//! depends only on the data, so the output stays deterministic: the build plans again without
-//! them and builds from that plan (reading the kept episodes a second time).
+//! The dataset doctor rides on the same pass: each episode is reduced to its doctor features
+//! as it is read, and the features are judged once all are read, before anything is finished
+//! (an `= "error"` finding fails the build with nothing kept).
+//!
+//! When `[audit] non_finite = "exclude_episode"` or a doctor check `= "exclude"` finds episodes
+//! to leave out, which ones depends only on the data, so the output stays deterministic: the
+//! build plans again without them and builds from that plan (reading the kept episodes a second
+//! time; the doctor judges in whichever pass reads every kept episode first).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicUsize;
 
+use crate::audit::doctor::Probe;
+use crate::audit::AuditReport;
 use crate::error::{Error, Result};
 use crate::exec::{self, BuildLock, Excluded, FileHashes, Outcome, Staging};
 use crate::lock::{self, Lock, LockedProfile, SpecLock, LOCK_VERSION};
@@ -39,6 +46,9 @@ pub struct BuildReport {
     pub block_decodes: source::DecodeCounts,
     /// Wall seconds of the dataset doctor (on by default), when it ran: `build` says what it cost.
     pub doctor_seconds: Option<f64>,
+    /// The doctor's dataset-wide warnings (flag counts, constant, stuck, shift, lag), when it
+    /// ran: `build` prints them; `chunkc audit` writes which episodes and why.
+    pub doctor_warnings: Vec<String>,
     /// Wall seconds of the whole command.
     pub seconds: f64,
 }
@@ -51,6 +61,7 @@ struct Committed {
     block_decodes: source::DecodeCounts,
 }
 
+// Long function: the plan, the one pass with its doctor, the rebuild and the commit share the lock.
 pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let whole = timings::phase("whole build");
     let started = std::time::Instant::now();
@@ -60,8 +71,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let mut build_lock = BuildLock::acquire(&out_dir)?;
     // Repair what an interrupted build left, before the plan compares outputs with the lock.
     Staging::recover(&out_dir)?;
-    let (source, plan) = super::plan(spec)?;
-    let doctor_seconds = plan.audit.doctor_seconds;
+    let (source, plan, report) = super::plan::plan_audited(spec, false)?;
     let (stale, up_to_date): (Vec<&ProfilePlan>, Vec<&ProfilePlan>) = plan
         .profiles
         .iter()
@@ -74,7 +84,8 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
             up_to_date,
             episode_reads: Vec::new(),
             block_decodes: Default::default(),
-            doctor_seconds,
+            doctor_seconds: None,
+            doctor_warnings: Vec::new(),
             seconds: started.elapsed().as_secs_f64(),
         });
     }
@@ -92,15 +103,23 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         .map(|_| AtomicUsize::new(0))
         .collect();
     let names: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
-    let committed = match exec::execute(
+    let probe = Probe::of(spec, source.manifest());
+    let mut judged = report.clone();
+    let mut doctor = probe
+        .as_ref()
+        .map(|p| doctor_for(spec, p, source.manifest(), &mut judged));
+    let outcome = exec::execute(
         spec,
         &plan,
         &stale,
         source.as_ref(),
         opts.progress,
         &reads,
-        exec::Input::Source,
-    )? {
+        exec::Input::Source(doctor.as_mut()),
+    )?;
+    let mut doctor_seconds = doctor.as_ref().and_then(exec::Doctor::seconds);
+    drop(doctor);
+    let committed = match outcome {
         Outcome::Built(staging, hashes) => {
             let block_decodes = source.decode_counts();
             build_lock.keep();
@@ -114,8 +133,16 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
             }
         }
         Outcome::Exclude(excluded) => {
+            // The doctor has not judged when the pass stopped at a non-finite value.
+            let pending = match (&probe, doctor_seconds) {
+                (Some(p), None) => Some((p, &mut judged)),
+                _ => None,
+            };
             let again = (spec, &plan, names, opts);
-            rebuild_without(again, source, &excluded, &mut build_lock)?
+            let (committed, seconds) =
+                rebuild_without(again, source, excluded, &mut build_lock, pending)?;
+            doctor_seconds = doctor_seconds.or(seconds);
+            committed
         }
     };
     update_lock(spec, &committed.plan, &committed.hashes)?;
@@ -128,53 +155,109 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         episode_reads: reads.into_iter().map(AtomicUsize::into_inner).collect(),
         block_decodes: committed.block_decodes,
         doctor_seconds,
+        doctor_warnings: doctor_warnings(&report, &judged, doctor_seconds.is_some()),
         seconds: started.elapsed().as_secs_f64(),
     })
 }
 
+/// The warnings the doctor added to the timing audit's.
+fn doctor_warnings(timing: &AuditReport, judged: &AuditReport, ran: bool) -> Vec<String> {
+    if !ran {
+        return Vec::new();
+    }
+    judged
+        .warnings
+        .iter()
+        .filter(|w| !timing.warnings.contains(w))
+        .cloned()
+        .collect()
+}
+
+/// The dataset doctor of a pass over the episodes of `manifest`, judging into `report`.
+fn doctor_for<'a>(
+    spec: &'a LoadedSpec,
+    probe: &'a Probe,
+    manifest: &source::Manifest,
+    report: &'a mut AuditReport,
+) -> exec::Doctor<'a> {
+    let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
+    let fps = manifest.fps;
+    exec::Doctor::new(
+        probe,
+        ids.len(),
+        Box::new(move |feats| {
+            let excluded = probe.judge(spec, fps, &ids, feats, report)?;
+            Ok(excluded.into_iter().collect())
+        }),
+    )
+}
+
 /// Plans again without the `excluded` episodes and builds the profiles `names` from that plan
-/// (see the module docs); commits the result.
+/// (see the module docs); commits the result. `doctor`: the doctor still to judge (the first
+/// pass stopped at a non-finite value), in this pass; its exclusions make one more. Returns the
+/// doctor's seconds when it ran here.
 fn rebuild_without(
     (spec, plan, names, opts): (&LoadedSpec, &Plan, Vec<String>, &BuildOptions),
     source: Box<dyn Source>,
-    excluded: &Excluded,
+    excluded: Excluded,
     build_lock: &mut BuildLock,
-) -> Result<Committed> {
-    let ids: Vec<u64> = excluded.keys().copied().collect();
-    let kept: Box<dyn Source> = Box::new(source::Subset::without(source, &ids));
-    let replan = replan(spec, plan, kept.as_ref(), excluded)?;
-    let restale: Vec<&ProfilePlan> = replan
-        .profiles
-        .iter()
-        .filter(|p| names.contains(&p.name))
-        .collect();
-    let again: Vec<AtomicUsize> = (0..replan.source.episodes)
-        .map(|_| AtomicUsize::new(0))
-        .collect();
-    match exec::execute(
-        spec,
-        &replan,
-        &restale,
-        kept.as_ref(),
-        opts.progress,
-        &again,
-        exec::Input::Source,
-    )? {
-        Outcome::Built(staging, hashes) => {
-            let block_decodes = kept.decode_counts();
-            build_lock.keep();
-            staging.commit(&names)?;
-            Ok(Committed {
-                plan: replan,
-                built: names,
-                hashes,
-                block_decodes,
-            })
+    mut doctor: Option<(&Probe, &mut AuditReport)>,
+) -> Result<(Committed, Option<f64>)> {
+    let mut kept = source;
+    let mut before = plan.clone();
+    let mut excluded = excluded;
+    let mut seconds = None;
+    loop {
+        let ids: Vec<u64> = excluded.keys().copied().collect();
+        kept = Box::new(source::Subset::without(kept, &ids));
+        let replan = replan(spec, &before, kept.as_ref(), &excluded)?;
+        let restale: Vec<&ProfilePlan> = replan
+            .profiles
+            .iter()
+            .filter(|p| names.contains(&p.name))
+            .collect();
+        let again: Vec<AtomicUsize> = (0..replan.source.episodes)
+            .map(|_| AtomicUsize::new(0))
+            .collect();
+        let judging = doctor.take();
+        let mut pass_doctor = judging.map(|(p, r)| doctor_for(spec, p, kept.manifest(), r));
+        let outcome = exec::execute(
+            spec,
+            &replan,
+            &restale,
+            kept.as_ref(),
+            opts.progress,
+            &again,
+            exec::Input::Source(pass_doctor.as_mut()),
+        )?;
+        let judged_here = pass_doctor.as_ref().and_then(exec::Doctor::seconds);
+        drop(pass_doctor);
+        seconds = seconds.or(judged_here);
+        match outcome {
+            Outcome::Built(staging, hashes) => {
+                let block_decodes = kept.decode_counts();
+                build_lock.keep();
+                staging.commit(&names)?;
+                let committed = Committed {
+                    plan: replan,
+                    built: names,
+                    hashes,
+                    block_decodes,
+                };
+                return Ok((committed, seconds));
+            }
+            // The doctor, judging in this pass, left more out: once more without them.
+            Outcome::Exclude(more) if judged_here.is_some() => {
+                excluded = more;
+                before = replan;
+            }
+            Outcome::Exclude(more) => {
+                return Err(Error::Internal(format!(
+                    "episodes {:?} passed the audit once and failed it the second time",
+                    more.keys().collect::<Vec<_>>()
+                )))
+            }
         }
-        Outcome::Exclude(more) => Err(Error::Internal(format!(
-            "episodes {:?} passed the audit once and failed it the second time",
-            more.keys().collect::<Vec<_>>()
-        ))),
     }
 }
 

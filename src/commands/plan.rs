@@ -2,17 +2,27 @@
 //! resolved against the lock.
 
 use super::audit::audit;
-use crate::audit::Audited;
+use crate::audit::{AuditReport, Audited};
 use crate::error::{Error, Result};
 use crate::lock::{self, Lock};
 use crate::plan::{self, Plan};
 use crate::source::Source;
 use crate::spec::{self, LoadedSpec, SplitFrom};
 
-/// Opens the source, audits it, and resolves the plan against the lock (what `chunkc plan`
-/// shows). The source returned is the audited one: exclusions gone, repairs applied on read.
+/// Opens the source, audits it (the dataset doctor included), and resolves the plan against the
+/// lock (what `chunkc plan` shows). The source returned is the audited one: exclusions gone,
+/// repairs applied on read.
 pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
-    let audited = audit(spec)?;
+    plan_audited(spec, true).map(|(source, plan, _)| (source, plan))
+}
+
+/// [`plan`], with the dataset doctor only when `doctor` is set (`build` folds it into its
+/// read), and the audit's report.
+pub fn plan_audited(
+    spec: &LoadedSpec,
+    doctor: bool,
+) -> Result<(Box<dyn Source>, Plan, AuditReport)> {
+    let audited = audit(spec, doctor)?;
     let report = audited.report;
     let applied = spec.spec.audit.repair;
     let source: Box<dyn Source> = Box::new(Audited::new(
@@ -50,5 +60,5 @@ pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
         .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
     let mut plan = plan::resolve(spec, source.manifest(), entry, &out_dir)?;
     plan::apply_audit(&mut plan, &report, applied);
-    Ok((source, plan))
+    Ok((source, plan, report))
 }

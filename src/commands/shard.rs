@@ -157,6 +157,7 @@ pub fn merge(spec: &LoadedSpec, partials: &Path, opts: &BuildOptions) -> Result<
         episode_reads: Vec::new(),
         block_decodes: Default::default(),
         doctor_seconds: plan.audit.doctor_seconds,
+        doctor_warnings: Vec::new(),
         seconds: started.elapsed().as_secs_f64(),
     })
 }

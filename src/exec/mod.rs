@@ -19,6 +19,7 @@
 //! - `staging`: the staging directory, the build lock and the final renames.
 //! - `progress`: progress bars (hidden when stderr is not a terminal).
 
+mod doctor;
 mod finish;
 mod guard;
 pub mod partial;
@@ -41,6 +42,7 @@ use crate::spec::LoadedSpec;
 use crate::store;
 
 pub use crate::files::{BUILD_LOCK_FILE, STAGING_DIR};
+pub use doctor::{Doctor, Judge};
 pub use shard::{shard, ShardReport};
 pub use staging::{BuildLock, Staging};
 
@@ -53,8 +55,8 @@ pub type Excluded = BTreeMap<u64, String>;
 pub enum Outcome {
     /// Every stale profile's files are in the staging directory, fsynced and hashed.
     Built(Staging, FileHashes),
-    /// `[audit] non_finite = "exclude_episode"` found episodes to leave out; nothing was kept
-    /// of this attempt.
+    /// `[audit] non_finite = "exclude_episode"`, or the dataset doctor (a check `= "exclude"`),
+    /// found episodes to leave out; nothing was kept of this attempt.
     Exclude(Excluded),
 }
 
@@ -68,9 +70,10 @@ pub fn spill_budget() -> usize {
 }
 
 /// Where a build's episodes come from.
-pub enum Input<'a> {
-    /// Read from the source.
-    Source,
+pub enum Input<'a, 'd> {
+    /// Read from the source; the dataset doctor, when given, computes its features from the
+    /// episodes as they are read and judges them before anything is finished.
+    Source(Option<&'a mut Doctor<'d>>),
     /// Processed already, by the shards whose partials these are (in shard order, verified:
     /// see [`partial::verify`]), for `chunkc merge`.
     Partials(&'a [std::path::PathBuf]),
@@ -159,6 +162,18 @@ pub fn execute(
         dirs,
         jobs,
     } = set_up(plan, stale, manifest, &staging)?;
+    let (mut feed, doctor) = match input {
+        Input::Source(doctor) => (read::Feed::Source, doctor),
+        Input::Partials(paths) => (
+            read::Feed::Partials(
+                paths
+                    .iter()
+                    .map(|p| partial::Reader::open(p))
+                    .collect::<Result<_>>()?,
+            ),
+            None,
+        ),
+    };
     let pass = read::Pass {
         plan,
         source,
@@ -167,19 +182,18 @@ pub fn execute(
         jobs: &jobs,
         reads,
         progress,
-    };
-    let mut feed = match input {
-        Input::Source => read::Feed::Source,
-        Input::Partials(paths) => read::Feed::Partials(
-            paths
-                .iter()
-                .map(|p| partial::Reader::open(p))
-                .collect::<Result<_>>()?,
-        ),
+        doctor: doctor.as_deref(),
     };
     let excluded = read::read_all(&pass, &mut rates, &mut sinks, &mut feed)?;
     if !excluded.is_empty() {
         return Ok(Outcome::Exclude(excluded));
+    }
+    if let Some(doctor) = doctor {
+        let _judging = crate::timings::phase("dataset doctor (judgement)");
+        let excluded = doctor.judge()?;
+        if !excluded.is_empty() {
+            return Ok(Outcome::Exclude(excluded));
+        }
     }
     let shared = finish::Shared {
         spec,

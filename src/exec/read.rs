@@ -39,6 +39,8 @@ pub(super) struct Pass<'a> {
     /// How many times each episode was read (the tests check "once").
     pub reads: &'a [AtomicUsize],
     pub progress: bool,
+    /// The dataset doctor's features, computed from each episode read (see [`super::doctor`]).
+    pub doctor: Option<&'a super::doctor::Doctor<'a>>,
 }
 
 /// Where the pass takes its episodes from.
@@ -169,6 +171,9 @@ pub(super) fn read_batch(
                     source::check::Verdict::Exclude(reason) => Read::Excluded(reason),
                     source::check::Verdict::Keep if checking_only => Read::Checked,
                     source::check::Verdict::Keep => {
+                        if let Some(doctor) = pass.doctor {
+                            doctor.take(i, &ep);
+                        }
                         Read::Kept(process(ep, pass.source, pass.jobs, train))
                     }
                 },

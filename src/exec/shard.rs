@@ -66,6 +66,7 @@ pub fn shard(
         jobs: &setup.jobs,
         reads: &reads,
         progress: show_progress,
+        doctor: None,
     };
     let path = partial::path_of(dir, shard.index, shard.count);
     let header = Header {

@@ -281,7 +281,7 @@ fn leave_out_unreadable_cameras(
 
 /// The timing audit of the opened source, counted.
 fn timing(spec: &LoadedSpec, opened: &dyn source::Source) -> Result<TimingSummary> {
-    let (report, _) = audit::run(spec, opened)?;
+    let (report, _) = audit::run(spec, opened, true)?;
     let count = |v: Verdict| report.episodes.iter().filter(|e| e.verdict == v).count();
     Ok(TimingSummary {
         timestamps: report.timestamps,

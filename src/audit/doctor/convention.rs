@@ -81,7 +81,7 @@ pub fn judge(
             let best = fits.iter().filter_map(|f| f.get(d)?.as_ref()).map(|v| {
                 1.0 - v
                     .iter()
-                    .map(|x| x.unexplained)
+                    .map(|x| f64::from(x.unexplained))
                     .fold(f64::INFINITY, f64::min)
             });
             median(best) > TRACKED_R2
@@ -106,7 +106,12 @@ pub fn judge(
                 continue;
             }
             let unexplained: Vec<f64> = (0..shifts)
-                .map(|i| used.iter().map(|v| v[i].unexplained).sum::<f64>() / used.len() as f64)
+                .map(|i| {
+                    used.iter()
+                        .map(|v| f64::from(v[i].unexplained))
+                        .sum::<f64>()
+                        / used.len() as f64
+                })
                 .collect();
             let best = (0..shifts)
                 .min_by(|&i, &j| unexplained[i].total_cmp(&unexplained[j]))
@@ -120,7 +125,7 @@ pub fn judge(
                 *s += 1.0 - u;
             }
             fitted += 1;
-            let score = median(used.iter().map(|v| v[best].convention));
+            let score = median(used.iter().map(|v| f64::from(v[best].convention)));
             out.conventions[e] = if score > CONVENTION_MARGIN {
                 Some(Convention::Absolute)
             } else if score < -CONVENTION_MARGIN {
@@ -151,7 +156,10 @@ pub fn judge(
                 Some(
                     tracked
                         .iter()
-                        .map(|&d| f[d].as_ref().map_or(f64::NAN, |v| v[l.best].alpha))
+                        .map(|&d| {
+                            f[d].as_ref()
+                                .map_or(f64::NAN, |v| f64::from(v[l.best].alpha))
+                        })
                         .collect(),
                 )
             })

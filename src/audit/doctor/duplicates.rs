@@ -4,9 +4,9 @@
 //! Each episode's action is resampled at [`POINTS`] evenly spaced steps per dimension and divided
 //! by the dimension's typical spread (the median over episodes of the per-episode standard
 //! deviation). Two episodes of lengths within 5% are near-duplicates when the RMS difference of
-//! these signatures is below `duplicate_tolerance`. Sorting by the signatures' means bounds the
-//! comparisons (the means of two signatures differ by at most their RMS difference); the later
-//! episode of a pair, in source order, is the one flagged.
+//! these signatures is below `duplicate_tolerance`. A hash grid over three projections of the
+//! signatures bounds the comparisons ([`pairs`]); the later episode of a pair, in source order,
+//! is the one flagged.
 
 pub const POINTS: usize = 32;
 
@@ -28,43 +28,83 @@ pub fn signature(a: &[f64], n: usize, width: usize) -> Vec<f64> {
     out
 }
 
+/// Projections of a signature onto `±1/len` patterns ([`PROJECTIONS`] of them: all `+`, then
+/// signs alternating every element, then every two): each differs between two signatures by at
+/// most their RMS difference (`|Σ±dᵢ|/D ≤ Σ|dᵢ|/D ≤ RMS`), so near-duplicates fall into
+/// neighbouring cells of a grid of `tolerance`-wide cells in every projection.
+pub const PROJECTIONS: usize = 3;
+
+fn projections(s: &[f64]) -> [f64; PROJECTIONS] {
+    let mut out = [0.0; PROJECTIONS];
+    for (i, v) in s.iter().enumerate() {
+        out[0] += v;
+        out[1] += if i % 2 == 0 { *v } else { -v };
+        out[2] += if (i / 2) % 2 == 0 { *v } else { -v };
+    }
+    let len = s.len().max(1) as f64;
+    out.map(|x| x / len)
+}
+
 /// Pairs `(earlier, later, rms)` of positions whose signatures (already divided by the spreads)
 /// are within `tolerance`; each later episode appears once, with its closest earlier match.
+///
+/// Episodes go into a hash grid by their [`projections`]; each is compared exactly (lengths, then
+/// the RMS difference) only with the episodes of its own and the neighbouring cells, so the work
+/// grows with the episodes times the crowding of a cell, not with their square, and no pair
+/// within `tolerance` is missed.
 pub fn pairs(
     signatures: &[Vec<f64>],
     lengths: &[usize],
     tolerance: f64,
 ) -> Vec<(usize, usize, f64)> {
-    let keys: Vec<f64> = signatures
-        .iter()
-        .map(|s| s.iter().sum::<f64>() / s.len().max(1) as f64)
-        .collect();
-    let key = |s: usize| keys[s];
-    let mut order: Vec<usize> = (0..signatures.len()).collect();
-    order.sort_by(|&i, &j| key(i).total_cmp(&key(j)).then(i.cmp(&j)));
+    type Cell = [i64; PROJECTIONS];
+    let cell_of = |s: &[f64]| -> Cell { projections(s).map(|x| (x / tolerance).floor() as i64) };
+    let cells: Vec<Cell> = signatures.iter().map(|s| cell_of(s)).collect();
+    let mut grid: std::collections::HashMap<Cell, Vec<usize>> = Default::default();
+    for (i, c) in cells.iter().enumerate() {
+        grid.entry(*c).or_default().push(i);
+    }
     let mut best: std::collections::BTreeMap<usize, (usize, f64)> = Default::default();
-    for (k, &i) in order.iter().enumerate() {
-        for &j in &order[k + 1..] {
-            if key(j) - key(i) > tolerance {
-                break;
+    let offsets: Vec<Cell> = (0..3usize.pow(PROJECTIONS as u32))
+        .map(|k| {
+            let mut o = [0i64; PROJECTIONS];
+            let mut k = k;
+            for x in o.iter_mut() {
+                *x = (k % 3) as i64 - 1;
+                k /= 3;
             }
-            let (li, lj) = (lengths[i] as f64, lengths[j] as f64);
-            if (li - lj).abs() > 0.05 * li.max(lj) || signatures[i].len() != signatures[j].len() {
-                continue;
+            o
+        })
+        .collect();
+    for (i, c) in cells.iter().enumerate() {
+        for o in &offsets {
+            let mut near = *c;
+            for (x, d) in near.iter_mut().zip(o) {
+                *x += d;
             }
-            let n = signatures[i].len().max(1) as f64;
-            let rms = (signatures[i]
-                .iter()
-                .zip(&signatures[j])
-                .map(|(p, q)| (p - q) * (p - q))
-                .sum::<f64>()
-                / n)
-                .sqrt();
-            if rms < tolerance {
-                let (early, late) = (i.min(j), i.max(j));
-                let e = best.entry(late).or_insert((early, rms));
-                if rms < e.1 || (rms == e.1 && early < e.0) {
-                    *e = (early, rms);
+            // Each pair once: from its earlier episode.
+            for &j in grid.get(&near).map_or(&[][..], |v| &v[..]) {
+                if j <= i {
+                    continue;
+                }
+                let (li, lj) = (lengths[i] as f64, lengths[j] as f64);
+                if (li - lj).abs() > 0.05 * li.max(lj) || signatures[i].len() != signatures[j].len()
+                {
+                    continue;
+                }
+                let n = signatures[i].len().max(1) as f64;
+                let rms = (signatures[i]
+                    .iter()
+                    .zip(&signatures[j])
+                    .map(|(p, q)| (p - q) * (p - q))
+                    .sum::<f64>()
+                    / n)
+                    .sqrt();
+                if rms < tolerance {
+                    let e = best.entry(j).or_insert((i, rms));
+                    if rms < e.1 || (rms == e.1 && i < e.0) {
+                        *e = (i, rms);
+                    }
                 }
             }
         }
@@ -97,5 +137,51 @@ mod tests {
                 .collect::<Vec<_>>(),
             vec![(0, 2)]
         );
+    }
+
+    /// The grid finds exactly the pairs every-pair comparison finds, with planted copies at
+    /// distances up to the tolerance's edge.
+    #[test]
+    fn grid_equals_every_pair() {
+        let mut seed = 7u64;
+        let mut rand = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let tolerance = 0.05;
+        let mut sigs: Vec<Vec<f64>> = (0..300)
+            .map(|_| (0..24).map(|_| 0.2 * (rand() - 0.5)).collect())
+            .collect();
+        for k in 0..60 {
+            let scale = tolerance * (0.5 + rand());
+            let copy: Vec<f64> = sigs[k].iter().map(|v| v + scale * (rand() - 0.5)).collect();
+            sigs.push(copy);
+        }
+        let lengths: Vec<usize> = (0..sigs.len()).map(|i| 100 + i % 3).collect();
+        let mut every = std::collections::BTreeMap::new();
+        for j in 0..sigs.len() {
+            for i in 0..j {
+                let rms = (sigs[i]
+                    .iter()
+                    .zip(&sigs[j])
+                    .map(|(p, q)| (p - q) * (p - q))
+                    .sum::<f64>()
+                    / 24.0)
+                    .sqrt();
+                let e = every.entry(j).or_insert((i, f64::INFINITY));
+                if rms < tolerance && rms < e.1 {
+                    *e = (i, rms);
+                }
+            }
+        }
+        let expected: Vec<(usize, usize, f64)> = every
+            .into_iter()
+            .filter(|(_, (_, r))| r.is_finite())
+            .map(|(j, (i, r))| (i, j, r))
+            .collect();
+        assert!(expected.len() >= 40, "{}", expected.len());
+        assert_eq!(pairs(&sigs, &lengths, tolerance), expected);
     }
 }

@@ -4,18 +4,22 @@
 
 use super::{alignment, duplicates, signal};
 
-/// What one episode reduces to.
-pub(super) struct Features {
-    pub n: usize,
-    pub signal: Vec<signal::DimSignal>,
-    pub fits: Vec<Option<Vec<alignment::LagFit>>>,
-    pub stds: Vec<f64>,
-    pub action_means: Vec<f64>,
-    pub state_means: Vec<f64>,
-    pub state_range: Vec<(f64, f64)>,
+/// What one episode reduces to: a fixed size per channel dimension, whatever the episode's
+/// length (about 12 KB for 14-D action and state).
+#[derive(Debug, Clone)]
+pub struct Features {
+    pub(super) n: usize,
+    pub(super) signal: Vec<signal::DimSignal>,
+    pub(super) fits: Vec<Option<Vec<alignment::LagFit>>>,
+    pub(super) stds: Vec<f64>,
+    pub(super) action_means: Vec<f64>,
+    pub(super) state_means: Vec<f64>,
+    pub(super) state_range: Vec<(f64, f64)>,
     /// Per state dimension, the longest run of one exact value and the share of unchanged steps.
-    pub state_runs: Vec<(usize, f64)>,
-    pub signature: Vec<f64>,
+    pub(super) state_runs: Vec<(usize, f64)>,
+    /// The duplicate signature ([`duplicates::signature`]), in single precision: the
+    /// tolerance it is compared at is far above its rounding.
+    pub(super) signature: Vec<f32>,
 }
 
 fn column_stats(x: &[f64], n: usize, width: usize) -> (Vec<f64>, Vec<f64>) {
@@ -49,12 +53,7 @@ pub(super) fn features(
         .collect();
     let (action_means, stds) = column_stats(a, n, a_dim);
     let state_runs = match s {
-        Some(s) => (0..s_dim)
-            .map(|d| {
-                let sig = signal::dim_signal(s, n, s_dim, d);
-                (sig.run.0, sig.unchanged)
-            })
-            .collect(),
+        Some(s) => (0..s_dim).map(|d| signal::held(s, n, s_dim, d)).collect(),
         None => Vec::new(),
     };
     let (state_means, state_range) = match s {
@@ -82,7 +81,10 @@ pub(super) fn features(
         state_means,
         state_range,
         state_runs,
-        signature: duplicates::signature(a, n, a_dim),
+        signature: duplicates::signature(a, n, a_dim)
+            .into_iter()
+            .map(|v| v as f32)
+            .collect(),
     }
 }
 

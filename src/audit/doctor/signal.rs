@@ -53,18 +53,9 @@ pub fn dim_signal(a: &[f64], n: usize, width: usize, d: usize) -> DimSignal {
     if n == 0 {
         return out;
     }
-    let (mut start, mut best) = (0usize, (1usize, 0usize, x[0]));
-    for t in 1..=n {
-        if t == n || x[t] != x[start] {
-            if t - start > best.0 {
-                best = (t - start, start, x[start]);
-            }
-            start = t;
-        }
-    }
-    out.run = best;
+    out.run = longest_run(&x);
     let steps: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
-    out.unchanged = steps.iter().filter(|s| **s == 0.0).count() as f64 / steps.len().max(1) as f64;
+    out.unchanged = unchanged_share(&x);
     out.step_sigma = if steps.is_empty() {
         0.0
     } else {
@@ -106,6 +97,37 @@ pub fn dim_signal(a: &[f64], n: usize, width: usize, d: usize) -> DimSignal {
     out
 }
 
+/// How dimension `d` of a `(n, width)` array holds still: its longest run of one exact value
+/// (steps) and the share of steps equal to the step before (what `stuck` judges of the state).
+pub fn held(a: &[f64], n: usize, width: usize, d: usize) -> (usize, f64) {
+    if n == 0 {
+        return (0, 0.0);
+    }
+    let x: Vec<f64> = (0..n).map(|t| a[t * width + d]).collect();
+    (longest_run(&x).0, unchanged_share(&x))
+}
+
+/// The longest run of one exact value: (steps, first step, value); `x` is not empty.
+fn longest_run(x: &[f64]) -> (usize, usize, f64) {
+    let n = x.len();
+    let (mut start, mut best) = (0usize, (1usize, 0usize, x[0]));
+    for t in 1..=n {
+        if t == n || x[t] != x[start] {
+            if t - start > best.0 {
+                best = (t - start, start, x[start]);
+            }
+            start = t;
+        }
+    }
+    best
+}
+
+/// The share of steps equal to the step before.
+fn unchanged_share(x: &[f64]) -> f64 {
+    let same = x.windows(2).filter(|w| w[1] == w[0]).count();
+    same as f64 / x.len().saturating_sub(1).max(1) as f64
+}
+
 /// The three largest one-step spikes of `x`: (size, step), largest first (size 0: none).
 ///
 /// A spike is judged on the residual `r[t] = x[t] - (x[t-1] + x[t+1]) / 2`, the value's distance
@@ -121,37 +143,42 @@ pub fn dim_signal(a: &[f64], n: usize, width: usize, d: usize) -> DimSignal {
 ///   turning point of a fast motion bends its surroundings too).
 fn spikes(x: &[f64]) -> Vec<(f64, usize)> {
     let n = x.len();
-    let r: Vec<f64> = (0..n)
-        .map(|t| {
-            if t == 0 || t + 1 >= n {
-                0.0
-            } else {
-                x[t] - 0.5 * (x[t - 1] + x[t + 1])
-            }
-        })
-        .collect();
-    let mut spikes: Vec<(f64, usize)> = (1..n.saturating_sub(1))
-        .map(|t| {
-            let size = r[t].abs();
-            let echo = |u: usize| r[u] * r[t] < 0.0 && r[u].abs() >= 0.25 * size;
-            let around = |u: Option<usize>| u.filter(|&u| u < n).map_or(0.0, |u| r[u].abs());
-            let stands_out = 3.0 * around(t.checked_sub(2)).max(around(Some(t + 2))) < size;
-            // Out and back: above (or below) both neighbours, by at least half its size on
-            // each side. A held sample (one flank flat) or an uneven step of a motion (between
-            // its neighbours) is a timing artefact, not a glitch of the value.
-            let (before, after) = (x[t] - x[t - 1], x[t] - x[t + 1]);
-            let out_and_back = before * after > 0.0 && before.abs().min(after.abs()) >= 0.5 * size;
-            let spike = size > 0.0
-                && out_and_back
-                && (t < 2 || echo(t - 1))
-                && (t + 2 >= n || echo(t + 1))
-                && stands_out;
-            (if spike { size } else { 0.0 }, t)
-        })
-        .collect();
-    spikes.sort_by(|p, q| q.0.total_cmp(&p.0).then(p.1.cmp(&q.1)));
-    spikes.truncate(3);
-    spikes
+    let r = |t: usize| {
+        if t == 0 || t + 1 >= n {
+            0.0
+        } else {
+            x[t] - 0.5 * (x[t - 1] + x[t + 1])
+        }
+    };
+    // The three largest, kept in order as the steps go by (size descending, then step).
+    let mut top: Vec<(f64, usize)> = Vec::with_capacity(4);
+    for t in 1..n.saturating_sub(1) {
+        let rt = r(t);
+        let size = rt.abs();
+        let echo = |u: usize| {
+            let ru = r(u);
+            ru * rt < 0.0 && ru.abs() >= 0.25 * size
+        };
+        let around = |u: Option<usize>| u.filter(|&u| u < n).map_or(0.0, |u| r(u).abs());
+        // Out and back: above (or below) both neighbours, by at least half its size on each
+        // side. A held sample (one flank flat) or an uneven step of a motion (between its
+        // neighbours) is a timing artefact, not a glitch of the value.
+        let (before, after) = (x[t] - x[t - 1], x[t] - x[t + 1]);
+        let spike = size > 0.0
+            && before * after > 0.0
+            && before.abs().min(after.abs()) >= 0.5 * size
+            && (t < 2 || echo(t - 1))
+            && (t + 2 >= n || echo(t + 1))
+            && 3.0 * around(t.checked_sub(2)).max(around(Some(t + 2))) < size;
+        let size = if spike { size } else { 0.0 };
+        if top.len() == 3 && size <= top[2].0 {
+            continue;
+        }
+        let at = top.iter().position(|p| size > p.0).unwrap_or(top.len());
+        top.insert(at, (size, t));
+        top.truncate(3);
+    }
+    top
 }
 
 #[cfg(test)]

@@ -1,0 +1,119 @@
+"""The dataset doctor inside `chunkc build`'s one pass (issue 30): the build computes the doctor's
+features from the episodes it reads anyway and judges them before anything is finished. The
+oracle is `chunkc audit`, whose doctor reads the two channels in a pass of its own
+(`read_lowdim`, not the build's `read_episode`): both must reach the same findings. The outputs'
+bytes must not depend on the doctor when it only warns; its exclusions and errors must act as
+they do in the audit, with nothing partial left behind."""
+
+import hashlib
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import zarr
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from conftest import run_chunkc  # noqa: E402
+
+FAULTS = "frozen,clip,jump,lag:3,delta,scale:10,duplicate"
+
+
+def synth(tmp: Path, name: str, faults=FAULTS, episodes=80) -> Path:
+    out = tmp / name
+    run_chunkc("synth", out, "--format", "diffusion-policy-zarr", "--episodes", episodes,
+               "--steps", 120, "--action-dim", 4, "--state-dim", 4, "--fps", 10, "--seed", 3,
+               "--faults", faults, "--fault-fraction", 0.1)
+    return out / "spec.toml"
+
+
+def doctor_lines(text: str) -> list:
+    return sorted(l.removeprefix("warning: ") for l in text.splitlines()
+                  if "dataset doctor flagged episodes" in l)
+
+
+def scaled(spec: Path) -> list:
+    """The episodes `chunkc synth` recorded in other units (faults.json: the generator's truth)."""
+    faults = json.loads((spec.parent / "faults.json").read_text())["episodes"]
+    return sorted(int(e) for e, fs in faults.items() if any(f["fault"] == "scale" for f in fs))
+
+
+def hashes(directory: Path) -> dict:
+    return {str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(directory.rglob("*")) if p.is_file()}
+
+
+def test_build_finds_what_the_audit_finds(tmp_path):
+    spec = synth(tmp_path, "s")
+    audit_stderr = run_chunkc("audit", spec).stdout + run_chunkc("audit", spec).stderr
+    audit = json.loads((spec.parent / "out" / "audit" / "audit.json").read_text())
+    flagged = audit["doctor"]["flagged"]
+    assert set(flagged) >= {"units", "jump", "duplicate"}, flagged
+    expected = "the dataset doctor flagged episodes: " + ", ".join(
+        f"{k} {v}" for k, v in sorted(flagged.items()))
+    assert expected in audit["warnings"]
+    assert expected in audit_stderr
+    build = run_chunkc("build", spec)
+    assert doctor_lines(build.stderr) == [expected], build.stderr
+    assert "the dataset doctor took" in build.stderr
+
+
+def test_the_doctor_does_not_change_the_outputs(tmp_path):
+    spec = synth(tmp_path, "s")
+    out = spec.parent / "out" / "act"
+    run_chunkc("build", spec)
+    on = {k: (out / k).read_bytes() for k in hashes(out)}
+    spec.write_text(spec.read_text() + "\n[audit.doctor]\nenabled = false\n")
+    assert "the dataset doctor" not in run_chunkc("build", spec).stderr
+    off = {k: (out / k).read_bytes() for k in hashes(out)}
+    assert on.keys() == off.keys()
+    # Only the spec's hash (in meta.json and the README) differs: the spec did.
+    def unhashed(files):
+        h = json.loads(files["meta.json"])["spec_hash"]
+        return {k: v.replace(h.encode(), b"H").replace(h[:16].encode(), b"H") for k, v in files.items()}
+    assert sorted(k for k in on if on[k] != off[k]) == ["README.md", "meta.json"]
+    assert unhashed(on) == unhashed(off)
+
+
+def test_build_excludes_and_errors_as_the_audit_does(tmp_path):
+    spec = synth(tmp_path, "s", faults="scale:100")
+    text = spec.read_text()
+    spec.write_text(text + '\n[audit.doctor]\nunits = "exclude"\n')
+    run_chunkc("audit", spec)
+    audit = json.loads((spec.parent / "out" / "audit" / "audit.json").read_text())
+    units = sorted(e["id"] for e in audit["episodes"] if "units" in e["flags"])
+    truth = scaled(spec)
+    assert units == truth and len(units) == 8
+    run_chunkc("build", spec)
+    meta = json.loads((spec.parent / "out" / "act" / "meta.json").read_text())
+    assert sorted(e["id"] for e in meta["excluded"]) == units
+    assert all(e["reason"].startswith("audit: ") and "units: " in e["reason"] for e in meta["excluded"])
+    assert sorted(set(range(80)) - set(meta["episodes"])) == units
+    # An `= "error"` finding fails the build, naming the check and the episode; nothing is
+    # written (a fresh output directory stays without the profile).
+    spec.write_text(text.replace('dir = "out"', 'dir = "err"') + '\n[audit.doctor]\nunits = "error"\n')
+    proc = run_chunkc("build", spec, check=False)
+    assert proc.returncode != 0
+    assert "units" in proc.stderr and f"episode {units[0]}" in proc.stderr, proc.stderr
+    assert not (spec.parent / "err" / "act").exists()
+
+
+def test_non_finite_and_doctor_exclusions_together(tmp_path):
+    """A NaN stops the first pass before the doctor judges; the second pass (without the NaN
+    episode) judges, its exclusions make a third: the output leaves both out."""
+    spec = synth(tmp_path, "s", faults="scale:100")
+    root = zarr.open(str(spec.parent / "replay.zarr"), mode="r+")
+    ends = np.asarray(root["meta/episode_ends"][:])
+    units = scaled(spec)
+    nan_episode = next(e for e in range(80) if e not in units)
+    start = 0 if nan_episode == 0 else int(ends[nan_episode - 1])
+    action = root["data/action"]
+    row = action[start + 5]
+    row[1] = np.nan
+    action[start + 5] = row
+    spec.write_text(spec.read_text() + '\n[audit]\nnon_finite = "exclude_episode"\n'
+                    '[audit.doctor]\nunits = "exclude"\n')
+    run_chunkc("build", spec)
+    meta = json.loads((spec.parent / "out" / "act" / "meta.json").read_text())
+    assert sorted(e["id"] for e in meta["excluded"]) == sorted(units + [nan_episode])
+    assert sorted(set(range(80)) - set(meta["episodes"])) == sorted(units + [nan_episode])
