@@ -32,9 +32,9 @@ pub struct LagFit {
 /// The fits of dimension `d` at every shift (`SHIFT_MIN..=SHIFT_MAX`), or None when the episode
 /// is too short or the state does not move.
 ///
-/// The action column is centred once (by its episode mean), so that each shift's sums are
-/// plain dot products over contiguous slices (four lanes at a time, which the compiler turns
-/// into vector instructions): one fused pass per shift.
+/// The action column is centred once (by its episode mean), so that each shift's sums are its
+/// window's running sums and two dot products over contiguous slices (with the state and the
+/// state change; the next state's follows from them): one fused pass per shift.
 pub fn fit_dim(
     a: &[f64],
     s: &[f64],
@@ -75,12 +75,23 @@ pub fn fit_dim(
         }
     };
     let col = centred((0..n).map(|t| a[t * a_dim + d]).collect());
+    // Running sums of the action and its square: each shift's window sums in O(1).
+    let mut prefix = vec![(0.0f64, 0.0f64); n + 1];
+    for (t, x) in col.iter().enumerate() {
+        prefix[t + 1] = (prefix[t].0 + x, prefix[t].1 + x * x);
+    }
     let mut out = Vec::with_capacity((SHIFT_MAX - SHIFT_MIN + 1) as usize);
     for shift in SHIFT_MIN..=SHIFT_MAX {
         // The action shifted by `shift`, in place: rows t0 - shift .. t1 - shift.
         let start = (t0 as i64 - shift) as usize;
-        let sums = lane_sums(&col[start..start + len], &x2c, &yc, &nextc);
-        let [sx, sxx, s12, s1y, s1n] = sums;
+        let (sx, sxx) = (
+            prefix[start + len].0 - prefix[start].0,
+            prefix[start + len].1 - prefix[start].1,
+        );
+        let (s12, s1y) = lane_dots(&col[start..start + len], &x2c, &yc);
+        // The next state is the current one plus the change (all centred): its sum with the
+        // action is the sum of theirs.
+        let s1n = s12 + s1y;
         // Against the shifted action's own mean: the other series are centred already.
         let s11 = (sxx - sx * sx / len as f64).max(0.0);
         let det = s11 * s22 - s12 * s12;
@@ -103,35 +114,25 @@ pub fn fit_dim(
     Some(out)
 }
 
-/// `[Σx, Σx², Σx·p, Σx·q, Σx·r]` over equally long slices, four lanes at a time.
-fn lane_sums(x: &[f64], p: &[f64], q: &[f64], r: &[f64]) -> [f64; 5] {
-    let mut acc = [[0.0f64; 4]; 5];
-    let (xc, pc, qc, rc) = (
-        x.chunks_exact(4),
-        p.chunks_exact(4),
-        q.chunks_exact(4),
-        r.chunks_exact(4),
-    );
+/// `(Σx·p, Σx·q)` over equally long slices, four lanes at a time (the compiler turns them into
+/// vector instructions).
+fn lane_dots(x: &[f64], p: &[f64], q: &[f64]) -> (f64, f64) {
+    let (mut xp, mut xq) = ([0.0f64; 4], [0.0f64; 4]);
+    let (xc, pc, qc) = (x.chunks_exact(4), p.chunks_exact(4), q.chunks_exact(4));
     let tail = xc.remainder().len();
-    for (((x, p), q), r) in xc.zip(pc).zip(qc).zip(rc) {
+    for ((x, p), q) in xc.zip(pc).zip(qc) {
         for k in 0..4 {
-            acc[0][k] += x[k];
-            acc[1][k] += x[k] * x[k];
-            acc[2][k] += x[k] * p[k];
-            acc[3][k] += x[k] * q[k];
-            acc[4][k] += x[k] * r[k];
+            xp[k] += x[k] * p[k];
+            xq[k] += x[k] * q[k];
         }
     }
-    let mut out = acc.map(|a| (a[0] + a[1]) + (a[2] + a[3]));
-    let from = x.len() - tail;
-    for i in from..x.len() {
-        out[0] += x[i];
-        out[1] += x[i] * x[i];
-        out[2] += x[i] * p[i];
-        out[3] += x[i] * q[i];
-        out[4] += x[i] * r[i];
+    let sum = |a: [f64; 4]| (a[0] + a[1]) + (a[2] + a[3]);
+    let (mut a, mut b) = (sum(xp), sum(xq));
+    for i in x.len() - tail..x.len() {
+        a += x[i] * p[i];
+        b += x[i] * q[i];
     }
-    out
+    (a, b)
 }
 
 /// The reported lag of shift index `i` (into a fit vector).

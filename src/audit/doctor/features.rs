@@ -22,18 +22,26 @@ pub struct Features {
     pub(super) signature: Vec<f32>,
 }
 
+/// Per column of a `(n, width)` array: the mean and the (population) standard deviation, in
+/// two passes over the rows (the array's own order).
 fn column_stats(x: &[f64], n: usize, width: usize) -> (Vec<f64>, Vec<f64>) {
     let mut means = vec![0.0; width];
     let mut stds = vec![0.0; width];
-    if n == 0 {
+    if n == 0 || width == 0 {
         return (means, stds);
     }
-    for d in 0..width {
-        let m = (0..n).map(|t| x[t * width + d]).sum::<f64>() / n as f64;
-        let v = (0..n).map(|t| (x[t * width + d] - m).powi(2)).sum::<f64>() / n as f64;
-        means[d] = m;
-        stds[d] = v.sqrt();
+    for row in x.chunks_exact(width).take(n) {
+        for (m, v) in means.iter_mut().zip(row) {
+            *m += v;
+        }
     }
+    means.iter_mut().for_each(|m| *m /= n as f64);
+    for row in x.chunks_exact(width).take(n) {
+        for ((s, m), v) in stds.iter_mut().zip(&means).zip(row) {
+            *s += (v - m) * (v - m);
+        }
+    }
+    stds.iter_mut().for_each(|s| *s = (*s / n as f64).sqrt());
     (means, stds)
 }
 
