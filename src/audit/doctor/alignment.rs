@@ -33,7 +33,7 @@ pub struct LagFit {
 /// is too short or the state does not move.
 ///
 /// The action column is centred once (by its episode mean), so that each shift's sums are its
-/// window's running sums and two dot products over contiguous slices (with the state and the
+/// window's sliding sums and two dot products over contiguous slices (with the state and the
 /// state change; the next state's follows from them): one fused pass per shift.
 pub fn fit_dim(
     a: &[f64],
@@ -75,19 +75,20 @@ pub fn fit_dim(
         }
     };
     let col = centred((0..n).map(|t| a[t * a_dim + d]).collect());
-    // Running sums of the action and its square: each shift's window sums in O(1).
-    let mut prefix = vec![(0.0f64, 0.0f64); n + 1];
-    for (t, x) in col.iter().enumerate() {
-        prefix[t + 1] = (prefix[t].0 + x, prefix[t].1 + x * x);
-    }
     let mut out = Vec::with_capacity((SHIFT_MAX - SHIFT_MIN + 1) as usize);
+    // The window's sums of the action and its square, slid one row earlier per shift.
+    let first = (t0 as i64 - SHIFT_MIN) as usize;
+    let (mut sx, mut sxx) = col[first..first + len]
+        .iter()
+        .fold((0.0, 0.0), |(s, q), x| (s + x, q + x * x));
     for shift in SHIFT_MIN..=SHIFT_MAX {
         // The action shifted by `shift`, in place: rows t0 - shift .. t1 - shift.
         let start = (t0 as i64 - shift) as usize;
-        let (sx, sxx) = (
-            prefix[start + len].0 - prefix[start].0,
-            prefix[start + len].1 - prefix[start].1,
-        );
+        if start != first {
+            let (come, go) = (col[start], col[start + len]);
+            sx += come - go;
+            sxx += come * come - go * go;
+        }
         let (s12, s1y) = lane_dots(&col[start..start + len], &x2c, &yc);
         // The next state is the current one plus the change (all centred): its sum with the
         // action is the sum of theirs.
