@@ -173,6 +173,27 @@ def test_the_same_bytes_with_any_thread_count(tmp_path):
     assert data["1"] == data["2"]
 
 
+def test_shards_merge_into_the_same_bytes(tmp_path):
+    """Two profiles at one rate storing a camera at two sizes (two rate jobs), built whole and
+    as two shards merged."""
+    profiles = (profile_text("crop", *RESIZED["crop"])
+                + profile_text("down", *RESIZED["down"]))
+    files = {}
+    for how in ("single", "sharded"):
+        d = tmp_path / how
+        d.mkdir()
+        spec = d / "spec.toml"
+        spec.write_text(spec_text(profiles))
+        if how == "single":
+            run_chunkc("build", "-q", spec)
+        else:
+            for i in range(2):
+                run_chunkc("build", "-q", "--shard", f"{i}/2", "--partials", d / "parts", spec)
+            run_chunkc("merge", "-q", "--partials", d / "parts", spec)
+        files[how] = {p: (d / "out" / p / "data.h5").read_bytes() for p in ("crop", "down")}
+    assert files["single"] == files["sharded"]
+
+
 KEY = 'profiles.bad.cameras."observation.images.top"'
 
 
