@@ -116,6 +116,9 @@ fn box_average(
 ) {
     let src_row = src_w * c;
     let dst_row = dst_hw[1] * c;
+    if fx == 2 && fy == 2 {
+        return halve(src, src_row, dst, dst_row, c);
+    }
     let area = (fx * fy) as i32;
     let reciprocal = 1.0f32 / area as f32;
     for dy in 0..dst_hw[0] {
@@ -129,11 +132,24 @@ fn box_average(
                         sum += i32::from(src[row + (dx * fx + sx) * c + k]);
                     }
                 }
-                dst[dy * dst_row + dx * c + k] = if fx == 2 && fy == 2 {
-                    ((sum + 2) >> 2) as u8
-                } else {
-                    saturate(sum as f32 * reciprocal)
-                };
+                dst[dy * dst_row + dx * c + k] = saturate(sum as f32 * reciprocal);
+            }
+        }
+    }
+}
+
+/// The 2×2 box average, the common case (a 640x480 camera stored at 320x240), a pair of rows
+/// at a time: `(a + b + c + d + 2) >> 2`, OpenCV's rounding for it.
+fn halve(src: &[u8], src_row: usize, dst: &mut [u8], dst_row: usize, c: usize) {
+    for (dy, out) in dst.chunks_exact_mut(dst_row).enumerate() {
+        let upper = &src[2 * dy * src_row..(2 * dy + 1) * src_row];
+        let lower = &src[(2 * dy + 1) * src_row..(2 * dy + 2) * src_row];
+        let pairs = upper.chunks_exact(2 * c).zip(lower.chunks_exact(2 * c));
+        for (o, (a, b)) in out.chunks_exact_mut(c).zip(pairs) {
+            for k in 0..c {
+                let sum =
+                    u16::from(a[k]) + u16::from(a[c + k]) + u16::from(b[k]) + u16::from(b[c + k]);
+                o[k] = ((sum + 2) >> 2) as u8;
             }
         }
     }
@@ -160,8 +176,10 @@ fn weighted(
         let row = &src[t.si * src_row..(t.si + 1) * src_row];
         buf.fill(0.0);
         for tap in x {
-            for k in 0..c {
-                buf[tap.di + k] += f32::from(row[tap.si + k]) * tap.alpha;
+            let from = &row[tap.si..tap.si + c];
+            let to = &mut buf[tap.di..tap.di + c];
+            for (b, &s) in to.iter_mut().zip(from) {
+                *b += f32::from(s) * tap.alpha;
             }
         }
         if t.di != prev {
