@@ -97,6 +97,45 @@ def test_every_frame_is_opencvs_resize_and_crop(built, profile):
     print(f"{profile}: max abs diff vs cv2.resize + crop = {worst}")
 
 
+# Real camera frames (Push-T's renders): raw in Diffusion Policy's zarr, and the same frames as
+# H.264 video in a LeRobot v2.1 dataset (decoded by chunkc, feature `video`).
+REAL = {
+    "pusht_zarr": ('format = "diffusion_policy_zarr"\npath = "{}"\nfps = 10\n'
+                   '[source.channels]\naction = "action"\n"observation.image" = "img"',
+                   REPO / "tests" / "data" / "pusht_subset.zarr", "observation.image"),
+    "lerobot_video": ('format = "lerobot"\npath = "{}"\n[source.channels]\naction = "action"\n'
+                      '"observation.images.top" = "observation.images.top"',
+                      REPO / "tests" / "data" / "lerobot_video_v21", "observation.images.top"),
+}
+
+
+@pytest.mark.parametrize("source", list(REAL))
+def test_real_camera_frames_equal_opencvs(tmp_path, source):
+    text, path, channel = REAL[source]
+    # 96x96 to 84x84 (a weighted area average), to 64x80 (covered at 80x80, 8 rows cropped
+    # above and below) and to 120x100 (enlarged to 120x120, 10 columns cropped each side).
+    sizes = {"square": ((84, 84), False), "crop": ((64, 80), False), "up": ((120, 100), True)}
+    profiles = '\n[profiles.source]\npreset = "act"\nfps = 10\nchunk = 4\n'
+    for name, ((h, w), upscale) in sizes.items():
+        profiles += (f'\n[profiles.{name}]\npreset = "act"\nfps = 10\nchunk = 4\n'
+                     f'[profiles.{name}.cameras."{channel}"]\nsize = [{h}, {w}]\n'
+                     + ("upscale = true\n" if upscale else ""))
+    spec = tmp_path / "spec.toml"
+    spec.write_text(f'version = 1\n[source]\n{text.format(path)}\n[split]\nval_fraction = 0.2\n'
+                    f'seed = 0\n[output]\ndir = "out"\n{profiles}')
+    proc = run_chunkc("build", "-q", spec, check=False)
+    if "without the `video` feature" in proc.stderr:
+        pytest.skip("the chunkc binary lacks the `video` feature")
+    assert proc.returncode == 0, proc.stderr
+    source_frames, _, _ = stored(tmp_path / "out" / "source", channel)
+    for name, ((h, w), _) in sizes.items():
+        frames, _, _ = stored(tmp_path / "out" / name, channel)
+        want = np.stack([dp_transform(f, h, w) for f in source_frames])
+        diff = np.abs(frames.astype(np.int16) - want.astype(np.int16))
+        print(f"{source} {name}: {len(frames)} frames, max abs diff vs cv2 = {diff.max()}")
+        assert diff.max() <= 1, (source, name, diff.max())
+
+
 def test_image_stats_describe_the_stored_frames(built):
     for profile in ("down", "crop", "up"):
         root = built / "out" / profile
