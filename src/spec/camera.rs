@@ -69,3 +69,56 @@ pub(crate) fn merged<'a>(
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cameras(entries: &[(&str, &[i64], bool)]) -> Option<BTreeMap<String, CameraSpec>> {
+        let spec = |size: &[i64], upscale| CameraSpec {
+            size: size.to_vec(),
+            upscale,
+        };
+        Some(
+            entries
+                .iter()
+                .map(|&(name, size, upscale)| (name.to_string(), spec(size, upscale)))
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn nearer_profiles_replace_a_cameras_table() {
+        // Nearest first: the child's `top` replaces the base's; the base's `wrist` stays.
+        let child = cameras(&[("top", &[120, 160], true)]);
+        let base = cameras(&[("top", &[240, 320], false), ("wrist", &[96, 96], false)]);
+        let merged = merged([&child, &base].into_iter());
+        let top = Camera {
+            size: [120, 160],
+            upscale: true,
+        };
+        let wrist = Camera {
+            size: [96, 96],
+            upscale: false,
+        };
+        assert_eq!(
+            merged,
+            [("top".into(), top), ("wrist".into(), wrist)].into()
+        );
+    }
+
+    #[test]
+    fn only_two_positive_integers_are_a_size() {
+        let size = |s: &[i64]| {
+            CameraSpec {
+                size: s.to_vec(),
+                upscale: false,
+            }
+            .size_hw()
+        };
+        assert_eq!(size(&[240, 320]), Some([240, 320]));
+        for bad in [&[0, 320][..], &[-240, 320], &[240], &[240, 320, 3], &[]] {
+            assert_eq!(size(bad), None, "{bad:?}");
+        }
+    }
+}
