@@ -22,6 +22,8 @@
 //! - [`files`]: where chunkc may write (never into the source), and several files written as one.
 //! - [`recycle`]: large byte buffers handed back after use (an episode's frames), so that the
 //!   next episode's decode writes into memory already mapped.
+//! - [`resize`]: camera frames resized as Diffusion Policy resizes them (cover the output keeping
+//!   the aspect ratio with OpenCV's area or bilinear interpolation, then crop the centre).
 //!
 //! **The stages**, in order:
 //!
@@ -106,6 +108,7 @@ pub mod plan;
 pub mod recycle;
 pub mod render;
 pub mod report;
+pub mod resize;
 pub mod sink;
 pub mod source;
 pub mod spec;

@@ -18,6 +18,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("timings", 0),
     ("files", 0),
     ("recycle", 0),
+    ("resize", 0),
     // the pipeline, in order
     ("spec", 1),
     ("source", 2),

@@ -34,8 +34,9 @@ use std::collections::BTreeMap;
 use std::sync::atomic::AtomicUsize;
 
 use crate::error::Result;
-use crate::plan::{Conversion, Plan, ProfilePlan};
+use crate::plan::{Plan, ProfilePlan, RateJob};
 use crate::render;
+use crate::resize::Resize;
 use crate::sink::{self, FrameEncoding, Sink, SinkContext};
 use crate::source::Source;
 use crate::spec::LoadedSpec;
@@ -80,12 +81,12 @@ pub enum Input<'a, 'd> {
 }
 
 /// What a pass sets up before it reads: the state of each rate, the sinks (rate position,
-/// sink) and their directories, and the frame encodings per rate.
+/// sink) and their directories, and per rate how episodes are converted and frames encoded.
 struct Setup {
     rates: Vec<rate::RateState>,
     sinks: Vec<(usize, Box<dyn Sink>)>,
     dirs: Vec<std::path::PathBuf>,
-    jobs: Vec<(Conversion, Vec<FrameEncoding>)>,
+    jobs: Vec<process::Job>,
 }
 
 fn set_up(
@@ -95,24 +96,23 @@ fn set_up(
     staging: &Staging,
 ) -> Result<Setup> {
     // In plan order (fastest first), once each.
-    let conversions: Vec<Conversion> = plan
+    let used: Vec<&RateJob> = plan
         .rates
         .iter()
-        .map(|r| r.conversion)
-        .filter(|c| stale.iter().any(|p| p.conversion == *c))
+        .filter(|r| stale.iter().any(|p| p.uses(r)))
         .collect();
     let budget = spill_budget();
-    let rates: Vec<rate::RateState> = conversions
+    let rates: Vec<rate::RateState> = used
         .iter()
         .enumerate()
-        .map(|(r, &c)| rate::RateState::new(r, c, manifest, staging, budget))
+        .map(|(r, job)| rate::RateState::new(r, job.conversion, manifest, staging, budget))
         .collect();
     let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
     let mut sinks: Vec<(usize, Box<dyn Sink>)> = Vec::with_capacity(stale.len());
     let mut dirs = Vec::with_capacity(stale.len());
     for p in stale {
         let dir = staging.profile_dir(&p.name)?;
-        let rate = rates.iter().position(|r| r.conversion == p.conversion);
+        let rate = used.iter().position(|job| p.uses(job));
         let rate = rate.expect("every stale profile's rate is built");
         let sink = sink::create(&SinkContext {
             profile: p,
@@ -126,7 +126,7 @@ fn set_up(
         sinks.push((rate, sink));
         dirs.push(dir);
     }
-    let jobs = encodings(&rates, &sinks);
+    let jobs = jobs(&used, manifest, &sinks);
     Ok(Setup {
         rates,
         sinks,
@@ -206,16 +206,17 @@ pub fn execute(
     Ok(Outcome::Built(staging, hashes))
 }
 
-/// Per rate: its conversion and the frame encodings its sinks use, each once (frames are
-/// encoded once per rate and encoding, however many sinks share them).
-fn encodings(
-    rates: &[rate::RateState],
+/// Per rate: its conversion, the resize of each camera it stores resized, and the frame
+/// encodings its sinks use, each once (frames are encoded once per rate and encoding, however
+/// many sinks share them).
+fn jobs(
+    used: &[&RateJob],
+    manifest: &crate::source::Manifest,
     sinks: &[(usize, Box<dyn Sink>)],
-) -> Vec<(Conversion, Vec<FrameEncoding>)> {
-    rates
-        .iter()
+) -> Vec<process::Job> {
+    used.iter()
         .enumerate()
-        .map(|(r, rate)| {
+        .map(|(r, job)| {
             let mut encodings: Vec<FrameEncoding> = sinks
                 .iter()
                 .filter(|(sr, _)| *sr == r)
@@ -223,7 +224,22 @@ fn encodings(
                 .collect();
             encodings.sort();
             encodings.dedup();
-            (rate.conversion, encodings)
+            let resize = manifest
+                .channels
+                .iter()
+                .map(|ch| {
+                    let &[h, w, colors] = ch.shape.as_slice() else {
+                        return None;
+                    };
+                    let size = job.cameras.get(&ch.name)?;
+                    Some(Resize::cover([h, w], *size, colors)).filter(|r| !r.is_identity())
+                })
+                .collect();
+            process::Job {
+                conversion: job.conversion,
+                encodings,
+                resize,
+            }
         })
         .collect()
 }

@@ -5,9 +5,21 @@
 use super::rate::Partial;
 use crate::audit;
 use crate::plan::Conversion;
+use crate::recycle;
+use crate::resize::Resize;
 use crate::sink::{FrameEncoding, Frames};
 use crate::source::{ChannelData, Episode, Source};
 use crate::stats::{self, ImagePartial};
+
+/// How one rate's episodes are prepared.
+pub(super) struct Job {
+    pub conversion: Conversion,
+    /// The frame encodings its sinks use, each once.
+    pub encodings: Vec<FrameEncoding>,
+    /// Per channel (manifest order): the resize of a camera stored resized
+    /// (`[profiles.<name>.cameras.<channel>]`), applied before anything else sees the frames.
+    pub resize: Vec<Option<Resize>>,
+}
 
 /// One episode's channel after the parallel part of the work.
 pub(super) enum Prepared {
@@ -36,12 +48,13 @@ fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
     out
 }
 
-/// Decimates an episode to every rate, encodes its frames for every sink, and computes the
-/// statistics partials of a training episode. Runs in parallel over episodes.
+/// Decimates an episode to every rate, resizes the cameras a rate stores resized, encodes its
+/// frames for every sink, and computes the statistics partials of a training episode (of the
+/// frames as stored). Runs in parallel over episodes.
 pub(super) fn process(
     mut episode: Episode,
     source: &dyn Source,
-    rates: &[(Conversion, Vec<FrameEncoding>)],
+    rates: &[Job],
     train: bool,
 ) -> Processed {
     let channels = &source.manifest().channels;
@@ -49,17 +62,21 @@ pub(super) fn process(
     let mut partials: Vec<Vec<Option<Partial>>> = rates.iter().map(|_| Vec::new()).collect();
     // The source's own rate goes last, so that it can take the values once every other rate
     // has been derived from them (no copy of the episode).
-    let identity = |r: &usize| rates[*r].0 == Conversion::Decimate { factor: 1 };
+    let identity = |r: &usize| rates[*r].conversion == Conversion::Decimate { factor: 1 };
     let order: Vec<usize> = (0..rates.len())
         .filter(|r| !identity(r))
         .chain((0..rates.len()).filter(identity))
         .collect();
     for (k, &r) in order.iter().enumerate() {
-        let (conversion, encodings) = &rates[r];
+        let Job {
+            conversion,
+            encodings,
+            resize,
+        } = &rates[r];
         let last = k + 1 == order.len();
         let mut per_channel = Vec::with_capacity(channels.len());
         let mut per_partial = Vec::with_capacity(channels.len());
-        for (ch, values) in channels.iter().zip(episode.channels.iter_mut()) {
+        for ((ch, values), resize) in channels.iter().zip(episode.channels.iter_mut()).zip(resize) {
             let width = ch.width();
             let converted = match *conversion {
                 // The source's own rate, last, takes the values (no copy).
@@ -82,21 +99,18 @@ pub(super) fn process(
                     per_channel.push(Prepared::Lowdim(v));
                 }
                 ChannelData::Image(d) => {
-                    let frames = d.len() / width.max(1);
-                    let colors = *ch.shape.last().unwrap_or(&1);
-                    per_partial.push(
-                        train.then(|| Partial::Image(ImagePartial::of_frames(&d, frames, colors))),
-                    );
-                    // Compressed encodings first, then the pixels themselves become the raw frames.
-                    let mut encoded: Vec<(FrameEncoding, Frames)> = encodings
-                        .iter()
-                        .filter(|&&enc| enc != FrameEncoding::Raw)
-                        .map(|&enc| (enc, Frames::encode(enc, &d, &ch.shape)))
-                        .collect();
-                    if encodings.contains(&FrameEncoding::Raw) {
-                        encoded.push((FrameEncoding::Raw, Frames::raw(d, width)));
-                    }
-                    per_channel.push(Prepared::Frames(encoded));
+                    let (d, shape) = match resize {
+                        Some(resize) => {
+                            let resized = resize.frames(&d);
+                            // The source's frames' memory takes the next episode's decode.
+                            recycle::give(d);
+                            (resized, resize.shape().to_vec())
+                        }
+                        None => (d, ch.shape.clone()),
+                    };
+                    let (frames, partial) = prepare_frames(d, &shape, encodings, train);
+                    per_partial.push(partial);
+                    per_channel.push(frames);
                 }
             }
         }
@@ -104,4 +118,28 @@ pub(super) fn process(
         partials[r] = per_partial;
     }
     Processed { data, partials }
+}
+
+/// One camera's frames as stored (per-step `shape`): their statistics partial (a training
+/// episode's), and the frames in every encoding of `encodings`.
+fn prepare_frames(
+    d: Vec<u8>,
+    shape: &[usize],
+    encodings: &[FrameEncoding],
+    train: bool,
+) -> (Prepared, Option<Partial>) {
+    let width = shape.iter().product::<usize>();
+    let frames = d.len() / width.max(1);
+    let colors = *shape.last().unwrap_or(&1);
+    let partial = train.then(|| Partial::Image(ImagePartial::of_frames(&d, frames, colors)));
+    // Compressed encodings first, then the pixels themselves become the raw frames.
+    let mut encoded: Vec<(FrameEncoding, Frames)> = encodings
+        .iter()
+        .filter(|&&enc| enc != FrameEncoding::Raw)
+        .map(|&enc| (enc, Frames::encode(enc, &d, shape)))
+        .collect();
+    if encodings.contains(&FrameEncoding::Raw) {
+        encoded.push((FrameEncoding::Raw, Frames::raw(d, width)));
+    }
+    (Prepared::Frames(encoded), partial)
 }

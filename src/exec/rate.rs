@@ -22,7 +22,6 @@ pub(super) const COUNT_AHEAD_COLUMNS: usize = 64;
 /// Per-rate state: the converted low-dimensional data of every episode, and the streaming
 /// statistics of every channel.
 pub(super) struct RateState {
-    pub conversion: Conversion,
     /// Exclusive ends of each episode in the converted per-step arrays.
     pub ends: EpisodeEnds,
     /// Per channel (manifest order): concatenated low-dim values; empty for images. Shared with
@@ -57,7 +56,6 @@ impl RateState {
         };
         let channels = &manifest.channels;
         RateState {
-            conversion,
             ends,
             lowdim: channels
                 .iter()

@@ -10,11 +10,11 @@ use rayon::prelude::*;
 
 use super::guard::episode_job;
 use super::partial::{self, Record as Read};
-use super::process::{process, Prepared, Processed};
+use super::process::{process, Job, Prepared, Processed};
 use super::rate::RateState;
 use super::{progress, Excluded};
 use crate::error::Result;
-use crate::plan::{Conversion, Plan};
+use crate::plan::Plan;
 use crate::recycle;
 use crate::sink::{FrameEncoding, Sink};
 use crate::source::{self, ChannelKind, Manifest, Source};
@@ -34,8 +34,8 @@ pub(super) struct Pass<'a> {
     pub non_finite: NonFinite,
     /// The source as the spec names it, for messages.
     pub source_path: &'a str,
-    /// Per rate (in `RateState` order): its conversion and the frame encodings its sinks use.
-    pub jobs: &'a [(Conversion, Vec<FrameEncoding>)],
+    /// Per rate (in `RateState` order): its conversion, resizes and frame encodings.
+    pub jobs: &'a [Job],
     /// How many times each episode was read (the tests check "once").
     pub reads: &'a [AtomicUsize],
     pub progress: bool,

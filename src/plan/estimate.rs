@@ -1,13 +1,13 @@
 //! The files a profile writes and an upper bound of their sizes, as `chunkc plan` shows them
 //! before anything is read.
 
-use super::{PlannedFile, SplitCounts, LOADER_FILE, META_FILE, STATS_FILE};
-use crate::source::{ChannelInfo, ChannelKind, Manifest};
+use super::{PlannedFile, ProfileChannel, SplitCounts, LOADER_FILE, META_FILE, STATS_FILE};
+use crate::source::{ChannelKind, Manifest};
 use crate::spec::{Layout, OutputFormat, Profile};
 
-/// Bytes one step of a channel takes in the output.
-fn step_bytes(ch: &ChannelInfo) -> u64 {
-    let width = ch.width() as u64;
+/// Bytes one step of a channel takes in the output (a resized camera's at its stored size).
+fn step_bytes(ch: &ProfileChannel) -> u64 {
+    let width = ch.shape.iter().product::<usize>() as u64;
     match ch.kind {
         ChannelKind::Lowdim => 4 * width,
         ChannelKind::Image => width,
@@ -15,23 +15,23 @@ fn step_bytes(ch: &ChannelInfo) -> u64 {
 }
 
 /// Entries per statistic: one per dimension, or one per colour channel for images.
-fn stats_dims(ch: &ChannelInfo) -> usize {
+fn stats_dims(ch: &ProfileChannel) -> usize {
     match ch.kind {
-        ChannelKind::Lowdim => ch.width(),
+        ChannelKind::Lowdim => ch.shape.iter().product(),
         ChannelKind::Image => *ch.shape.last().unwrap_or(&1),
     }
 }
 
-/// The files of `profile` with their estimated sizes; `steps` and `counts` are its steps and
-/// samples at its rate.
+/// The files of `profile` with their estimated sizes; `channels` are its channels as stored,
+/// `steps` and `counts` its steps and samples at its rate.
 pub(super) fn planned_files(
     manifest: &Manifest,
+    channels: &[ProfileChannel],
     profile: &Profile,
     steps: usize,
     counts: SplitCounts,
 ) -> Vec<PlannedFile> {
-    let data_bytes: u64 = manifest
-        .channels
+    let data_bytes: u64 = channels
         .iter()
         .map(|c| step_bytes(c) * steps as u64)
         .sum::<u64>()
@@ -41,7 +41,7 @@ pub(super) fn planned_files(
     vec![
         PlannedFile {
             path: data_path,
-            estimated_bytes: data_bytes + chunk_bytes(manifest, profile, counts) + 8192,
+            estimated_bytes: data_bytes + chunk_bytes(channels, profile, counts) + 8192,
         },
         PlannedFile {
             path: LOADER_FILE.into(),
@@ -54,8 +54,7 @@ pub(super) fn planned_files(
         PlannedFile {
             path: STATS_FILE.into(),
             estimated_bytes: 512
-                + manifest
-                    .channels
+                + channels
                     .iter()
                     .map(|c| 180 * stats_dims(c) as u64)
                     .sum::<u64>(),
@@ -64,12 +63,11 @@ pub(super) fn planned_files(
 }
 
 /// `/chunks` of the HDF5 layouts that add it: K (or obs_history) rows per window.
-fn chunk_bytes(manifest: &Manifest, profile: &Profile, counts: SplitCounts) -> u64 {
+fn chunk_bytes(channels: &[ProfileChannel], profile: &Profile, counts: SplitCounts) -> u64 {
     let windows = (counts.train.unwrap_or(0) + counts.val.unwrap_or(0)) as u64;
     let (k, h) = (u64::from(profile.chunk), u64::from(profile.obs_history));
     match (profile.format, profile.layout) {
-        (OutputFormat::Hdf5, Layout::Materialized) => manifest
-            .channels
+        (OutputFormat::Hdf5, Layout::Materialized) => channels
             .iter()
             .filter(|c| c.kind == ChannelKind::Lowdim)
             .map(|c| {

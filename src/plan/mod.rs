@@ -8,6 +8,7 @@
 //! - `types`: the plan's serializable types.
 //! - `resolve`: building the plan from the spec, the manifest and the lock.
 //! - `conversion`: decimation or resampling from the source rate to a profile's.
+//! - `cameras`: the cameras a profile resizes, checked against the source's frames.
 //! - `sampling`: windows, segments or hierarchical chunks, checked against the channels.
 //! - `estimate`: the files a profile writes and their estimated sizes.
 //! - `freshness`: whether a profile is up to date, and the typed reason when it is not.
@@ -17,6 +18,7 @@
 //! - `shards`: which episodes each shard of a sharded build reads, and the plan's identity.
 //! - `text`: the human-readable rendering of `chunkc plan`.
 
+mod cameras;
 mod conversion;
 mod estimate;
 pub mod export;
@@ -28,6 +30,7 @@ pub mod split;
 mod text;
 mod types;
 
+pub use cameras::CameraResize;
 use conversion::rate_order;
 pub use conversion::{conversion, Conversion};
 pub use freshness::{DirtyReason, FileChange, Status};

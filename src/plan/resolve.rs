@@ -9,7 +9,7 @@ use super::estimate;
 use super::freshness;
 use super::sampling::sampling_of;
 use super::{
-    conversion, export, rate_order, split, AuditSummary, Conversion, Excluded, Plan,
+    cameras, conversion, export, rate_order, split, AuditSummary, Conversion, Excluded, Plan,
     ProfileChannel, ProfileEpisode, ProfilePlan, RateJob, RepairedEpisode, SourcePlan, Split,
     SplitCounts, StatsJob, PLAN_VERSION, TOOL_VERSION,
 };
@@ -87,18 +87,21 @@ fn split_of(spec: &LoadedSpec, manifest: &Manifest) -> Result<Split> {
     Ok(split)
 }
 
-/// The work profiles share: one job per distinct rate, one statistics job per (rate, channel).
+/// The work profiles share: one job per distinct rate (and stored camera sizes), one statistics
+/// job per (rate, channel, stored frame size).
 fn shared_jobs(profiles: &[ProfilePlan]) -> (Vec<RateJob>, Vec<StatsJob>) {
     let mut rates: Vec<RateJob> = Vec::new();
-    let mut statistics: BTreeMap<(usize, String), StatsJob> = BTreeMap::new();
+    type StatsKey = (usize, String, Option<[usize; 2]>);
+    let mut statistics: BTreeMap<StatsKey, StatsJob> = BTreeMap::new();
     for p in profiles {
-        let r = match rates.iter().position(|r| r.conversion == p.conversion) {
+        let r = match rates.iter().position(|r| p.uses(r)) {
             Some(r) => r,
             None => {
                 rates.push(RateJob {
                     fps: p.fps,
                     conversion: p.conversion,
                     steps: p.steps,
+                    cameras: p.cameras(),
                     profiles: Vec::new(),
                 });
                 rates.len() - 1
@@ -108,11 +111,13 @@ fn shared_jobs(profiles: &[ProfilePlan]) -> (Vec<RateJob>, Vec<StatsJob>) {
         // Highest rate first, as the integer factors used to sort.
         let key = rate_order(p.fps);
         for ch in &p.channels {
+            let size = ch.resize.map(|r| r.size);
             statistics
-                .entry((key, ch.name.clone()))
+                .entry((key, ch.name.clone(), size))
                 .or_insert_with(|| StatsJob {
                     fps: p.fps,
                     channel: ch.name.clone(),
+                    size,
                     split: "train",
                     profiles: Vec::new(),
                 })
@@ -188,10 +193,11 @@ fn resolve_profile(
         )
     })?;
     let mut channels = channels_of(spec, manifest, profile)?;
+    cameras::apply(spec, manifest, profile, &mut channels)?;
     export::assign(spec, profile, &mut channels)?;
     let sampling = sampling_of(spec, manifest, profile, fps)?;
     let used = episodes_of(spec, manifest, split, profile, fps, conv, &sampling)?;
-    let files = estimate::planned_files(manifest, profile, used.steps, used.counts);
+    let files = estimate::planned_files(manifest, &channels, profile, used.steps, used.counts);
 
     let fingerprint = freshness::profile_fingerprint(spec, manifest, profile);
     let inputs = freshness::inputs(spec, profile);
@@ -280,6 +286,7 @@ fn channels_of(
             normalize,
             export: None,
             array: String::new(),
+            resize: None,
         });
     }
     Ok(channels)

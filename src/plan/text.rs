@@ -92,11 +92,17 @@ pub fn render_text(plan: &Plan) -> String {
             r.steps,
             r.profiles.join(", ")
         );
+        for (camera, [h, w]) in &r.cameras {
+            let _ = writeln!(s, "        {camera} stored at {h}x{w}");
+        }
     }
     for st in &plan.statistics {
+        let size = st
+            .size
+            .map_or(String::new(), |[h, w]| format!(" ({h}x{w})"));
         let _ = writeln!(
             s,
-            "stats   {} @ {} Hz on {} for {}",
+            "stats   {}{size} @ {} Hz on {} for {}",
             st.channel,
             st.fps,
             st.split,
@@ -120,6 +126,14 @@ pub fn render_text(plan: &Plan) -> String {
         }
         for ch in &p.channels {
             let _ = writeln!(s, "  normalize {:<24} {}", ch.name, ch.normalize.name());
+        }
+        for (ch, r) in p.channels.iter().filter_map(|c| Some((c, c.resize?))) {
+            let [[fh, fw], [sh, sw], [h, w]] = [r.from, r.scaled, r.size];
+            let _ = writeln!(
+                s,
+                "  camera {:<27} {fh}x{fw} -> {h}x{w} ({} to {sh}x{sw}, centre crop)",
+                ch.name, r.method
+            );
         }
         let train_eps = p.episodes.iter().filter(|e| e.split == "train").count();
         let _ = writeln!(

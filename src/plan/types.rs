@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use super::{Conversion, Split, Status};
+use super::{CameraResize, Conversion, Split, Status};
 use crate::audit::Verdict;
 use crate::source::{ChannelInfo, ChannelKind};
 use crate::spec::{NormalizeMode, Profile};
@@ -79,11 +79,16 @@ pub struct SourcePlan {
     pub tasks: BTreeMap<u64, String>,
 }
 
+/// One pass's worth of converted episodes: a rate, and the stored size of every resized camera
+/// (profiles at one rate that store a camera at different sizes get a job each).
 #[derive(Debug, Clone, Serialize)]
 pub struct RateJob {
     pub fps: f64,
     pub conversion: Conversion,
     pub steps: usize,
+    /// `[H, W]` of each resized camera, by channel.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub cameras: BTreeMap<String, [usize; 2]>,
     pub profiles: Vec<String>,
 }
 
@@ -91,6 +96,9 @@ pub struct RateJob {
 pub struct StatsJob {
     pub fps: f64,
     pub channel: String,
+    /// `[H, W]` of a resized camera's stored frames (its statistics describe those).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub size: Option<[usize; 2]>,
     pub split: &'static str,
     pub profiles: Vec<String>,
 }
@@ -133,6 +141,10 @@ pub struct ProfileChannel {
     /// The channel's per-step array in the data container (see [`export`]): `data/img`,
     /// `data/demo_<i>/obs/state`, `observations/qpos`; `<i>` is the stored episode position.
     pub array: String,
+    /// How a resized camera's frames are resized (`[profiles.<name>.cameras.<channel>]`);
+    /// `shape` is then the stored shape.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub resize: Option<CameraResize>,
 }
 
 impl ProfileChannel {
@@ -185,6 +197,19 @@ pub struct ResolvedValue {
 impl ProfilePlan {
     pub fn window(&self) -> &Window {
         self.sampling.window()
+    }
+
+    /// `[H, W]` of each camera this profile resizes, by channel.
+    pub fn cameras(&self) -> BTreeMap<String, [usize; 2]> {
+        self.channels
+            .iter()
+            .filter_map(|c| Some((c.name.clone(), c.resize?.size)))
+            .collect()
+    }
+
+    /// Whether `job` converts episodes as this profile stores them.
+    pub fn uses(&self, job: &RateJob) -> bool {
+        job.conversion == self.conversion && job.cameras == self.cameras()
     }
 
     /// The values that shape the dataset, as `chunkc plan` and the dataset card show them.

@@ -6,11 +6,15 @@
 //! - `validate`: semantic checks that need no source (ranges, channel names, references).
 //! - `preset`: preset expansion into [`Profile`].
 //! - `export_keys`: the names native exports give their arrays (default rule and overrides).
+//! - `camera`: `[profiles.<name>.cameras.<channel>]`, a camera's stored size, as written and
+//!   resolved; `validate_camera` checks it (the checks against the source's frames are the
+//!   plan's).
 //! - `diagnostic`: renders an error with the offending text underlined.
 //! - `output_location`: where the outputs may go (never into the source; through a symlink
 //!   only when the spec allows it).
 //! - `reference`: the spec's documentation read from the JSON Schema (book chapter, hints).
 
+mod camera;
 mod diagnostic;
 pub mod env;
 pub mod export_keys;
@@ -20,9 +24,12 @@ mod output_location;
 mod preset;
 pub mod reference;
 mod validate;
+mod validate_camera;
 
+pub use camera::{Camera, CameraSpec};
 pub(crate) use diagnostic::suggest as suggest_name;
 pub use diagnostic::Diagnostic;
+pub(crate) use load::dotted as dotted_key;
 pub use load::LoadedSpec;
 pub use model::*;
 pub use output_location::check_output_location;

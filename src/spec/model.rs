@@ -641,6 +641,10 @@ pub struct ProfileSpec {
     /// Two-level chunks: a coarse chunk of several seconds and fine chunks inside it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hierarchy: Option<HierarchySpec>,
+    /// Per camera (image channel): the size its frames are stored at,
+    /// `[profiles.<name>.cameras."observation.image"] size = [H, W]`. Merged along `extends`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cameras: Option<BTreeMap<String, super::camera::CameraSpec>>,
 }
 
 /// Target-architecture presets (values and sources in the book's presets chapter).

@@ -10,6 +10,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+use super::camera::{self, Camera};
 use super::model::{
     Alignment, Compression, HierarchySpec, ImageCompression, ImageEncoding, Layout, NormalizeMode,
     OutputFormat, Padding, Preset, ProfileSpec, SegmentSpec, StatsFormat, VideoCodec,
@@ -65,6 +66,11 @@ pub struct Profile {
     pub stats_formats: Vec<StatsFormat>,
     pub segment: Option<SegmentSpec>,
     pub hierarchy: Option<HierarchySpec>,
+    /// The stored size of each resized camera, by channel (merged along the `extends` chain).
+    /// Empty (and left out of the serialized profile, so that fingerprints stay) when no camera
+    /// is resized.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub cameras: BTreeMap<String, Camera>,
     /// Where each value came from: `profiles.<name>`, `preset <name>` or `default`.
     pub origins: BTreeMap<&'static str, String>,
 }
@@ -363,6 +369,7 @@ pub fn expand(
             export_keys.extend(map.iter().map(|(k, v)| (k.clone(), v.clone())));
         }
     }
+    let cameras = camera::merged(chain.iter().map(|(_, p)| &p.cameras));
     let (normalize_lowdim, normalize_multidim) = base
         .as_ref()
         .map(|b| (b.normalize_lowdim, b.normalize_multidim))
@@ -402,6 +409,7 @@ pub fn expand(
         stats_formats,
         segment,
         hierarchy,
+        cameras,
         origins,
     })
 }

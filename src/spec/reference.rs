@@ -373,6 +373,7 @@ mod tests {
                 "[profiles.<name>.export_keys]",
                 "[profiles.<name>.segment]",
                 "[profiles.<name>.hierarchy]",
+                "[profiles.<name>.cameras.<name>]",
             ]
         );
     }

@@ -341,6 +341,8 @@ impl Checker<'_> {
             }
         }
 
+        let cameras = super::validate_camera::check(self.loaded, name, profile);
+        self.found.extend(cameras);
         match preset::expand(name, &self.loaded.spec.profiles) {
             Ok(expanded) => {
                 self.output_options(name, &expanded);
