@@ -1,7 +1,8 @@
 //! The dataset doctor: checks of the action and state values that catch what silently ruins a
 //! policy (a frozen or clipped actuator, spikes, actions misaligned with the observations or in
 //! another convention or units than the rest, duplicated episodes, shift across the recording,
-//! episodes shorter than a chunk), run by `chunkc audit` and so before every `build`.
+//! episodes shorter than a chunk), run by `chunkc audit`, `plan` and `check`, and inside every
+//! `build`'s one read.
 //!
 //! Each episode's action and state reduce to features of a fixed size ([`Features`]), in
 //! parallel: `build` computes them from the episodes it reads anyway (one pass over the source,
