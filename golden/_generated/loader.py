@@ -643,9 +643,10 @@ class _JpegFrames:
 class _VideoFrames:
     """`image_compression = "video"`: one mp4 per episode (`videos/<camera>/episode_<id>.mp4`),
     decoded with PyAV (`pip install av`) as `frame.to_ndarray(format="rgb24")` gives it. A frame is
-    found by seeking to the keyframe before it; the whole group of pictures (GOP) it belongs to is
-    decoded once and the last decoded GOP of each file kept, so the windows of a batch (and the
-    next batch's) that share a GOP decode it once. Files are opened lazily in each process (each
+    found by seeking to the keyframe before it; each group of pictures (GOP) a batch needs is
+    decoded once, from its keyframe up to the last frame the batch wants from it, and the last
+    decoded GOP of each file is kept, so the windows of a batch (and the next batch's) that share
+    a GOP decode it once. Files are opened lazily in each process (each
     DataLoader worker) and kept open, up to OPEN_FILES of them."""
 
     OPEN_FILES = 64
@@ -679,6 +680,10 @@ class _VideoFrames:
             try:
                 container = av.open(path)
                 stream = container.streams.video[0]
+                # One decoding thread: DataLoader workers are the parallelism, and a process that
+                # holds no FFmpeg threads can fork workers safely.
+                stream.thread_type = "NONE"
+                stream.codec_context.thread_count = 1
                 # Keyframe positions from the packets alone (demuxed, not decoded).
                 keys = sorted(self._index(p.pts, stream) for p in container.demux(stream)
                               if p.pts is not None and p.is_keyframe)
@@ -693,26 +698,27 @@ class _VideoFrames:
                 old.close()
             return entry
 
-        def gop(ep, k):
+        def gop(ep, k, upto):
+            """The decoded frames of the GOP holding frame k of episode ep, at least up to frame
+            `upto` of it: from the cache, or decoded from its keyframe."""
             cached = gops.get(ep)
-            if cached is not None and cached[0] <= k < cached[0] + len(cached[1]):
+            if cached is not None and cached[0] <= k and upto < cached[0] + len(cached[1]):
                 return cached
             container, stream, keys = opened(ep)
             first = int(keys[np.searchsorted(keys, k, side="right") - 1])
-            after = np.searchsorted(keys, k, side="right")
-            last = int(keys[after]) if after < len(keys) else int(self.counts[ep])
+            last = upto + 1
             frames = [None] * (last - first)
             path = self.paths[ep]
             try:
                 container.seek(int(round(first / self.fps / stream.time_base)), stream=stream, backward=True)
                 for frame in container.decode(stream):
                     i = self._index(frame.pts, stream)
-                    if i >= last:
-                        break
                     if i >= first:
                         frames[i - first] = frame.to_ndarray(format="rgb24")
+                    if i >= upto:
+                        break
             except av.error.FFmpegError as e:
-                fail(e, path, f"cannot decode frames {first}..{last}")
+                fail(e, path, f"cannot decode frames {first}..{upto}")
             if any(f is None for f in frames):
                 missing = first + [f is None for f in frames].index(True)
                 raise ValueError(f"{path}: frame {missing} of {int(self.counts[ep])} cannot be decoded; the file "
@@ -724,12 +730,19 @@ class _VideoFrames:
             rows = np.asarray(rows, dtype=np.int64)
             out = np.empty((len(rows),) + self.shape, dtype=np.uint8)
             eps = np.searchsorted(self.ends, rows, side="right")
-            # In file and frame order, so that a GOP is decoded once per batch.
-            for j in np.lexsort((rows, eps)).tolist():
-                ep = int(eps[j])
-                k = int(rows[j] - self.starts[ep])
-                first, frames = gop(ep, k)
-                out[j] = frames[k - first].reshape(self.shape)
+            ks = rows - self.starts[eps]
+            # Per file, each GOP the batch needs is decoded once, from its keyframe up to the last
+            # frame wanted from it (not beyond: a random frame costs half a GOP on average).
+            for ep in np.unique(eps).tolist():
+                at = np.flatnonzero(eps == ep)
+                _, _, keys = opened(ep)
+                group = np.searchsorted(keys, ks[at], side="right")
+                for g in np.unique(group).tolist():
+                    mine = at[group == g]
+                    wanted = ks[mine]
+                    first, frames = gop(ep, int(wanted.min()), int(wanted.max()))
+                    for j, k in zip(mine.tolist(), wanted.tolist()):
+                        out[j] = frames[k - first].reshape(self.shape)
             return out
 
         return read
