@@ -49,6 +49,21 @@ pub struct LockedProfile {
     /// fingerprint names the value (absent from locks written before chunkc recorded them).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub inputs: BTreeMap<String, String>,
+    /// The lossy encoder of the profile's camera frames (JPEG or video), when it has one: the
+    /// bytes it writes depend on the library version, which the spec cannot pin.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub encoder: Option<LockedEncoder>,
+}
+
+/// A frame encoder as `chunkc.lock` records it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct LockedEncoder {
+    /// The encoder (`libjpeg-turbo`, `libx264`, `libsvtav1`).
+    pub name: String,
+    /// The library version it ran with.
+    pub version: String,
+    /// Every setting that changes its bytes.
+    pub settings: BTreeMap<String, String>,
 }
 
 /// Where the lock of a spec lives.

@@ -149,6 +149,10 @@ class _Hdf5Backend(_Backend):
     def frame_tables(self, f, names):
         tables = {}
         for name in names:
+            storage = self.meta["channels"][name].get("storage")
+            if storage is not None:
+                tables[name] = _stored_frames(self.root, self.path, f, name, self.meta, storage)
+                continue
             table = _frame_table(f[self.array_path(name)])
             if table is not None:
                 tables[name] = table
@@ -309,8 +313,10 @@ class ChunkedDataset(_DatasetBase):
         self._cache = {}
         f = self._backend.open()
         self.index = np.asarray(f["index"][split][...], dtype=np.int64).reshape(-1, 4)
+        # Cameras stored as JPEG or video (`meta.json` channel "storage") are decoded on read.
+        stored = {n for n in self._images if "storage" in self.meta["channels"][n]}
         if in_memory or self._backend.reads_whole:
-            keep = list(self.channels)
+            keep = [n for n in self.channels if n not in stored]
         else:
             lowdim = [n for n in self.channels if n in self._lowdim]
             nbytes = sum(int(np.prod(f[self._arrays[n]].shape)) * np.dtype(f[self._arrays[n]].dtype).itemsize
@@ -324,6 +330,10 @@ class ChunkedDataset(_DatasetBase):
         # Frames read with one pread each, from the byte offsets looked up here (HDF5 only).
         self._frames = self._backend.frame_tables(f, [n for n in self.channels if n not in self._cache])
         self._backend.close(f)
+        if in_memory:
+            for name in stored:
+                self._cache[name] = self._reader(name)(np.arange(int(self.episode_ends[-1]) if len(self.episode_ends) else 0))
+                del self._frames[name]
 
     def __len__(self):
         return len(self.index)
@@ -543,6 +553,202 @@ class _FrameTable:
             return out
 
         return read
+
+
+def _stored_frames(root, path, f, name, meta, storage):
+    """The frame table of a camera stored as `image_compression = "jpeg"` or `"video"`."""
+    shape = tuple(meta["channels"][name]["shape"])
+    if storage["encoding"] == "jpeg":
+        d = f["data/" + name]
+        return _JpegFrames(path, "data/" + name, shape, d, np.asarray(f["frame_ends/" + name][...], dtype=np.int64))
+    if storage["encoding"] == "video":
+        group = f[storage.get("group", "videos/" + name)]
+        paths = [p.decode() if isinstance(p, bytes) else str(p) for p in group["path"][...]]
+        counts = np.asarray(group["frames"][...], dtype=np.int64)
+        return _VideoFrames(root, shape, paths, counts, float(meta["fps"]))
+    raise ValueError(f"{path}: channel {name!r} is stored as {storage['encoding']!r}, which this loader cannot decode")
+
+
+class _JpegFrames:
+    """`image_compression = "jpeg"`: row i's JPEG is bytes [ends[i-1], ends[i]) of `data/<camera>`
+    (unfiltered chunks, located once), read with one pread per chunk it spans and decoded with
+    Pillow (`pip install Pillow`), exactly as `Image.open` decodes the stored bytes."""
+
+    def __init__(self, path, key, shape, d, ends):
+        self.path, self.key, self.shape = path, key, shape
+        self.ends = ends
+        self.starts = np.concatenate([[0], ends[:-1]]).astype(np.int64)
+        self.chunk = int(d.chunks[0]) if d.chunks else 0
+        self.chunk_offsets = None
+        if d.chunks and d.compression is None and hasattr(d.id, "chunk_iter"):
+            offsets = np.full(-(-int(d.shape[0]) // self.chunk) if d.shape[0] else 0, -1, dtype=np.int64)
+
+            def visit(info):
+                offsets[info.chunk_offset[0] // self.chunk] = info.byte_offset
+
+            d.id.chunk_iter(visit)
+            if not (offsets < 0).any():
+                self.chunk_offsets = offsets
+        elif not d.chunks and d.id.get_offset() is not None:
+            self.base = d.id.get_offset()
+
+    def _bytes(self, raw, lo, hi):
+        fd = raw.fileno()
+        if self.chunk_offsets is None and hasattr(self, "base"):
+            return os.pread(fd, hi - lo, self.base + lo)
+        parts = []
+        at = lo
+        while at < hi:
+            c = at // self.chunk
+            end = min(hi, (c + 1) * self.chunk)
+            parts.append(os.pread(fd, end - at, int(self.chunk_offsets[c]) + at - c * self.chunk))
+            at = end
+        return b"".join(parts)
+
+    def reader(self, raw):
+        try:
+            from PIL import Image
+        except ImportError as e:  # pragma: no cover - depends on the environment
+            raise ImportError(f"{self.path}: decoding JPEG frames needs Pillow (`pip install Pillow`)") from e
+        import io
+
+        h5 = None
+
+        def read(rows):
+            nonlocal h5
+            rows = np.asarray(rows, dtype=np.int64)
+            distinct, inverse = np.unique(rows, return_inverse=True)
+            out = np.empty((len(distinct),) + self.shape, dtype=np.uint8)
+            for j, r in enumerate(distinct.tolist()):
+                lo, hi = int(self.starts[r]), int(self.ends[r])
+                if self.chunk_offsets is not None or hasattr(self, "base"):
+                    data = self._bytes(raw, lo, hi)
+                else:  # h5py older than 3.8: through HDF5
+                    if h5 is None:
+                        import h5py
+
+                        h5 = h5py.File(self.path, "r")
+                    data = h5[self.key][lo:hi].tobytes()
+                try:
+                    with Image.open(io.BytesIO(data)) as image:
+                        frame = np.asarray(image)
+                except Exception as e:
+                    raise ValueError(f"{self.path}: {self.key} row {r}: cannot decode its JPEG ({e})") from e
+                out[j] = frame.reshape(self.shape)
+            return out if len(distinct) == len(rows) and np.array_equal(distinct, rows) else out[inverse]
+
+        return read
+
+
+class _VideoFrames:
+    """`image_compression = "video"`: one mp4 per episode (`videos/<camera>/episode_<id>.mp4`),
+    decoded with PyAV (`pip install av`) as `frame.to_ndarray(format="rgb24")` gives it. A frame is
+    found by seeking to the keyframe before it; each group of pictures (GOP) a batch needs is
+    decoded once, from its keyframe up to the last frame the batch wants from it, and the last
+    decoded GOP of each file is kept, so the windows of a batch (and the next batch's) that share
+    a GOP decode it once. Files are opened lazily in each process (each
+    DataLoader worker) and kept open, up to OPEN_FILES of them."""
+
+    OPEN_FILES = 64
+
+    def __init__(self, root, shape, paths, counts, fps):
+        self.root, self.shape, self.fps = root, shape, fps
+        self.paths = [os.path.join(root, p) for p in paths]
+        self.counts = counts
+        self.ends = np.cumsum(counts).astype(np.int64)
+        self.starts = (self.ends - counts).astype(np.int64)
+
+    def reader(self, raw):
+        try:
+            import av
+        except ImportError as e:  # pragma: no cover - depends on the environment
+            raise ImportError(f"{self.paths[0] if self.paths else self.root}: decoding video frames needs PyAV (`pip install av`)") from e
+        from collections import OrderedDict
+
+        files = OrderedDict()  # episode -> (container, stream, keyframe indices)
+        gops = {}  # episode -> (first frame, frames) of the last decoded GOP
+
+        def fail(e, path, what):
+            raise ValueError(f"{path}: {what} ({e}); the file is truncated or corrupt: rebuild the dataset") from e
+
+        def opened(ep):
+            entry = files.get(ep)
+            if entry is not None:
+                files.move_to_end(ep)
+                return entry
+            path = self.paths[ep]
+            try:
+                container = av.open(path)
+                stream = container.streams.video[0]
+                # One decoding thread: DataLoader workers are the parallelism, and a process that
+                # holds no FFmpeg threads can fork workers safely.
+                stream.thread_type = "NONE"
+                stream.codec_context.thread_count = 1
+                # Keyframe positions from the packets alone (demuxed, not decoded).
+                keys = sorted(self._index(p.pts, stream) for p in container.demux(stream)
+                              if p.pts is not None and p.is_keyframe)
+                container.seek(0)
+            except (av.error.FFmpegError, IndexError, OSError) as e:
+                fail(e, path, "cannot read the video")
+            if not keys or keys[0] != 0:
+                raise ValueError(f"{path}: no keyframe at frame 0; the file is truncated or corrupt: rebuild the dataset")
+            entry = files[ep] = (container, stream, np.asarray(keys, dtype=np.int64))
+            if len(files) > self.OPEN_FILES:
+                _, (old, _, _) = files.popitem(last=False)
+                old.close()
+            return entry
+
+        def gop(ep, k, upto):
+            """The decoded frames of the GOP holding frame k of episode ep, at least up to frame
+            `upto` of it: from the cache, or decoded from its keyframe."""
+            cached = gops.get(ep)
+            if cached is not None and cached[0] <= k and upto < cached[0] + len(cached[1]):
+                return cached
+            container, stream, keys = opened(ep)
+            first = int(keys[np.searchsorted(keys, k, side="right") - 1])
+            last = upto + 1
+            frames = [None] * (last - first)
+            path = self.paths[ep]
+            try:
+                container.seek(int(round(first / self.fps / stream.time_base)), stream=stream, backward=True)
+                for frame in container.decode(stream):
+                    i = self._index(frame.pts, stream)
+                    if i >= first:
+                        frames[i - first] = frame.to_ndarray(format="rgb24")
+                    if i >= upto:
+                        break
+            except av.error.FFmpegError as e:
+                fail(e, path, f"cannot decode frames {first}..{upto}")
+            if any(f is None for f in frames):
+                missing = first + [f is None for f in frames].index(True)
+                raise ValueError(f"{path}: frame {missing} of {int(self.counts[ep])} cannot be decoded; the file "
+                                 "is truncated or corrupt: rebuild the dataset")
+            gops[ep] = (first, frames)
+            return gops[ep]
+
+        def read(rows):
+            rows = np.asarray(rows, dtype=np.int64)
+            out = np.empty((len(rows),) + self.shape, dtype=np.uint8)
+            eps = np.searchsorted(self.ends, rows, side="right")
+            ks = rows - self.starts[eps]
+            # Per file, each GOP the batch needs is decoded once, from its keyframe up to the last
+            # frame wanted from it (not beyond: a random frame costs half a GOP on average).
+            for ep in np.unique(eps).tolist():
+                at = np.flatnonzero(eps == ep)
+                _, _, keys = opened(ep)
+                group = np.searchsorted(keys, ks[at], side="right")
+                for g in np.unique(group).tolist():
+                    mine = at[group == g]
+                    wanted = ks[mine]
+                    first, frames = gop(ep, int(wanted.min()), int(wanted.max()))
+                    for j, k in zip(mine.tolist(), wanted.tolist()):
+                        out[j] = frames[k - first].reshape(self.shape)
+            return out
+
+        return read
+
+    def _index(self, pts, stream):
+        return int(round(float(pts * stream.time_base) * self.fps))
 
 
 def make_dataloader(

@@ -193,6 +193,7 @@ fn encoding_code(e: FrameEncoding) -> (u8, u8) {
         FrameEncoding::Raw => (0, 0),
         FrameEncoding::Zlib(level) => (1, level),
         FrameEncoding::Png => (2, 0),
+        FrameEncoding::Jpeg(quality) => (3, quality),
     }
 }
 
@@ -201,6 +202,7 @@ fn encoding_of(kind: u8, level: u8) -> Option<FrameEncoding> {
         0 => Some(FrameEncoding::Raw),
         1 => Some(FrameEncoding::Zlib(level)),
         2 => Some(FrameEncoding::Png),
+        3 => Some(FrameEncoding::Jpeg(level)),
         _ => None,
     }
 }

@@ -10,7 +10,7 @@ use serde_json::{json, Value};
 
 use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
 use crate::source::ChannelKind;
-use crate::spec::OutputFormat;
+use crate::spec::{ImageCompression, OutputFormat, DEFAULT_IMAGE_QUALITY};
 use crate::stats::normalize::Normalizer;
 use crate::stats::{shaped, ChannelStats};
 use crate::window::Sampling;
@@ -80,6 +80,9 @@ pub fn meta_json(
                 "array": ch.array,
             }),
         );
+        if let Some(storage) = frame_storage(profile, ch.kind, &ch.name) {
+            channels[&ch.name]["storage"] = storage;
+        }
     }
     let mut normalization = serde_json::Map::new();
     for (name, n) in built.normalizers {
@@ -157,6 +160,32 @@ pub fn meta_json(
         map.insert("env".into(), json!(env));
     }
     pretty(&doc)
+}
+
+/// How an image channel of chunkc's HDF5 layout stores its frames when not as pixels
+/// (`image_compression = "jpeg"` / `"video"`): what the loader decodes on read.
+fn frame_storage(profile: &ProfilePlan, kind: ChannelKind, name: &str) -> Option<Value> {
+    let v = &profile.values;
+    if kind != ChannelKind::Image || v.format != OutputFormat::Hdf5 {
+        return None;
+    }
+    match v.image_compression {
+        ImageCompression::Jpeg => Some(json!({
+            "encoding": "jpeg",
+            "quality": v.image_quality.unwrap_or(DEFAULT_IMAGE_QUALITY),
+        })),
+        ImageCompression::Video => v.video().map(|s| {
+            json!({
+                "encoding": "video",
+                "group": format!("videos/{name}"),
+                "codec": s.codec.name(),
+                "crf": s.crf,
+                "gop": s.gop,
+                "pix_fmt": super::video_encode::PIX_FMT,
+            })
+        }),
+        ImageCompression::None | ImageCompression::Gzip => None,
+    }
 }
 
 /// The per-step shape of a low-dim channel of the profile (empty for images, whose statistics

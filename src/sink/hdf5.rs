@@ -1,6 +1,6 @@
 // Long file: one writer: its three layouts share every dataset but `/chunks`.
 //! The HDF5 writer for chunkc's own layouts (`index`, and `materialized` / `virtual`, which add
-//! `/chunks`: see `hdf5_chunks`).
+//! `/chunks`: see `hdf5_chunks`). Cameras stored as JPEG or video: see `hdf5_lossy`.
 //!
 //! ```text
 //! /data/<channel>      (N, ...) float32 (normalized low-dim) or uint8 (images, HWC)
@@ -20,6 +20,7 @@ use hdf5::{Dataset, File, Group};
 use ndarray::{ArrayViewD, IxDyn};
 
 use super::hdf5_chunks::{self, Stored, Windows};
+use super::hdf5_lossy::LossyFrames;
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::bytes::f32_bytes;
 use crate::error::{Error, Result};
@@ -64,6 +65,8 @@ pub struct Hdf5Writer {
     kept: Vec<Option<(Vec<f32>, Normalizer)>>,
     /// The row store's memory budget (exec's), which bounds the index blocks too.
     spill_budget: usize,
+    /// Cameras stored as JPEG or video (`image_compression`).
+    lossy: LossyFrames,
 }
 
 fn group(parent: &Group, name: &str) -> Result<Group> {
@@ -73,9 +76,9 @@ fn group(parent: &Group, name: &str) -> Result<Group> {
         .create(name)?)
 }
 
-/// HDF5 stores frames raw or deflated; it never asks for PNGs.
+/// HDF5 stores frames raw or deflated; it never asks for PNGs, and JPEGs go to `hdf5_lossy`.
 fn no_png() -> Error {
-    Error::Internal("HDF5 frames are never PNG-encoded".into())
+    Error::Internal("HDF5 frames are never PNG-encoded, nor JPEGs outside hdf5_lossy".into())
 }
 
 /// Writes `values` (whole rows of `ds`, flattened) at rows `lo..` of `ds`, through HDF5.
@@ -154,7 +157,8 @@ impl Hdf5Writer {
             .write_scalar(&text(v.layout.name())?)?;
 
         let frames = match v.image_compression {
-            ImageCompression::None => FrameEncoding::Raw,
+            ImageCompression::None | ImageCompression::Video => FrameEncoding::Raw,
+            ImageCompression::Jpeg => FrameEncoding::Jpeg(LossyFrames::quality(ctx)),
             ImageCompression::Gzip => FrameEncoding::Zlib(
                 v.image_compression_level
                     .unwrap_or(DEFAULT_IMAGE_GZIP_LEVEL)
@@ -162,6 +166,7 @@ impl Hdf5Writer {
             ),
         };
         let data_group = group(root, "data")?;
+        let (mut lossy, lossy_frames) = (LossyFrames::new(ctx), LossyFrames::wanted(ctx));
         let mut block_maps = Vec::new();
         let mut data = Vec::new();
         let mut shapes = Vec::new();
@@ -192,6 +197,7 @@ impl Hdf5Writer {
                     };
                     b.create(ch.name.as_str())?
                 }
+                ChannelKind::Image if lossy_frames => lossy.add(ctx, root, &ch.name, &ch.shape)?,
                 ChannelKind::Image => {
                     // One frame per chunk: a sample reads only the frames it needs.
                     let mut chunk = vec![1];
@@ -209,13 +215,17 @@ impl Hdf5Writer {
                             .alloc_time(Some(AllocTime::Early))
                             .fill_time(FillTime::Never)
                             .create(ch.name.as_str())?,
-                        FrameEncoding::Png => return Err(no_png()),
+                        FrameEncoding::Png | FrameEncoding::Jpeg(_) => return Err(no_png()),
                     }
                 }
             };
+            if ch.kind == ChannelKind::Lowdim || !lossy_frames {
+                lossy.skip();
+            }
             block_maps.push(match (ch.kind, frames) {
                 // Low-dim channels whose chunks cannot be located go through HDF5.
                 (ChannelKind::Lowdim, _) => block_map::locate(&ds),
+                (ChannelKind::Image, _) if lossy_frames => None,
                 (ChannelKind::Image, FrameEncoding::Raw) => {
                     Some(block_map::locate(&ds).ok_or_else(|| {
                         Error::Internal(format!(
@@ -268,6 +278,7 @@ impl Hdf5Writer {
             episode_ends: episode_ends.into(),
             kept: plan.channels.iter().map(|_| None).collect(),
             spill_budget: ctx.spill_budget,
+            lossy,
         })
     }
 
@@ -420,10 +431,13 @@ impl Sink for Hdf5Writer {
     }
 
     fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
+        if self.lossy.write(channel, row, frames)? {
+            return Ok(());
+        }
         match self.frames {
             FrameEncoding::Raw => self.write_raw_frames(channel, row, frames),
             FrameEncoding::Zlib(_) => self.write_chunks(channel, row, frames),
-            FrameEncoding::Png => Err(no_png()),
+            FrameEncoding::Png | FrameEncoding::Jpeg(_) => Err(no_png()),
         }
     }
 
@@ -531,7 +545,8 @@ impl Sink for Hdf5Writer {
         }
     }
 
-    fn finish(self: Box<Self>) -> Result<()> {
+    fn finish(mut self: Box<Self>) -> Result<()> {
+        self.lossy.finish()?;
         let Hdf5Writer { file, data, .. } = *self;
         drop(data);
         file.close()?;

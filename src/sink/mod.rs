@@ -5,7 +5,9 @@
 //! (already encoded the way the sink asked, in parallel, once per rate and encoding), then every
 //! low-dimensional channel whole, then the window index, then `finish`.
 //!
-//! - `hdf5` (+ `hdf5_chunks`): chunkc's own HDF5 layouts `index`, `materialized`, `virtual`.
+//! - `hdf5` (+ `hdf5_chunks`): chunkc's own HDF5 layouts `index`, `materialized`, `virtual`;
+//!   `hdf5_jpeg` and `hdf5_video` store its frames as `image_compression = "jpeg"` / `"video"`.
+//! - `jpeg`: the JPEG encoding of frames (libjpeg-turbo) that `hdf5_jpeg` stores.
 //! - `zarr` (+ `zarr_store`): a Diffusion Policy replay buffer (raw values) + the window index.
 //! - `act_episodes`: ACT's `episode_<i>.hdf5` files (raw values).
 //! - `hdf5_native`: the writer path `act_episodes` and `robomimic` share.
@@ -15,14 +17,20 @@
 //!   `image_encoding = "video"` and `chunkc synth --format lerobot` writes.
 //! - `robomimic`: robomimic's `data.hdf5` with `data/demo_<i>` (raw values).
 //! - `documents`: `meta.json` and `stats.json`.
+//! - `encoder_record`: the frame encoder (library, version, settings) `chunkc.lock` records.
 //! - `dump`: canonical text dumps of written files (golden tests).
 
 pub mod act_episodes;
 pub mod documents;
 pub mod dump;
+pub mod encoder_record;
 pub mod hdf5;
 mod hdf5_chunks;
+mod hdf5_jpeg;
+mod hdf5_lossy;
 mod hdf5_native;
+mod hdf5_video;
+pub mod jpeg;
 pub mod lerobot;
 pub mod png;
 pub mod robomimic;
@@ -50,6 +58,8 @@ pub enum FrameEncoding {
     Zlib(u8),
     /// A PNG file ([`png::encode`]): what LeRobot stores in parquet.
     Png,
+    /// A JPEG file at this quality ([`jpeg::encode`]): what `image_compression = "jpeg"` stores.
+    Jpeg(u8),
 }
 
 /// Encodes one `u8` frame of `shape` (HWC).
@@ -57,6 +67,7 @@ pub fn encode_frame(encoding: FrameEncoding, frame: &[u8], shape: &[usize]) -> V
     match encoding {
         FrameEncoding::Raw => frame.to_vec(),
         FrameEncoding::Png => png::encode(frame, shape),
+        FrameEncoding::Jpeg(quality) => jpeg::encode(frame, shape, quality),
         FrameEncoding::Zlib(level) => {
             use std::io::Write;
             let mut enc = flate2::write::ZlibEncoder::new(

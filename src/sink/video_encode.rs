@@ -40,6 +40,22 @@ pub fn codec_name(codec: VideoCodec) -> &'static str {
 /// The pixel format every stream is encoded in.
 pub const PIX_FMT: &str = "yuv420p";
 
+/// SVT-AV1's preset (speed) as LeRobot sets it.
+pub const SVTAV1_PRESET: u32 = 12;
+
+/// The libavcodec the encoders run in (`major.minor.micro`), or why there is none.
+pub fn library_version() -> String {
+    #[cfg(feature = "video")]
+    {
+        let v = ffmpeg_next::codec::version();
+        format!("libavcodec {}.{}.{}", v >> 16, (v >> 8) & 0xff, v & 0xff)
+    }
+    #[cfg(not(feature = "video"))]
+    {
+        "none (built without the `video` feature)".to_string()
+    }
+}
+
 /// Frames (episodes) queued for a [`Background`] encoder before `push` waits.
 const QUEUE: usize = 2;
 
@@ -208,8 +224,7 @@ mod imp {
     use super::StreamShape;
     use crate::spec::{VideoCodec, VideoSettings};
 
-    /// SVT-AV1's preset (speed) as LeRobot sets it.
-    const SVTAV1_PRESET: u32 = 12;
+    use super::SVTAV1_PRESET;
 
     pub struct Inner {
         octx: format::context::Output,

@@ -5,6 +5,7 @@
 //!   `file:line:col` diagnostics with "did you mean".
 //! - `validate`: semantic checks that need no source (ranges, channel names, references).
 //! - `preset`: preset expansion into [`Profile`].
+//! - `image_storage`: how the HDF5 layout stores frames (`image_compression`) and its defaults.
 //! - `export_keys`: the names native exports give their arrays (default rule and overrides).
 //! - `camera`: `[profiles.<name>.cameras.<channel>]`, a camera's stored size, as written and
 //!   resolved; `validate_camera` checks it (the checks against the source's frames are the
@@ -18,6 +19,7 @@ mod camera;
 mod diagnostic;
 pub mod env;
 pub mod export_keys;
+mod image_storage;
 mod load;
 pub mod model;
 mod output_location;
@@ -29,11 +31,12 @@ mod validate_camera;
 pub use camera::{Camera, CameraSpec};
 pub(crate) use diagnostic::suggest as suggest_name;
 pub use diagnostic::Diagnostic;
+pub use image_storage::DEFAULT_IMAGE_QUALITY;
 pub(crate) use load::dotted as dotted_key;
 pub use load::LoadedSpec;
 pub use model::*;
 pub use output_location::check_output_location;
-pub use preset::{Profile, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP};
+pub use preset::{Profile, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP, STORAGE_VIDEO};
 
 /// The JSON Schema of the spec, pretty-printed with a trailing newline (`chunkc schema`).
 pub fn json_schema() -> String {

@@ -11,6 +11,8 @@ use std::collections::BTreeMap;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+pub use super::image_storage::ImageCompression;
+
 /// A chunkc build spec (`chunkc.toml`): one source, one split, one output directory, and one
 /// profile per target architecture.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -599,16 +601,21 @@ pub struct ProfileSpec {
     /// (default 3).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub compression_level: Option<u32>,
-    /// How `format = "hdf5"` stores image frames (one frame per chunk): `none` (default;
-    /// uncompressed, as ACT and robomimic store them: the fastest to write and to read) or `gzip`
-    /// (HDF5's deflate filter: about 1.5x smaller camera frames for about 10x the CPU time).
-    /// Other formats keep their own convention: Zarr compresses frames with `compression`,
-    /// Parquet stores PNGs, the native exports store frames uncompressed.
+    /// How `format = "hdf5"` stores image frames: `none` (default; uncompressed, one frame per
+    /// chunk, as ACT and robomimic store them: the fastest to read), `gzip` (HDF5's deflate
+    /// filter: about 1.5x smaller), `jpeg` (a JPEG per frame at `image_quality`, as ALOHA's
+    /// compressed episodes: lossy, 10-30x smaller) or `video` (one mp4 per episode and camera in
+    /// `videos/`, H.264 with a keyframe every 8 frames by default: lossy, the smallest; needs the
+    /// `video` cargo feature). Other formats keep their own convention: Zarr compresses frames
+    /// with `compression`, Parquet as `image_encoding` says, native exports store them raw.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub image_compression: Option<ImageCompression>,
     /// gzip level of `image_compression = "gzip"`, 0-9 (default 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub image_compression_level: Option<u32>,
+    /// JPEG quality of `image_compression = "jpeg"`, 1-100 (default 90).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_quality: Option<u32>,
     /// How `format = "parquet"` stores image frames: `png` (default; lossless PNGs in the
     /// parquet rows, readable by chunkc's loader with numpy alone and by any build of chunkc) or
     /// `video` (one mp4 per camera, `videos/<channel>/chunk-000/file-000.mp4`, `dtype: "video"`
@@ -617,15 +624,16 @@ pub struct ProfileSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub image_encoding: Option<ImageEncoding>,
     /// Encoder of `image_encoding = "video"`: `libsvtav1` (default; AV1, LeRobot's default) or
-    /// `libx264` (H.264).
+    /// `libx264` (H.264; the default of hdf5's `image_compression = "video"`: faster to decode).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub video_codec: Option<VideoCodec>,
-    /// Constant rate factor of `image_encoding = "video"` (lower is better quality and larger):
-    /// default 30 (LeRobot's); libsvtav1 0-63, libx264 0-51.
+    /// Constant rate factor of the video encoder (lower is better quality and larger): default
+    /// 30 (LeRobot's), 23 for hdf5's `image_compression = "video"`; libsvtav1 0-63, libx264 0-51.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub video_crf: Option<u32>,
-    /// Keyframe interval (GOP size) of `image_encoding = "video"`, in frames: default 2
-    /// (LeRobot's: random access to any frame decodes at most one other).
+    /// Keyframe interval (GOP size) of the video encoder, in frames: default 2 for parquet
+    /// (LeRobot's: random access to any frame decodes at most one other), 8 for hdf5's
+    /// `image_compression = "video"` (see `video-storage.md`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub video_gop: Option<u32>,
     /// Zarr format version of `format = "zarr"`: 2 (default; what Diffusion Policy's
@@ -984,25 +992,6 @@ impl Compression {
             OutputFormat::Zarr => &[Compression::Lz4, Compression::Zstd, Compression::None],
             OutputFormat::Parquet => &[Compression::Zstd, Compression::None],
             OutputFormat::ActEpisodes | OutputFormat::RobomimicHdf5 => &[Compression::None],
-        }
-    }
-}
-
-/// How the HDF5 layouts store image frames (see `image_compression`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum ImageCompression {
-    /// One frame per chunk, uncompressed.
-    None,
-    /// One frame per chunk, deflate (HDF5's gzip filter).
-    Gzip,
-}
-
-impl ImageCompression {
-    pub fn name(self) -> &'static str {
-        match self {
-            ImageCompression::None => "none",
-            ImageCompression::Gzip => "gzip",
         }
     }
 }

@@ -8,10 +8,12 @@ use super::diagnostic::{backticked, did_you_mean, suggest, Diagnostic};
 use super::export_keys;
 use super::load::{dotted, LoadedSpec, Target};
 use super::model::{
-    ChannelKindSpec, ChannelSpec, ChannelTable, Compression, ImageCompression, Layout,
-    OutputFormat, Preset, ProfileSpec, SourceFormat,
+    ChannelKindSpec, ChannelSpec, ChannelTable, Compression, Layout, OutputFormat, Preset,
+    ProfileSpec, SourceFormat,
 };
 use super::preset::{self, ExpandError, Profile};
+
+mod frames;
 
 /// Checks the spec and expands its profiles (in name order).
 pub(crate) fn check(loaded: &LoadedSpec) -> Result<Vec<Profile>, Vec<Diagnostic>> {
@@ -567,106 +569,6 @@ impl Checker<'_> {
                     help,
                 );
             }
-        }
-    }
-
-    /// `image_compression` and its level: only the HDF5 layouts store frames that way.
-    fn image_options(&mut self, name: &str, p: &Profile) {
-        let key = |k: &'static str| ["profiles", name, k];
-        let set = |k: &str| p.origins.get(k).is_some_and(|o| o != "default");
-        if p.format != OutputFormat::Hdf5 {
-            let how = match p.format {
-                OutputFormat::Zarr => "compresses frames with `compression`",
-                OutputFormat::Parquet => "stores frames as `image_encoding` says",
-                _ => "stores frames uncompressed, as its codebase does",
-            };
-            for k in ["image_compression", "image_compression_level"] {
-                if set(k) {
-                    let message = format!(
-                        "`{k}` needs `format = \"hdf5\"`; profile `{name}` writes `{}`, which {how}",
-                        p.format.name()
-                    );
-                    self.value(&key(k), message, "only for hdf5", None);
-                }
-            }
-            return;
-        }
-        if let Some(level) = p.image_compression_level {
-            if p.image_compression == ImageCompression::None {
-                let message =
-                    "`image_compression = \"none\"` takes no `image_compression_level`".to_string();
-                let help = Some("set `image_compression = \"gzip\"` to compress frames".into());
-                self.value(
-                    &key("image_compression_level"),
-                    message,
-                    "has no level",
-                    help,
-                );
-            } else if level > 9 {
-                let message =
-                    format!("`image_compression_level` {level} is out of range for gzip (0..=9)");
-                self.value(
-                    &key("image_compression_level"),
-                    message,
-                    "out of range",
-                    None,
-                );
-            }
-        }
-    }
-
-    /// `image_encoding` and the `video_*` keys: parquet only, the encoder keys only with
-    /// `image_encoding = "video"`, values in the encoder's range, and a chunkc that can encode.
-    fn video_options(&mut self, name: &str, p: &Profile) {
-        let key = |k: &'static str| ["profiles", name, k];
-        let set = |k: &str| p.origins.contains_key(k);
-        let encoder_keys = ["video_codec", "video_crf", "video_gop"];
-        if p.format != OutputFormat::Parquet {
-            for k in std::iter::once("image_encoding").chain(encoder_keys) {
-                if set(k) {
-                    let message = format!(
-                        "`{k}` needs `format = \"parquet\"`; profile `{name}` writes `{}`",
-                        p.format.name()
-                    );
-                    self.value(&key(k), message, "only for parquet", None);
-                }
-            }
-            return;
-        }
-        let Some(video) = p.video() else {
-            for k in encoder_keys {
-                if set(k) {
-                    let message = format!(
-                        "`{k}` sets the video encoder, but profile `{name}` stores frames as PNG"
-                    );
-                    let help =
-                        Some("set `image_encoding = \"video\"` to store frames as video".into());
-                    self.value(&key(k), message, "only for video", help);
-                }
-            }
-            return;
-        };
-        if !cfg!(feature = "video") {
-            let message =
-                "`image_encoding = \"video\"` needs a chunkc built with the `video` cargo \
-                           feature (`cargo build --release --features video`); this one was built \
-                           without it"
-                    .to_string();
-            let help = Some("or keep `image_encoding = \"png\"`".into());
-            self.value(&key("image_encoding"), message, "not in this build", help);
-        }
-        if video.crf > video.codec.max_crf() {
-            let message = format!(
-                "`video_crf` {} is out of range for {} (0..={})",
-                video.crf,
-                video.codec.name(),
-                video.codec.max_crf()
-            );
-            self.value(&key("video_crf"), message, "out of range", None);
-        }
-        if video.gop == 0 {
-            let message = "`video_gop` must be at least 1 (1: every frame a keyframe)".to_string();
-            self.value(&key("video_gop"), message, "must be >= 1", None);
         }
     }
 

@@ -1,0 +1,46 @@
+//! The frame encoder of a profile as `chunkc.lock` records it: which library wrote the lossy
+//! bytes (JPEG or video), its version, and every setting that changes them. Same spec + same
+//! source + same encoder → the same bytes; the lock says which encoder that was.
+
+use std::collections::BTreeMap;
+
+use super::{jpeg, video_encode};
+use crate::lock::LockedEncoder;
+use crate::spec::{ImageCompression, OutputFormat, Profile, VideoCodec, DEFAULT_IMAGE_QUALITY};
+
+/// The encoder of `profile`'s frames, or `None` when it stores them losslessly.
+pub fn of(profile: &Profile) -> Option<LockedEncoder> {
+    let settings = |pairs: &[(&str, String)]| -> BTreeMap<String, String> {
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.clone()))
+            .collect()
+    };
+    if profile.format == OutputFormat::Hdf5 && profile.image_compression == ImageCompression::Jpeg {
+        let quality = profile.image_quality.unwrap_or(DEFAULT_IMAGE_QUALITY);
+        return Some(LockedEncoder {
+            name: jpeg::ENCODER.into(),
+            version: jpeg::ENCODER_VERSION.into(),
+            settings: settings(&[
+                ("quality", quality.to_string()),
+                ("subsampling", jpeg::SUBSAMPLING.into()),
+                ("simd", "off".into()),
+            ]),
+        });
+    }
+    let video = profile.video()?;
+    let mut pairs = vec![
+        ("crf", video.crf.to_string()),
+        ("gop", video.gop.to_string()),
+        ("pix_fmt", video_encode::PIX_FMT.to_string()),
+        ("threads", "1".to_string()),
+    ];
+    if video.codec == VideoCodec::Libsvtav1 {
+        pairs.push(("preset", video_encode::SVTAV1_PRESET.to_string()));
+    }
+    Some(LockedEncoder {
+        name: video.codec.name().into(),
+        version: video_encode::library_version(),
+        settings: settings(&pairs),
+    })
+}

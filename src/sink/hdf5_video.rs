@@ -1,0 +1,205 @@
+//! `image_compression = "video"` in chunkc's HDF5 layout: one mp4 per episode and camera beside
+//! the data file, which names each episode's file and frame count.
+//!
+//! ```text
+//! videos/<camera>/episode_<id:06>.mp4     yuv420p, a keyframe every `video_gop` frames,
+//!                                         frame i at time i / fps
+//! /videos/<camera>/path    (E,) str       each stored episode's file, relative to the profile
+//! /videos/<camera>/frames  (E,) int64     its frame count (= the episode's stored steps)
+//!     attrs: encoding = "video", codec, crf, gop, pix_fmt, frame_shape = [H, W, 3]
+//! ```
+//! Each file is encoded on a thread of its own with a single-threaded encoder
+//! ([`super::video_encode`]), so its bytes do not depend on `-j`; up to `-j` episodes are
+//! encoded side by side while the build goes on, each holding its episode's frames.
+
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::thread::JoinHandle;
+
+use hdf5::types::VarLenUnicode;
+use hdf5::{Dataset, Group};
+
+use super::video_encode::{StreamShape, VideoStream, PIX_FMT};
+use super::Frames;
+use crate::error::{Error, Result};
+use crate::spec::VideoSettings;
+
+/// The file of episode `id`'s frames of `camera`, relative to the profile directory.
+pub fn episode_path(camera: &str, id: u64) -> String {
+    format!("videos/{camera}/episode_{id:06}.mp4")
+}
+
+/// One camera's per-episode videos.
+pub(super) struct VideoChannel {
+    name: String,
+    shape: StreamShape,
+    settings: VideoSettings,
+    frames: Dataset,
+}
+
+fn text(s: &str) -> Result<VarLenUnicode> {
+    s.parse::<VarLenUnicode>()
+        .map_err(|e| Error::Internal(format!("text {s:?}: {e}")))
+}
+
+/// The attributes of `/videos/<camera>`: how its files were encoded.
+fn describe(group: &Group, settings: VideoSettings, shape: &[usize]) -> Result<()> {
+    let attrs: [(&str, String); 3] = [
+        ("encoding", "video".into()),
+        ("codec", settings.codec.name().into()),
+        ("pix_fmt", PIX_FMT.into()),
+    ];
+    for (k, v) in attrs {
+        group
+            .new_attr::<VarLenUnicode>()
+            .create(k)?
+            .write_scalar(&text(&v)?)?;
+    }
+    for (k, v) in [("crf", settings.crf), ("gop", settings.gop)] {
+        group
+            .new_attr::<i64>()
+            .create(k)?
+            .write_scalar(&i64::from(v))?;
+    }
+    let dims: Vec<i64> = shape.iter().map(|&d| d as i64).collect();
+    group
+        .new_attr::<i64>()
+        .shape([3])
+        .create("frame_shape")?
+        .write_raw(&dims)?;
+    Ok(())
+}
+
+impl VideoChannel {
+    /// Creates `/videos/<camera>` for the stored episodes (`ends`, `ids`) and the camera's
+    /// directory under `dir`.
+    pub(super) fn create(
+        root: &Group,
+        dir: &Path,
+        name: &str,
+        shape: &[usize],
+        fps: f64,
+        settings: VideoSettings,
+        (ends, ids): (&[u64], &[u64]),
+    ) -> Result<Self> {
+        let [height, width, 3] = *shape else {
+            return Err(Error::output(format!(
+                "channel `{name}`: `image_compression = \"video\"` stores (height, width, 3) RGB \
+                 frames, and this channel's frames are {shape:?}; use `image_compression = \"jpeg\"`"
+            )));
+        };
+        let videos = dir.join("videos").join(name);
+        std::fs::create_dir_all(&videos)
+            .map_err(|e| Error::output(format!("cannot create {}: {e}", videos.display())))?;
+        let top = match root.group("videos") {
+            Ok(g) => g,
+            Err(_) => root
+                .create_group_builder()
+                .obj_track_times(false)
+                .create("videos")?,
+        };
+        let group = top
+            .create_group_builder()
+            .obj_track_times(false)
+            .create(name)?;
+        let paths: Vec<VarLenUnicode> = ids
+            .iter()
+            .map(|&id| text(&episode_path(name, id)))
+            .collect::<Result<_>>()?;
+        group
+            .new_dataset::<VarLenUnicode>()
+            .shape([paths.len()])
+            .obj_track_times(false)
+            .create("path")?
+            .write_raw(&paths)?;
+        let counts: Vec<i64> = ends
+            .iter()
+            .scan(0u64, |start, &end| {
+                let n = end - *start;
+                *start = end;
+                Some(n as i64)
+            })
+            .collect();
+        let frames = group
+            .new_dataset::<i64>()
+            .shape([counts.len()])
+            .obj_track_times(false)
+            .create("frames")?;
+        frames.write_raw(&counts)?;
+        describe(&group, settings, shape)?;
+        Ok(VideoChannel {
+            name: name.to_string(),
+            shape: StreamShape { height, width, fps },
+            settings,
+            frames,
+        })
+    }
+
+    /// The dataset `/videos/<camera>/frames`.
+    pub(super) fn dataset(&self) -> Dataset {
+        self.frames.clone()
+    }
+}
+
+/// The episodes being encoded, oldest first; at most `limit` at a time.
+pub(super) struct Encoders {
+    dir: PathBuf,
+    limit: usize,
+    running: VecDeque<(PathBuf, u64, JoinHandle<Result<u64>>)>,
+}
+
+impl Encoders {
+    pub(super) fn new(dir: &Path) -> Encoders {
+        Encoders {
+            dir: dir.to_path_buf(),
+            limit: rayon::current_num_threads().max(1),
+            running: VecDeque::new(),
+        }
+    }
+
+    /// Starts encoding episode `id`'s frames of `channel` (waiting for the oldest encoder first
+    /// when `limit` are running).
+    pub(super) fn start(&mut self, channel: &VideoChannel, id: u64, frames: &Frames) -> Result<()> {
+        while self.running.len() >= self.limit {
+            self.wait_oldest()?;
+        }
+        let path = self.dir.join(episode_path(&channel.name, id));
+        let (shape, settings) = (channel.shape, channel.settings);
+        let pixels = frames.bytes().to_vec();
+        let at = path.clone();
+        let thread = std::thread::Builder::new()
+            .name("chunkc-video".into())
+            .spawn(move || {
+                let mut stream = VideoStream::create(&at, shape, settings)?;
+                stream.push_all(&pixels)?;
+                stream.finish()
+            })
+            .map_err(|e| Error::Internal(format!("cannot start a video encoder thread: {e}")))?;
+        self.running.push_back((path, frames.len() as u64, thread));
+        Ok(())
+    }
+
+    fn wait_oldest(&mut self) -> Result<()> {
+        let Some((path, want, thread)) = self.running.pop_front() else {
+            return Ok(());
+        };
+        let got = thread.join().map_err(|_| {
+            Error::Internal(format!("the encoder of {} panicked", path.display()))
+        })??;
+        if got != want {
+            return Err(Error::Internal(format!(
+                "{}: {got} frames encoded, {want} expected",
+                path.display()
+            )));
+        }
+        Ok(())
+    }
+
+    /// Waits for every file to be complete.
+    pub(super) fn finish(&mut self) -> Result<()> {
+        while !self.running.is_empty() {
+            self.wait_oldest()?;
+        }
+        Ok(())
+    }
+}
