@@ -69,7 +69,7 @@ pub struct Judged {
 /// mean square (about 0) and the standard deviation of action dimension d in episode e.
 // Long function: tracked dimensions, lags, conventions and units, each from the one before.
 pub fn judge(
-    fits: &[Vec<Option<Vec<LagFit>>>],
+    fits: &[&[Option<Vec<LagFit>>]],
     rms: &[Vec<f64>],
     stds: &[Vec<f64>],
     units_ratio: f64,

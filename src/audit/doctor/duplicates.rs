@@ -34,31 +34,42 @@ pub fn signature(a: &[f64], n: usize, width: usize) -> Vec<f64> {
 /// neighbouring cells of a grid of `tolerance`-wide cells in every projection.
 pub const PROJECTIONS: usize = 3;
 
-fn projections(s: &[f64]) -> [f64; PROJECTIONS] {
+fn projections(s: &[f32], scale: &[f64]) -> [f64; PROJECTIONS] {
     let mut out = [0.0; PROJECTIONS];
-    for (i, v) in s.iter().enumerate() {
+    for (i, v) in scaled(s, scale).enumerate() {
         out[0] += v;
-        out[1] += if i % 2 == 0 { *v } else { -v };
-        out[2] += if (i / 2) % 2 == 0 { *v } else { -v };
+        out[1] += if i % 2 == 0 { v } else { -v };
+        out[2] += if (i / 2) % 2 == 0 { v } else { -v };
     }
     let len = s.len().max(1) as f64;
     out.map(|x| x / len)
 }
 
-/// Pairs `(earlier, later, rms)` of positions whose signatures (already divided by the spreads)
-/// are within `tolerance`; each later episode appears once, with its closest earlier match.
+/// A signature's values times `scale` (per dimension, repeating), in double precision.
+fn scaled<'a>(s: &'a [f32], scale: &'a [f64]) -> impl Iterator<Item = f64> + 'a {
+    s.iter()
+        .enumerate()
+        .map(move |(k, v)| f64::from(*v) * scale[k % scale.len()])
+}
+
+/// Pairs `(earlier, later, rms)` of positions whose signatures, times `scale` (per dimension: one
+/// over the dimension's spread), are within `tolerance`; each later episode appears once, with
+/// its closest earlier match. The scaled signatures are never stored (50,000 episodes of 14-D
+/// actions would hold 180 MB of them).
 ///
 /// Episodes go into a hash grid by their [`projections`]; each is compared exactly (lengths, then
 /// the RMS difference) only with the episodes of its own and the neighbouring cells, so the work
 /// grows with the episodes times the crowding of a cell, not with their square, and no pair
 /// within `tolerance` is missed.
 pub fn pairs(
-    signatures: &[Vec<f64>],
+    signatures: &[&[f32]],
+    scale: &[f64],
     lengths: &[usize],
     tolerance: f64,
 ) -> Vec<(usize, usize, f64)> {
     type Cell = [i64; PROJECTIONS];
-    let cell_of = |s: &[f64]| -> Cell { projections(s).map(|x| (x / tolerance).floor() as i64) };
+    let cell_of =
+        |s: &[f32]| -> Cell { projections(s, scale).map(|x| (x / tolerance).floor() as i64) };
     let cells: Vec<Cell> = signatures.iter().map(|s| cell_of(s)).collect();
     let mut grid: std::collections::HashMap<Cell, Vec<usize>> = Default::default();
     for (i, c) in cells.iter().enumerate() {
@@ -93,9 +104,8 @@ pub fn pairs(
                     continue;
                 }
                 let n = signatures[i].len().max(1) as f64;
-                let rms = (signatures[i]
-                    .iter()
-                    .zip(&signatures[j])
+                let rms = (scaled(signatures[i], scale)
+                    .zip(scaled(signatures[j], scale))
                     .map(|(p, q)| (p - q) * (p - q))
                     .sum::<f64>()
                     / n)
@@ -129,9 +139,13 @@ mod tests {
                 1,
             )
         };
-        let sigs = vec![ep(0.0), ep(1.0), ep(0.0001), ep(2.0)];
+        let sigs: Vec<Vec<f32>> = [ep(0.0), ep(1.0), ep(0.0001), ep(2.0)]
+            .into_iter()
+            .map(|s| s.into_iter().map(|v| v as f32).collect())
+            .collect();
+        let views: Vec<&[f32]> = sigs.iter().map(|s| &s[..]).collect();
         assert_eq!(
-            pairs(&sigs, &[50; 4], 0.01)
+            pairs(&views, &[1.0], &[50; 4], 0.01)
                 .iter()
                 .map(|p| (p.0, p.1))
                 .collect::<Vec<_>>(),
@@ -151,12 +165,15 @@ mod tests {
             (seed >> 11) as f64 / (1u64 << 53) as f64
         };
         let tolerance = 0.05;
-        let mut sigs: Vec<Vec<f64>> = (0..300)
-            .map(|_| (0..24).map(|_| 0.2 * (rand() - 0.5)).collect())
+        let mut sigs: Vec<Vec<f32>> = (0..300)
+            .map(|_| (0..24).map(|_| (0.2 * (rand() - 0.5)) as f32).collect())
             .collect();
         for k in 0..60 {
             let scale = tolerance * (0.5 + rand());
-            let copy: Vec<f64> = sigs[k].iter().map(|v| v + scale * (rand() - 0.5)).collect();
+            let copy: Vec<f32> = sigs[k]
+                .iter()
+                .map(|v| (f64::from(*v) + scale * (rand() - 0.5)) as f32)
+                .collect();
             sigs.push(copy);
         }
         let lengths: Vec<usize> = (0..sigs.len()).map(|i| 100 + i % 3).collect();
@@ -166,7 +183,7 @@ mod tests {
                 let rms = (sigs[i]
                     .iter()
                     .zip(&sigs[j])
-                    .map(|(p, q)| (p - q) * (p - q))
+                    .map(|(p, q)| (f64::from(*p) - f64::from(*q)).powi(2))
                     .sum::<f64>()
                     / 24.0)
                     .sqrt();
@@ -182,6 +199,7 @@ mod tests {
             .map(|(j, (i, r))| (i, j, r))
             .collect();
         assert!(expected.len() >= 40, "{}", expected.len());
-        assert_eq!(pairs(&sigs, &lengths, tolerance), expected);
+        let views: Vec<&[f32]> = sigs.iter().map(|s| &s[..]).collect();
+        assert_eq!(pairs(&views, &[1.0], &lengths, tolerance), expected);
     }
 }

@@ -126,8 +126,7 @@ fn units_and_alignment(
     feats: &[Features],
     found: &mut Found,
 ) -> convention::Judged {
-    let fits: Vec<Vec<Option<Vec<alignment::LagFit>>>> =
-        feats.iter().map(|f| f.fits.clone()).collect();
+    let fits: Vec<&[Option<Vec<alignment::LagFit>>]> = feats.iter().map(|f| &f.fits[..]).collect();
     let stds: Vec<Vec<f64>> = feats.iter().map(|f| f.stds.clone()).collect();
     let rms: Vec<Vec<f64>> = feats
         .iter()
@@ -343,22 +342,14 @@ fn duplicate_pairs(
     cx: &Context,
     found: &mut Found,
 ) -> Vec<(usize, usize, f64)> {
-    let spreads: Vec<f64> = (0..cx.a_dim)
+    // One over each dimension's typical spread.
+    let scale: Vec<f64> = (0..cx.a_dim)
         .map(|d| stats::median(feats.iter().map(|f| f.stds[d])))
-        .map(|s| if s > 0.0 { s } else { 1.0 })
+        .map(|s| if s > 0.0 { 1.0 / s } else { 1.0 })
         .collect();
-    let sigs: Vec<Vec<f64>> = feats
-        .iter()
-        .map(|f| {
-            f.signature
-                .iter()
-                .enumerate()
-                .map(|(k, v)| f64::from(*v) / spreads[k % cx.a_dim])
-                .collect()
-        })
-        .collect();
+    let sigs: Vec<&[f32]> = feats.iter().map(|f| &f.signature[..]).collect();
     let lengths: Vec<usize> = feats.iter().map(|f| f.n).collect();
-    let pairs = duplicates::pairs(&sigs, &lengths, cfg.duplicate_tolerance);
+    let pairs = duplicates::pairs(&sigs, &scale, &lengths, cfg.duplicate_tolerance);
     for &(early, late, rms) in &pairs {
         found.add(
             late,
