@@ -90,6 +90,7 @@ pub fn apply(
         len: steps,
         timestamps: Some(grid),
         channels: out,
+        packets: Default::default(),
     }
 }
 

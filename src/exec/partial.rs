@@ -23,12 +23,13 @@ use super::process::{Prepared, Processed};
 use super::rate::Partial;
 use crate::error::{Error, IoContext, Result};
 use crate::sink::{FrameEncoding, Frames};
+use crate::source::video::{PacketSpan, Probe};
 use crate::stats::{ImagePartial, Moments};
 
 const MAGIC: &[u8; 8] = b"CHUNKCP1";
 const TRAILER: &[u8; 4] = b"END!";
 /// Bumped when the record layout changes: a merge never reads a partial of another layout.
-pub const PARTIAL_FORMAT: u32 = 1;
+pub const PARTIAL_FORMAT: u32 = 2;
 
 /// The partial file of shard `index` of `count` in `dir`.
 pub fn path_of(dir: &Path, index: usize, count: usize) -> PathBuf {
@@ -117,7 +118,29 @@ impl Writer {
         let ends = frames.ends();
         self.u64(ends.len() as u64)?;
         let bytes: Vec<u8> = ends.iter().flat_map(|x| x.to_le_bytes()).collect();
-        self.bytes(&bytes)
+        self.bytes(&bytes)?;
+        self.packets(frames.packets())
+    }
+
+    fn text(&mut self, s: &str) -> Result<()> {
+        self.u64(s.len() as u64)?;
+        self.bytes(s.as_bytes())
+    }
+
+    /// The video packets the frames are the decode of: 0, or 1 and where they are.
+    fn packets(&mut self, span: Option<&PacketSpan>) -> Result<()> {
+        let Some(span) = span else { return self.u8(0) };
+        self.u8(1)?;
+        let file = span.file.to_str().ok_or_else(|| {
+            Error::output(format!("{}: the path is not UTF-8", span.file.display()))
+        })?;
+        self.text(file)?;
+        self.text(&span.probe.codec)?;
+        self.u64(span.probe.width as u64)?;
+        self.u64(span.probe.height as u64)?;
+        self.u64(span.first.to_bits())?;
+        self.u64(span.last.to_bits())?;
+        self.u64(span.frames as u64)
     }
 
     pub fn record(&mut self, record: &Record) -> Result<()> {
@@ -314,6 +337,30 @@ impl Reader {
         Ok(self.u64s()?.into_iter().map(f64::from_bits).collect())
     }
 
+    fn text(&mut self) -> Result<String> {
+        let n = self.u64()? as usize;
+        String::from_utf8(self.take(n)?).map_err(|_| self.bad("damaged text"))
+    }
+
+    fn packets(&mut self) -> Result<Option<PacketSpan>> {
+        if self.u8()? == 0 {
+            return Ok(None);
+        }
+        let file = PathBuf::from(self.text()?);
+        let probe = Probe {
+            codec: self.text()?,
+            width: self.u64()? as usize,
+            height: self.u64()? as usize,
+        };
+        Ok(Some(PacketSpan {
+            file,
+            probe,
+            first: f64::from_bits(self.u64()?),
+            last: f64::from_bits(self.u64()?),
+            frames: self.u64()? as usize,
+        }))
+    }
+
     fn moments(&mut self) -> Result<Moments> {
         Ok(Moments {
             count: self.u64()?,
@@ -360,7 +407,9 @@ impl Reader {
                                     let len = self.u64()? as usize;
                                     let bytes = self.take(len)?;
                                     let ends = self.u64s()?;
-                                    encoded.push((enc, Frames::from_parts(bytes, ends)));
+                                    let packets = self.packets()?;
+                                    let frames = Frames::from_parts(bytes, ends);
+                                    encoded.push((enc, frames.with_packets(packets)));
                                 }
                                 Prepared::Frames(encoded)
                             }
@@ -415,7 +464,20 @@ mod tests {
                 Prepared::Lowdim(vec![1.5, -0.0, f32::MIN_POSITIVE, 3.25]),
                 Prepared::Frames(vec![
                     (FrameEncoding::Zlib(4), frames),
-                    (FrameEncoding::Raw, Frames::raw(vec![7u8; 24], 12)),
+                    (
+                        FrameEncoding::Raw,
+                        Frames::raw(vec![7u8; 24], 12).with_packets(Some(PacketSpan {
+                            file: "/data/videos/file-000.mp4".into(),
+                            probe: Probe {
+                                codec: "av1".into(),
+                                width: 2,
+                                height: 2,
+                            },
+                            first: 0.1,
+                            last: 0.2,
+                            frames: 2,
+                        })),
+                    ),
                 ]),
             ]],
             partials: vec![vec![

@@ -8,6 +8,7 @@ use crate::plan::Conversion;
 use crate::recycle;
 use crate::resize::Resize;
 use crate::sink::{FrameEncoding, Frames};
+use crate::source::video::PacketSpan;
 use crate::source::{ChannelData, Episode, Source};
 use crate::stats::{self, ImagePartial};
 
@@ -76,7 +77,8 @@ pub(super) fn process(
         let last = k + 1 == order.len();
         let mut per_channel = Vec::with_capacity(channels.len());
         let mut per_partial = Vec::with_capacity(channels.len());
-        for ((ch, values), resize) in channels.iter().zip(episode.channels.iter_mut()).zip(resize) {
+        let channel_data = channels.iter().zip(episode.channels.iter_mut()).zip(resize);
+        for (c, ((ch, values), resize)) in channel_data.enumerate() {
             let width = ch.width();
             let converted = match *conversion {
                 // The source's own rate, last, takes the values (no copy).
@@ -99,6 +101,10 @@ pub(super) fn process(
                     per_channel.push(Prepared::Lowdim(v));
                 }
                 ChannelData::Image(d) => {
+                    // The frames are still the video's own only at the source's rate and size.
+                    let same =
+                        *conversion == Conversion::Decimate { factor: 1 } && resize.is_none();
+                    let packets = episode.packets.remove(&c).filter(|_| same);
                     let (d, shape) = match resize {
                         Some(resize) => {
                             let resized = resize.frames(&d);
@@ -108,7 +114,7 @@ pub(super) fn process(
                         }
                         None => (d, ch.shape.clone()),
                     };
-                    let (frames, partial) = prepare_frames(d, &shape, encodings, train);
+                    let (frames, partial) = prepare_frames(d, &shape, encodings, train, packets);
                     per_partial.push(partial);
                     per_channel.push(frames);
                 }
@@ -121,12 +127,14 @@ pub(super) fn process(
 }
 
 /// One camera's frames as stored (per-step `shape`): their statistics partial (a training
-/// episode's), and the frames in every encoding of `encodings`.
+/// episode's), and the frames in every encoding of `encodings`, each noting the video `packets`
+/// they are the decode of, if they are.
 fn prepare_frames(
     d: Vec<u8>,
     shape: &[usize],
     encodings: &[FrameEncoding],
     train: bool,
+    packets: Option<PacketSpan>,
 ) -> (Prepared, Option<Partial>) {
     let width = shape.iter().product::<usize>();
     let frames = d.len() / width.max(1);
@@ -136,10 +144,16 @@ fn prepare_frames(
     let mut encoded: Vec<(FrameEncoding, Frames)> = encodings
         .iter()
         .filter(|&&enc| enc != FrameEncoding::Raw)
-        .map(|&enc| (enc, Frames::encode(enc, &d, shape)))
+        .map(|&enc| {
+            let frames = Frames::encode(enc, &d, shape).with_packets(packets.clone());
+            (enc, frames)
+        })
         .collect();
     if encodings.contains(&FrameEncoding::Raw) {
-        encoded.push((FrameEncoding::Raw, Frames::raw(d, width)));
+        encoded.push((
+            FrameEncoding::Raw,
+            Frames::raw(d, width).with_packets(packets),
+        ));
     }
     (Prepared::Frames(encoded), partial)
 }

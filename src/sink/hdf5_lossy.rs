@@ -105,14 +105,25 @@ impl LossyFrames {
                         )))
                     }
                 };
-                self.encoders.start(v, id, frames)?;
+                self.encoders.start((channel, v), id, frames)?;
                 Ok(true)
             }
         }
     }
 
-    /// Waits for every video to be complete.
+    /// Waits for every video to be complete, and records which were copied.
     pub(super) fn finish(&mut self) -> Result<()> {
-        self.encoders.finish()
+        self.encoders.finish()?;
+        for (at, channel) in self.channels.iter().enumerate() {
+            if let Some(Channel::Video(v)) = channel {
+                let copied: Vec<u8> = self
+                    .episodes
+                    .iter()
+                    .map(|&(_, id)| u8::from(self.encoders.copied(at, id)))
+                    .collect();
+                v.record_copies(&copied)?;
+            }
+        }
+        Ok(())
     }
 }

@@ -6,23 +6,29 @@
 //!                                         frame i at time i / fps
 //! /videos/<camera>/path    (E,) str       each stored episode's file, relative to the profile
 //! /videos/<camera>/frames  (E,) int64     its frame count (= the episode's stored steps)
+//! /videos/<camera>/copied  (E,) uint8     1 where the file is the source video's own packets
 //!     attrs: encoding = "video", codec, crf, gop, pix_fmt, frame_shape = [H, W, 3]
+//!            (the encoder's; a copied file keeps the source's codec and pixel format)
 //! ```
-//! Each file is encoded on a thread of its own with a single-threaded encoder
-//! ([`super::video_encode`]), so its bytes do not depend on `-j`; up to `-j` episodes are
-//! encoded side by side while the build goes on, each holding its episode's frames.
+//! Where the episode's frames are a source video's own, unchanged, its packets are copied
+//! ([`super::video_copy`], `video_copy`); otherwise each file is encoded on a thread of its own
+//! with a single-threaded encoder ([`super::video_encode`]). Either way its bytes do not depend
+//! on `-j`; up to `-j` episodes are copied or encoded side by side while the build goes on, each
+//! holding its episode's frames.
 
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::thread::JoinHandle;
 
 use hdf5::types::VarLenUnicode;
 use hdf5::{Dataset, Group};
 
-use super::video_encode::{StreamShape, VideoStream, PIX_FMT};
+use super::video_copy::{self, CopyOutcome, COPIED_CODECS};
+use super::video_encode::{codec_name, StreamShape, VideoStream, PIX_FMT};
 use super::Frames;
 use crate::error::{Error, Result};
-use crate::spec::VideoSettings;
+use crate::source::video::PacketSpan;
+use crate::spec::{StreamCopy, VideoSettings};
 
 /// The file of episode `id`'s frames of `camera`, relative to the profile directory.
 pub fn episode_path(camera: &str, id: u64) -> String {
@@ -35,6 +41,7 @@ pub(super) struct VideoChannel {
     shape: StreamShape,
     settings: VideoSettings,
     frames: Dataset,
+    copied: Dataset,
 }
 
 fn text(s: &str) -> Result<VarLenUnicode> {
@@ -126,13 +133,39 @@ impl VideoChannel {
             .obj_track_times(false)
             .create("frames")?;
         frames.write_raw(&counts)?;
+        let copied = group
+            .new_dataset::<u8>()
+            .shape([counts.len()])
+            .obj_track_times(false)
+            .create("copied")?;
         describe(&group, settings, shape)?;
         Ok(VideoChannel {
             name: name.to_string(),
             shape: StreamShape { height, width, fps },
             settings,
             frames,
+            copied,
         })
+    }
+
+    /// The source packets to copy for `frames` instead of encoding them: when they are a
+    /// video's own frames, at this camera's size, in a codec the profile lets it keep.
+    fn to_copy(&self, frames: &Frames) -> Option<PacketSpan> {
+        let span = frames.packets()?;
+        let codec = span.probe.codec.as_str();
+        let kept = match self.settings.copy {
+            StreamCopy::Never => false,
+            StreamCopy::AnyCodec => COPIED_CODECS.contains(&codec),
+            StreamCopy::SameCodec => codec == codec_name(self.settings.codec),
+        };
+        let size = (span.probe.height, span.probe.width) == (self.shape.height, self.shape.width);
+        (kept && size && span.frames == frames.len()).then(|| span.clone())
+    }
+
+    /// Writes `/videos/<camera>/copied`: per stored episode, whether its file was copied.
+    pub(super) fn record_copies(&self, copied: &[u8]) -> Result<()> {
+        self.copied.write_raw(copied)?;
+        Ok(())
     }
 
     /// The dataset `/videos/<camera>/frames`.
@@ -141,11 +174,22 @@ impl VideoChannel {
     }
 }
 
-/// The episodes being encoded, oldest first; at most `limit` at a time.
+/// One episode's file being written: (frames written, whether they were copied).
+struct Running {
+    path: PathBuf,
+    frames: u64,
+    /// (channel position, episode id).
+    of: (usize, u64),
+    thread: JoinHandle<Result<(u64, bool)>>,
+}
+
+/// The episodes being copied or encoded, oldest first; at most `limit` at a time.
 pub(super) struct Encoders {
     dir: PathBuf,
     limit: usize,
-    running: VecDeque<(PathBuf, u64, JoinHandle<Result<u64>>)>,
+    running: VecDeque<Running>,
+    /// Per (channel position, episode id) written: whether its file was copied.
+    copied: BTreeMap<(usize, u64), bool>,
 }
 
 impl Encoders {
@@ -154,38 +198,63 @@ impl Encoders {
             dir: dir.to_path_buf(),
             limit: rayon::current_num_threads().max(1),
             running: VecDeque::new(),
+            copied: BTreeMap::new(),
         }
     }
 
-    /// Starts encoding episode `id`'s frames of `channel` (waiting for the oldest encoder first
-    /// when `limit` are running).
-    pub(super) fn start(&mut self, channel: &VideoChannel, id: u64, frames: &Frames) -> Result<()> {
+    /// Starts writing episode `id`'s frames of `channel` (position `at`), copied from the
+    /// source or encoded, waiting for the oldest writer first when `limit` are running.
+    pub(super) fn start(
+        &mut self,
+        (at, channel): (usize, &VideoChannel),
+        id: u64,
+        frames: &Frames,
+    ) -> Result<()> {
         while self.running.len() >= self.limit {
             self.wait_oldest()?;
         }
         let path = self.dir.join(episode_path(&channel.name, id));
         let (shape, settings) = (channel.shape, channel.settings);
+        let to_copy = channel.to_copy(frames);
         let pixels = frames.bytes().to_vec();
-        let at = path.clone();
+        let file = path.clone();
         let thread = std::thread::Builder::new()
             .name("chunkc-video".into())
             .spawn(move || {
-                let mut stream = VideoStream::create(&at, shape, settings)?;
+                if let Some(span) = to_copy {
+                    let outcome = video_copy::copy(&span, &file, shape.fps, settings.gop)?;
+                    if let CopyOutcome::Copied(n) = outcome {
+                        return Ok((n, true));
+                    }
+                }
+                let mut stream = VideoStream::create(&file, shape, settings)?;
                 stream.push_all(&pixels)?;
-                stream.finish()
+                Ok((stream.finish()?, false))
             })
             .map_err(|e| Error::Internal(format!("cannot start a video encoder thread: {e}")))?;
-        self.running.push_back((path, frames.len() as u64, thread));
+        self.running.push_back(Running {
+            path,
+            frames: frames.len() as u64,
+            of: (at, id),
+            thread,
+        });
         Ok(())
     }
 
     fn wait_oldest(&mut self) -> Result<()> {
-        let Some((path, want, thread)) = self.running.pop_front() else {
+        let Some(Running {
+            path,
+            frames: want,
+            of,
+            thread,
+        }) = self.running.pop_front()
+        else {
             return Ok(());
         };
-        let got = thread.join().map_err(|_| {
+        let (got, copied) = thread.join().map_err(|_| {
             Error::Internal(format!("the encoder of {} panicked", path.display()))
         })??;
+        self.copied.insert(of, copied);
         if got != want {
             return Err(Error::Internal(format!(
                 "{}: {got} frames encoded, {want} expected",
@@ -201,5 +270,10 @@ impl Encoders {
             self.wait_oldest()?;
         }
         Ok(())
+    }
+
+    /// Whether episode `id`'s file of the channel at position `at` was copied.
+    pub(super) fn copied(&self, at: usize, id: u64) -> bool {
+        self.copied.get(&(at, id)).copied().unwrap_or(false)
     }
 }

@@ -13,6 +13,8 @@
 //! - `hdf5_native`: the writer path `act_episodes` and `robomimic` share.
 //! - `lerobot`: a LeRobot v3.0 parquet dataset + the window index (raw values).
 //! - `png`: the PNG encoding of frames that `lerobot` stores.
+//! - `video_copy`: a source video's packets copied as an episode's file (`hdf5_video`), where
+//!   the frames are the video's own.
 //! - `video_encode`: camera frames as mp4 video (SVT-AV1/x264), what `lerobot` stores with
 //!   `image_encoding = "video"` and `chunkc synth --format lerobot` writes.
 //! - `robomimic`: robomimic's `data.hdf5` with `data/demo_<i>` (raw values).
@@ -34,6 +36,7 @@ pub mod jpeg;
 pub mod lerobot;
 pub mod png;
 pub mod robomimic;
+pub mod video_copy;
 pub mod video_encode;
 pub mod zarr;
 mod zarr_store;
@@ -44,6 +47,7 @@ use std::sync::Arc;
 
 use crate::error::Result;
 use crate::plan::ProfilePlan;
+use crate::source::video::PacketSpan;
 use crate::spec::OutputFormat;
 use crate::stats::normalize::Normalizer;
 use crate::store::LowdimStore;
@@ -82,11 +86,14 @@ pub fn encode_frame(encoding: FrameEncoding, frame: &[u8], shape: &[usize]) -> V
 
 /// One episode's frames of one image channel, encoded and stored back to back (so that
 /// uncompressed frames are the decoded pixels themselves, never copied frame by frame).
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Frames {
     bytes: Vec<u8>,
     /// Exclusive end of each frame in `bytes`.
     ends: Ends,
+    /// The video packets the frames were decoded from, one per frame, when nothing changed
+    /// them since (same rate, same size): a video sink may copy those instead of encoding.
+    packets: Option<PacketSpan>,
 }
 
 impl Frames {
@@ -96,7 +103,19 @@ impl Frames {
         Frames {
             ends: Ends::new((1..=n).map(|i| (i * frame_bytes) as u64).collect()),
             bytes: pixels,
+            packets: None,
         }
+    }
+
+    /// The same frames, noting the video packets they are the decode of.
+    pub fn with_packets(mut self, packets: Option<PacketSpan>) -> Frames {
+        self.packets = packets;
+        self
+    }
+
+    /// The video packets the frames are the decode of, if they are.
+    pub fn packets(&self) -> Option<&PacketSpan> {
+        self.packets.as_ref()
     }
 
     /// The frames' bytes, one after another (to hand the memory on).
@@ -118,6 +137,7 @@ impl Frames {
         let mut frames = Frames {
             bytes: Vec::with_capacity(encoded.iter().map(Vec::len).sum()),
             ends: Ends::default(),
+            packets: None,
         };
         for f in encoded {
             frames.ends.push(f.len());
@@ -165,6 +185,7 @@ impl Frames {
         Frames {
             bytes,
             ends: Ends::new(ends),
+            packets: None,
         }
     }
 }

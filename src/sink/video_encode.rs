@@ -411,6 +411,7 @@ mod tests {
             codec: VideoCodec::Libsvtav1,
             crf: 30,
             gop: 2,
+            copy: crate::spec::StreamCopy::Never,
         }
     }
 

@@ -344,6 +344,7 @@ impl Source for AlohaSource {
                 len: info.len,
                 timestamps: None,
                 channels,
+                packets: Default::default(),
             });
         }
         let file = h5::open(path)?;
@@ -362,6 +363,7 @@ impl Source for AlohaSource {
             len: info.len,
             timestamps: None,
             channels,
+            packets: Default::default(),
         })
     }
 }

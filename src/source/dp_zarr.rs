@@ -561,6 +561,7 @@ impl Source for DpZarrSource {
             len: info.len,
             timestamps: None,
             channels,
+            packets: Default::default(),
         })
     }
 }

@@ -150,6 +150,10 @@ pub struct Episode {
     /// Seconds per step, when the source stores them (LeRobot `timestamp`, robosuite sim time).
     pub timestamps: Option<Vec<f64>>,
     pub channels: Vec<ChannelData>,
+    /// Per image channel (manifest position) whose frames are a video file's own frames one per
+    /// row: which ones. Only sources that decode video fill it; whatever changes the rows (a
+    /// repair, a resample, a resize) must not pass it on.
+    pub packets: BTreeMap<usize, video::PacketSpan>,
 }
 
 impl Episode {

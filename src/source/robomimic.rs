@@ -331,6 +331,7 @@ impl Source for RobomimicSource {
             len: info.len,
             timestamps: self.timestamps.as_ref().map(|t| t[index].clone()),
             channels,
+            packets: Default::default(),
         })
     }
 }

@@ -36,7 +36,9 @@ pub(crate) use load::dotted as dotted_key;
 pub use load::LoadedSpec;
 pub use model::*;
 pub use output_location::check_output_location;
-pub use preset::{Profile, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP, STORAGE_VIDEO};
+pub use preset::{
+    Profile, StreamCopy, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP, STORAGE_VIDEO,
+};
 
 /// The JSON Schema of the spec, pretty-printed with a trailing newline (`chunkc schema`).
 pub fn json_schema() -> String {

@@ -65,6 +65,8 @@ pub struct Profile {
     pub video_crf: Option<u32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub video_gop: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub video_copy: Option<bool>,
     pub zarr_version: u32,
     pub stats_formats: Vec<StatsFormat>,
     pub segment: Option<SegmentSpec>,
@@ -83,7 +85,22 @@ pub struct Profile {
 pub struct VideoSettings {
     pub codec: VideoCodec,
     pub crf: u32,
+    /// The keyframe interval: what the encoder writes, and the longest a copied stream may have.
     pub gop: u32,
+    pub copy: StreamCopy,
+}
+
+/// Which source streams a video storage copies packet for packet instead of encoding
+/// (`video_copy`; the other conditions are the sink's: same rate and size, whole GOPs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StreamCopy {
+    /// Always encode: parquet's LeRobot videos (one file of every episode), or `video_copy =
+    /// false`.
+    Never,
+    /// A stream of any codec (hdf5, no `video_codec` given: the source's codec is kept).
+    AnyCodec,
+    /// Only a stream in the codec of `video_codec`, which the spec names.
+    SameCodec,
 }
 
 /// LeRobot's `encode_video_frames` defaults (`g=2`, `crf=30`).
@@ -97,6 +114,7 @@ pub const STORAGE_VIDEO: VideoSettings = VideoSettings {
     codec: VideoCodec::Libx264,
     crf: 23,
     gop: 8,
+    copy: StreamCopy::AnyCodec,
 };
 
 impl Profile {
@@ -110,6 +128,7 @@ impl Profile {
                     codec: VideoCodec::Libsvtav1,
                     crf: DEFAULT_VIDEO_CRF,
                     gop: DEFAULT_VIDEO_GOP,
+                    copy: StreamCopy::Never,
                 }
             }
             OutputFormat::Hdf5 if self.image_compression == ImageCompression::Video => {
@@ -121,6 +140,11 @@ impl Profile {
             codec: self.video_codec.unwrap_or(defaults.codec),
             crf: self.video_crf.unwrap_or(defaults.crf),
             gop: self.video_gop.unwrap_or(defaults.gop),
+            copy: match (defaults.copy, self.video_copy, self.video_codec) {
+                (StreamCopy::Never, ..) | (_, Some(false), _) => StreamCopy::Never,
+                (_, _, Some(_)) => StreamCopy::SameCodec,
+                (copy, ..) => copy,
+            },
         })
     }
 }
@@ -361,6 +385,7 @@ pub fn expand(
     let video_codec = pick!(video_codec);
     let video_crf = pick!(video_crf);
     let video_gop = pick!(video_gop);
+    let video_copy = pick!(video_copy);
     let zarr_version = resolve!(
         zarr_version,
         |_: &PresetValues| None,
@@ -433,6 +458,7 @@ pub fn expand(
         video_codec,
         video_crf,
         video_gop,
+        video_copy,
         zarr_version,
         stats_formats,
         segment,

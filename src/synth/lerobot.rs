@@ -35,7 +35,7 @@ use serde_json::json;
 use super::{SynthEpisode, SynthOptions, SynthWriter};
 use crate::error::{Error, IoContext, Result};
 use crate::sink::video_encode::{self, Background, StreamShape};
-use crate::spec::{VideoCodec, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP};
+use crate::spec::{StreamCopy, VideoCodec, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP};
 
 /// Data files hold about this many bytes of values, like LeRobot's `data_files_size_in_mb`.
 const FILE_BYTES: usize = 100 << 20;
@@ -46,6 +46,7 @@ const VIDEO: VideoSettings = VideoSettings {
     codec: VideoCodec::Libsvtav1,
     crf: DEFAULT_VIDEO_CRF,
     gop: DEFAULT_VIDEO_GOP,
+    copy: StreamCopy::Never,
 };
 
 /// The feature name of camera `c`, LeRobot's `observation.images.<camera>`.

@@ -222,6 +222,7 @@ impl LerobotSource {
             keys.iter().map(String::as_str).zip(cols).collect();
         // Cameras side by side, each file decoded sequentially (see `video`).
         let mut frames: BTreeMap<&str, Vec<u8>> = BTreeMap::new();
+        let mut packets = BTreeMap::new();
         if !video_keys.is_empty() && !decode_video {
             // Frames of the right size, never decoded: the caller keeps only the low-dim values.
             for c in self.mapped.channels.iter().filter(|c| c.shape.len() == 3) {
@@ -252,6 +253,18 @@ impl LerobotSource {
                 .collect();
             for (k, d) in video_keys.iter().zip(decoded) {
                 frames.insert(k.as_str(), d?);
+                // The channel that is this camera's frames as they are.
+                let channel = self
+                    .mapped
+                    .recipes
+                    .iter()
+                    .position(|r| matches!(r.parts.as_slice(), [p] if p.key == *k));
+                let is_image = |c: usize| self.mapped.channels[c].shape.len() == 3;
+                if let Some(c) = channel.filter(|&c| is_image(c)) {
+                    if let Some(span) = self.videos.span(index, k, &stamps) {
+                        packets.insert(c, span);
+                    }
+                }
             }
         }
         let channels = mapping::assemble(&self.mapped, info.len, &place, |key| {
@@ -266,6 +279,7 @@ impl LerobotSource {
             len: info.len,
             timestamps,
             channels,
+            packets,
         })
     }
 }

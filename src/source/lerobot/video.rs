@@ -13,7 +13,9 @@ use std::sync::{Arc, OnceLock};
 use super::VideoRef;
 use crate::error::{Error, Result};
 use crate::recycle;
-use crate::source::video::{self, DecodeFailure, Miss, Timeline, VideoCheck, TOLERANCE_S};
+use crate::source::video::{
+    self, DecodeFailure, Miss, PacketSpan, Timeline, VideoCheck, TOLERANCE_S,
+};
 
 /// The videos of the episodes a source reads.
 pub(super) struct Videos {
@@ -145,6 +147,29 @@ impl Videos {
             out.problem = Some(problem);
         }
         out
+    }
+
+    /// The frames of its file that one episode's camera `key` takes, when its rows take the
+    /// file's frames one by one (from the demuxed packet times; nothing decoded).
+    pub(super) fn span(&self, index: usize, key: &str, stamps: &[f64]) -> Option<PacketSpan> {
+        let r = self.refs[index].get(key)?;
+        let timeline = self.timeline(&r.file).ok()?;
+        if timeline.cut.is_some() {
+            return None;
+        }
+        let (picks, selector) =
+            video::select::over_times(&timeline.times, &Self::targets(r, stamps));
+        if selector.first_miss().is_some() {
+            return None;
+        }
+        let (first, last) = video::consecutive(&picks)?;
+        Some(PacketSpan {
+            file: self.root.join(&r.file),
+            probe: timeline.probe.clone(),
+            first: timeline.times[first],
+            last: timeline.times[last],
+            frames: stamps.len(),
+        })
     }
 
     /// Decodes one episode's camera `key` into `rows × h × w × 3` bytes.

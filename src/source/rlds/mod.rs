@@ -723,6 +723,7 @@ impl RldsSource {
             len,
             timestamps: None,
             channels,
+            packets: Default::default(),
         })
     }
 

@@ -6,6 +6,8 @@
 //! - `ffmpeg` (feature `video`): the FFmpeg libraries through `ffmpeg-next`: a file's packet
 //!   times (the audit: demuxing only, no decoding) and the decode of one episode's rows, frames
 //!   converted to RGB exactly as PyAV's `frame.to_ndarray(format="rgb24")`.
+//! - `span`: when an episode's rows are a file's own frames one by one, which ones (a sink can
+//!   then copy their packets instead of encoding the frames again).
 //! - `disabled` (without the feature): the same functions, failing with a message that names
 //!   the feature.
 //!
@@ -16,6 +18,7 @@
 //! Errors are plain sentences about the file; the caller adds the episode, camera and file.
 
 pub mod select;
+mod span;
 
 #[cfg(not(feature = "video"))]
 mod disabled;
@@ -28,6 +31,7 @@ pub use disabled::{decode_rows, probe, timeline};
 pub use ffmpeg::{decode_rows, probe, timeline};
 
 pub use select::{Miss, TOLERANCE_S};
+pub use span::{consecutive, PacketSpan};
 
 /// Whether this binary can decode video (built with the `video` feature).
 pub const ENABLED: bool = cfg!(feature = "video");

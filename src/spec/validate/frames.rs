@@ -7,7 +7,7 @@ use crate::spec::model::{ImageCompression, OutputFormat};
 use crate::spec::preset::Profile;
 
 /// The encoder keys of `image_encoding = "video"` and `image_compression = "video"`.
-const ENCODER_KEYS: [&str; 3] = ["video_codec", "video_crf", "video_gop"];
+const ENCODER_KEYS: [&str; 4] = ["video_codec", "video_crf", "video_gop", "video_copy"];
 
 impl Checker<'_> {
     /// `image_compression` and its level and quality: only the HDF5 layouts store frames that
@@ -128,6 +128,13 @@ impl Checker<'_> {
                 video.codec.max_crf()
             );
             self.value(&key("video_crf"), message, "out of range", None);
+        }
+        if set("video_copy") && p.format != OutputFormat::Hdf5 {
+            let message = format!(
+                "`video_copy` is for `image_compression = \"video\"` in hdf5; profile `{name}` \
+                 writes one LeRobot video of every episode per camera, always encoded"
+            );
+            self.value(&key("video_copy"), message, "only for hdf5", None);
         }
         if video.gop == 0 {
             let message = "`video_gop` must be at least 1 (1: every frame a keyframe)".to_string();
