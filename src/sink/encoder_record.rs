@@ -6,7 +6,9 @@ use std::collections::BTreeMap;
 
 use super::{jpeg, video_encode};
 use crate::lock::LockedEncoder;
-use crate::spec::{ImageCompression, OutputFormat, Profile, VideoCodec, DEFAULT_IMAGE_QUALITY};
+use crate::spec::{
+    ImageCompression, OutputFormat, Profile, StreamCopy, VideoCodec, DEFAULT_IMAGE_QUALITY,
+};
 
 /// The encoder of `profile`'s frames, or `None` when it stores them losslessly.
 pub fn of(profile: &Profile) -> Option<LockedEncoder> {
@@ -37,6 +39,15 @@ pub fn of(profile: &Profile) -> Option<LockedEncoder> {
     ];
     if video.codec == VideoCodec::Libsvtav1 {
         pairs.push(("preset", video_encode::SVTAV1_PRESET.to_string()));
+    }
+    // Which source streams are copied instead of encoded (their bytes are the source's).
+    match video.copy {
+        StreamCopy::Never => {}
+        StreamCopy::AnyCodec => pairs.push(("stream_copy", "any codec".into())),
+        StreamCopy::SameCodec => pairs.push((
+            "stream_copy",
+            video_encode::codec_name(video.codec).to_string(),
+        )),
     }
     Some(LockedEncoder {
         name: video.codec.name().into(),

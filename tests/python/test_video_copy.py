@@ -1,0 +1,226 @@
+"""Stream copy in `image_compression = "video"` (issue 31): where an episode's camera frames are a
+source video's own (same rate, no resize), the episode's mp4 holds the source's packets, not a
+new encode.
+
+Oracles, all independent of chunkc's writer:
+- PyAV's demuxer: the stored file's packets are byte for byte the source file's packets of the
+  episode's span (`bytes(packet)`), keyframe flags included;
+- the same build's `image_compression = "none"` profile (frames chunkc decoded from the source,
+  which `test_lerobot_video` checks against LeRobotDataset): PyAV's decode of a copied file and
+  the generated loader both give exactly those pixels (a copy loses nothing);
+- where the packets cannot stand alone (an episode that starts between keyframes, another codec
+  asked for, a resize, `video_copy = false`), the file is a fresh encode, and the loader still
+  returns exactly PyAV's decode of it.
+"""
+
+import json
+import shutil
+from fractions import Fraction
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import REPO, import_loader, run_chunkc
+
+av = pytest.importorskip("av")
+
+DATA = REPO / "tests" / "data"
+V21 = DATA / "lerobot_video_v21"  # H.264 with B-frames, one file per episode (episode 2: MPEG-4)
+V3 = DATA / "lerobot_video_v3_av1"  # AV1 g=2, the three episodes in one file per camera
+TOP = "observation.images.top"
+
+
+def spec(tmp_path, source, profiles, cam=TOP):
+    path = tmp_path / "spec.toml"
+    path.write_text("\n".join([
+        "version = 1", "[source]", 'format = "lerobot"', f'path = "{source}"', "[source.channels]",
+        'action = "action"', '"observation.state" = "observation.state"', f'"{cam}" = "{cam}"',
+        "[split]", "val_fraction = 0.0", "[output]", 'dir = "out"',
+        "[profiles.raw]", 'preset = "diffusion_policy"', "fps = 10", profiles,
+    ]) + "\n")
+    return path
+
+
+def video_profile(name="video", extra=""):
+    return f'[profiles.{name}]\npreset = "diffusion_policy"\nfps = 10\nimage_compression = "video"\n{extra}\n'
+
+
+def build(path, *args):
+    proc = run_chunkc("build", "-q", *args, path, check=False)
+    if "without the `video` feature" in proc.stderr:
+        pytest.fail("the chunkc binary lacks the `video` feature: cargo build --release --features video")
+    assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+def stored(root, cam=TOP):
+    with h5py.File(root / "data.h5", "r") as f:
+        paths = [p.decode() for p in f[f"videos/{cam}/path"][:]]
+        copied = f[f"videos/{cam}/copied"][:].tolist()
+    return paths, copied
+
+
+def raw_frames(root, cam=TOP):
+    with h5py.File(root / "data.h5", "r") as f:
+        return f[f"data/{cam}"][:]
+
+
+def decode(path):
+    with av.open(str(path)) as c:
+        return [f.to_ndarray(format="rgb24") for f in c.decode(video=0)]
+
+
+def packets(path, lo=None, hi=None):
+    """(payload, keyframe) of the file's video packets in decode order whose presentation time
+    is in [lo, hi) seconds (all when not given)."""
+    out = []
+    with av.open(str(path)) as c:
+        s = c.streams.video[0]
+        for p in c.demux(s):
+            if p.size == 0:
+                continue
+            t = float(p.pts * s.time_base)
+            if lo is None or lo - 1e-4 <= t < hi - 1e-4:
+                out.append((bytes(p), p.is_keyframe))
+    return out
+
+
+def source_spans(source, cam=TOP):
+    """Per episode: its file and [from, to) in seconds, from the dataset's own metadata."""
+    info = json.loads((source / "meta" / "info.json").read_text())
+    if info["codebase_version"].startswith("v2"):
+        files = sorted((source / "videos" / "chunk-000" / cam).glob("*.mp4"))
+        return [(f, None, None) for f in files]
+    import pandas as pd
+
+    eps = pd.read_parquet(source / "meta" / "episodes" / "chunk-000" / "file-000.parquet")
+    f = source / "videos" / cam / "chunk-000" / "file-000.mp4"
+    return [(f, r[f"videos/{cam}/from_timestamp"], r[f"videos/{cam}/to_timestamp"]) for _, r in eps.iterrows()]
+
+
+def assert_loader_gives(root, want, cam=TOP):
+    ds = import_loader(root).ChunkedDataset(str(root))
+    rows = np.random.default_rng(0).permutation(len(want))
+    np.testing.assert_array_equal(ds._read(cam, rows), want[rows])
+
+
+@pytest.mark.parametrize("source", [V21, V3], ids=["v21-h264-bframes", "v30-av1-shared-file"])
+def test_source_packets_are_copied_and_decode_to_the_source_frames(tmp_path, source):
+    build(spec(tmp_path, source, video_profile()))
+    root = tmp_path / "out" / "video"
+    paths, copied = stored(root)
+    assert copied == [1] * len(paths)
+    # Packet for packet the source's, episode by episode.
+    for p, (f, lo, hi) in zip(paths, source_spans(source)):
+        assert packets(root / p) == packets(f, lo, hi), p
+    # Lossless: exactly the frames the raw profile holds (decoded from the source).
+    want = raw_frames(tmp_path / "out" / "raw")
+    got = np.concatenate([np.stack(decode(root / p)) for p in paths])
+    np.testing.assert_array_equal(got, want)
+    assert_loader_gives(root, want)
+    lock = json.loads((tmp_path / "chunkc.lock").read_text())["specs"]["spec.toml"]["profiles"]
+    assert lock["video"]["encoder"]["settings"]["stream_copy"] == "any codec"
+    size = sum((root / p).stat().st_size for p in paths)
+    src = sum(f.stat().st_size for f in {f for f, _, _ in source_spans(source)})
+    assert size <= 1.2 * src, (size, src)
+
+
+@pytest.mark.parametrize("extra, copied", [
+    ("video_copy = false", [0, 0, 0]),
+    # Only H.264 streams are kept when the spec asks for libx264: episode 2 of the fixture is
+    # MPEG-4.
+    ('video_codec = "libx264"', [1, 1, 0]),
+    ('[profiles.video.cameras."observation.images.top"]\nsize = [64, 64]', [0, 0, 0]),
+])
+def test_what_is_not_the_source_stream_is_encoded(tmp_path, extra, copied):
+    build(spec(tmp_path, V21, video_profile(extra=extra)))
+    root = tmp_path / "out" / "video"
+    paths, got = stored(root)
+    assert got == copied
+    for p in paths:  # fresh encodes are x264's; the copies here are of H.264 episodes
+        with av.open(str(root / p)) as c:
+            assert c.streams.video[0].codec_context.name == "h264", p
+    want = np.concatenate([np.stack(decode(root / p)) for p in paths])
+    assert_loader_gives(root, want)
+    if "size" not in extra:
+        raw = raw_frames(tmp_path / "out" / "raw")
+        for i, (p, was_copied) in enumerate(zip(paths, got)):
+            frames = np.stack(decode(root / p))
+            lo = sum(len(decode(root / q)) for q in paths[:i])
+            if was_copied:
+                np.testing.assert_array_equal(frames, raw[lo:lo + len(frames)])
+            else:  # a second generation of loss, small
+                assert np.abs(frames.astype(int) - raw[lo:lo + len(frames)]).mean() < 8
+
+
+def reencode_with_gop(source, out, gop):
+    """The v3.0 fixture with its shared top-camera file encoded again as H.264 with a keyframe
+    every `gop` frames exactly, no B-frames: with 20-frame episodes and gop 8, episode 1 starts
+    at frame 20, between keyframes 16 and 24."""
+    shutil.copytree(source, out)
+    f = out / "videos" / TOP / "chunk-000" / "file-000.mp4"
+    frames = decode(f)
+    f.unlink()
+    with av.open(str(f), "w") as c:
+        s = c.add_stream("libx264", rate=10)
+        s.width, s.height, s.pix_fmt = frames[0].shape[1], frames[0].shape[0], "yuv420p"
+        s.options = {"x264-params": f"keyint={gop}:min-keyint={gop}:scenecut=0:bframes=0", "crf": "18"}
+        s.codec_context.time_base = Fraction(1, 10)
+        for i, a in enumerate(frames):
+            vf = av.VideoFrame.from_ndarray(a, format="rgb24")
+            vf.pts = i
+            for p in s.encode(vf):
+                c.mux(p)
+        for p in s.encode():
+            c.mux(p)
+    info = json.loads((out / "meta" / "info.json").read_text())
+    info["features"][TOP]["info"]["video.codec"] = "h264"
+    (out / "meta" / "info.json").write_text(json.dumps(info, indent=4))
+    return out
+
+
+def test_an_episode_between_keyframes_is_encoded(tmp_path):
+    source = reencode_with_gop(V3, tmp_path / "src", gop=8)
+    build(spec(tmp_path, source, video_profile()))
+    root = tmp_path / "out" / "video"
+    paths, copied = stored(root)
+    # Episodes 0 and 2 start on keyframes 0 and 40; episode 1 at 20 does not.
+    assert copied == [1, 0, 1]
+    raw = raw_frames(tmp_path / "out" / "raw")
+    decoded = [np.stack(decode(root / p)) for p in paths]
+    np.testing.assert_array_equal(decoded[0], raw[:20])
+    np.testing.assert_array_equal(decoded[2], raw[40:])
+    assert np.abs(decoded[1].astype(int) - raw[20:40]).mean() < 8
+    assert_loader_gives(root, np.concatenate(decoded))
+    # A profile whose random-access bound is shorter than the source's GOP encodes everything.
+    shutil.rmtree(tmp_path / "out")
+    (tmp_path / "chunkc.lock").unlink()
+    build(spec(tmp_path, source, video_profile(extra="video_gop = 4")))
+    assert stored(tmp_path / "out" / "video")[1] == [0, 0, 0]
+
+
+def test_copied_bytes_do_not_depend_on_threads_or_shards(tmp_path):
+    files = {}
+    for how in ("j1", "j2", "shards"):
+        d = tmp_path / how
+        d.mkdir()
+        path = spec(d, V3, video_profile())
+        if how == "shards":
+            for i in range(2):
+                run_chunkc("build", "-q", "--shard", f"{i}/2", "--partials", d / "parts", path)
+            run_chunkc("merge", "-q", "--partials", d / "parts", path)
+        else:
+            build(path, "-j", how[1])
+        root = d / "out" / "video"
+        files[how] = {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+    assert stored(tmp_path / "j1" / "out" / "video")[1] == [1, 1, 1]
+    assert files["j1"] == files["j2"] == files["shards"]
+
+
+def test_video_copy_outside_hdf5_video_is_a_spec_error(tmp_path):
+    path = spec(tmp_path, V21, '[profiles.bad]\npreset = "diffusion_policy"\nfps = 10\nvideo_copy = false\n')
+    proc = run_chunkc("build", "-q", path, check=False)
+    assert proc.returncode == 2, proc.stderr
+    assert "`video_copy` sets the video encoder, but profile `bad` stores no video" in proc.stderr
+    assert not (tmp_path / "out").exists()
