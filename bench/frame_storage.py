@@ -12,7 +12,7 @@ book/src/video-storage.md.
 The source is a LeRobot v3.0 dataset written by `chunkc synth --format lerobot` (two 480x640
 cameras at 10 fps, 14-D state and action, encoded as LeRobot encodes: libsvtav1, yuv420p, g=2,
 crf=30; all episodes of a camera in one mp4).
-chunkc builds it three times (one spec per storage, each with an `act` profile: 1 observation,
+chunkc builds it four times (one spec per storage, each with an `act` profile: 1 observation,
 20 actions; and a `diffusion_policy` one: 2 observations, 16 actions), timed. Each loader then
 runs with the same DataLoader settings (batch BATCH, WORKERS workers, shuffle with a fixed seed);
 the first batch (worker start-up, file opening) is not timed, the next SAMPLES samples are.
@@ -44,12 +44,20 @@ PRESETS = {
                          {"observation.state": [-0.1, 0.0], **{k: [-0.1, 0.0] for k in KEYS},
                           "action": [(i - 1) / FPS for i in range(16)]}),
 }
-STORAGES = ["none", "jpeg", "video"]
+STORAGES = ["none", "jpeg", "video", "video_encoded"]
+# The profile keys of each storage: `video` copies the source's packets where it can (the
+# default), `video_encoded` encodes every episode (x264, crf 23, a keyframe every 8 frames).
+STORAGE_KEYS = {
+    "none": 'image_compression = "none"',
+    "jpeg": 'image_compression = "jpeg"',
+    "video": 'image_compression = "video"',
+    "video_encoded": 'image_compression = "video"\nvideo_copy = false',
+}
 
 
 def build(root: Path, work: Path, storage: str):
     out = work / f"out_{storage}"
-    profiles = "\n".join(f"[profiles.{p}]\n{toml}\nimage_compression = \"{storage}\"\n"
+    profiles = "\n".join(f"[profiles.{p}]\n{toml}\n{STORAGE_KEYS[storage]}\n"
                          for p, (toml, _) in PRESETS.items())
     spec = work / f"spec_{storage}.toml"
     spec.write_text(f"""version = 1
@@ -79,6 +87,17 @@ dir = "{out}"
         files = [f for f in d.rglob("*") if f.is_file() and (f.name == "data.h5" or f.suffix == ".mp4")]
         sizes[preset] = sum(f.stat().st_size for f in files)
     return out, wall, sizes
+
+
+def copied_share(profile_dir: Path):
+    """The share of episode files that are the source's packets (`/videos/<cam>/copied`)."""
+    import h5py
+
+    with h5py.File(profile_dir / "data.h5", "r") as f:
+        if "videos" not in f:
+            return None
+        flags = [v for cam in f["videos"] for v in f[f"videos/{cam}/copied"][:].tolist()]
+    return sum(flags) / len(flags)
 
 
 def timed(loader):
@@ -137,7 +156,8 @@ def main():
     for storage in STORAGES:
         d, wall, sizes = build(root, work, storage)
         dirs[storage] = d
-        results["builds"][storage] = {"build_s": round(wall, 2), "bytes": sizes}
+        results["builds"][storage] = {"build_s": round(wall, 2), "bytes": sizes,
+                                      "copied": copied_share(d / "act")}
         print(f"build {storage}: {wall:.1f} s, {sizes}", flush=True)
     for preset, (_, deltas) in PRESETS.items():
         row = {}

@@ -22,18 +22,18 @@ def main():
     out = Path(sys.argv[2]) if len(sys.argv) > 2 else REPO / "book" / "src" / "images" / "frame-storage.png"
     r = json.loads(results.read_text())
     fig, (size_ax, speed_ax) = plt.subplots(1, 2, figsize=(10, 3.8))
-    storages = ["none", "jpeg", "video"]
+    storages = [s for s in ["none", "jpeg", "video", "video_encoded"] if s in r["builds"]]
     mb = [r["builds"][s]["bytes"]["act"] / 1e6 for s in storages]
-    labels = [f"chunkc {s}" for s in storages] + ["source mp4s"]
-    size_ax.barh(labels, mb + [r["source_video_bytes"] / 1e6], color=["#888", "#4a8", "#48c", "#c84"])
+    labels = [f"chunkc {s.replace('_', ' ')}" for s in storages] + ["source mp4s"]
+    colors = ["#888", "#4a8", "#48c", "#7ad", "#c84"][-len(labels):]
+    size_ax.barh(labels, mb + [r["source_video_bytes"] / 1e6], color=colors)
     size_ax.set_xscale("log")
     size_ax.set_xlabel("bytes on disk, MB (log)")
     size_ax.set_title("output size (one profile)")
     for y, v in enumerate(mb + [r["source_video_bytes"] / 1e6]):
         size_ax.text(v, y, f" {v:.2f}", va="center", fontsize=8)
-    readers = [("chunkc none", "chunkc_none"), ("chunkc jpeg", "chunkc_jpeg"),
-               ("chunkc video", "chunkc_video"), ("LeRobotDataset torchcodec", "lerobot_torchcodec"),
-               ("LeRobotDataset pyav", "lerobot_pyav")]
+    readers = [(f"chunkc {s.replace('_', ' ')}", f"chunkc_{s}") for s in storages]
+    readers += [("LeRobotDataset torchcodec", "lerobot_torchcodec"), ("LeRobotDataset pyav", "lerobot_pyav")]
     width = 0.38
     for k, (preset, shift) in enumerate([("act", -width / 2), ("diffusion_policy", width / 2)]):
         values = [r["loaders"][preset][key] for _, key in readers]

@@ -297,6 +297,12 @@ mod imp {
             if global_header {
                 flags |= codec::Flags::GLOBAL_HEADER;
             }
+            // Closed GOPs when asked: libavcodec's SVT-AV1 wrapper otherwise asks for open
+            // ones, whose intra frames are not keyframes (a file's only random-access point is
+            // then its first frame).
+            if s.closed_gop {
+                flags |= codec::Flags::CLOSED_GOP;
+            }
             enc.set_flags(flags);
             let mut opts = Dictionary::new();
             opts.set("crf", &s.crf.to_string());
@@ -412,6 +418,7 @@ mod tests {
             crf: 30,
             gop: 2,
             copy: crate::spec::StreamCopy::Never,
+            closed_gop: false,
         }
     }
 

@@ -88,6 +88,10 @@ pub struct VideoSettings {
     /// The keyframe interval: what the encoder writes, and the longest a copied stream may have.
     pub gop: u32,
     pub copy: StreamCopy,
+    /// Every `gop`-th frame a keyframe (SVT-AV1's closed GOPs). Off for the exports, whose
+    /// bytes and quality were measured with SVT-AV1's open GOPs as libavcodec asks for them
+    /// (intra frames that are not keyframes); on where files must seek as LeRobot's own do.
+    pub closed_gop: bool,
 }
 
 /// Which source streams a video storage copies packet for packet instead of encoding
@@ -115,6 +119,7 @@ pub const STORAGE_VIDEO: VideoSettings = VideoSettings {
     crf: 23,
     gop: 8,
     copy: StreamCopy::AnyCodec,
+    closed_gop: false,
 };
 
 impl Profile {
@@ -129,6 +134,7 @@ impl Profile {
                     crf: DEFAULT_VIDEO_CRF,
                     gop: DEFAULT_VIDEO_GOP,
                     copy: StreamCopy::Never,
+                    closed_gop: false,
                 }
             }
             OutputFormat::Hdf5 if self.image_compression == ImageCompression::Video => {
@@ -145,6 +151,7 @@ impl Profile {
                 (_, _, Some(_)) => StreamCopy::SameCodec,
                 (copy, ..) => copy,
             },
+            closed_gop: defaults.closed_gop,
         })
     }
 }

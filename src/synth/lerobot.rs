@@ -47,6 +47,8 @@ const VIDEO: VideoSettings = VideoSettings {
     crf: DEFAULT_VIDEO_CRF,
     gop: DEFAULT_VIDEO_GOP,
     copy: StreamCopy::Never,
+    // LeRobot's own files have a keyframe every `g` frames (what its decoders seek to).
+    closed_gop: true,
 };
 
 /// The feature name of camera `c`, LeRobot's `observation.images.<camera>`.

@@ -262,3 +262,31 @@ def test_bad_cameras_are_errors_naming_the_key(tmp_path, camera, size, extra, me
         assert "-->" in proc.stderr and "spec.toml:" in proc.stderr, proc.stderr
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
     assert not (tmp_path / "chunkc.lock").exists()
+
+
+def test_every_writer_stores_the_resized_frames(tmp_path):
+    """ACT's episode files, robomimic's demos and LeRobot's PNGs hold exactly the frames of the
+    HDF5 profile (which equal OpenCV's, above), read with h5py, pyarrow and Pillow."""
+    import glob
+    import io
+
+    pq = pytest.importorskip("pyarrow.parquet")
+    Image = pytest.importorskip("PIL.Image")
+    cameras = {TOP: (30, 30), WRIST: (20, 40)}
+    formats = {"h": "hdf5", "a": "act_episodes", "r": "robomimic_hdf5", "p": "parquet"}
+    spec = tmp_path / "spec.toml"
+    spec.write_text(spec_text("".join(profile_text(n, f, cameras, False) for n, f in formats.items())))
+    run_chunkc("build", "-q", spec)
+    out = tmp_path / "out"
+    for channel, key in CAMS.items():
+        want, _, _ = stored(out / "h", channel)
+        assert want.shape[1:3] == cameras[channel]
+        act = [h5py.File(out / "a" / f"episode_{i}.hdf5", "r")[f"observations/images/{key}"][:]
+               for i in range(len(glob.glob(str(out / "a" / "episode_*.hdf5"))))]
+        np.testing.assert_array_equal(np.concatenate(act), want)
+        with h5py.File(out / "r" / "data.hdf5", "r") as f:
+            demos = sorted(f["data"], key=lambda d: int(d.split("_")[1]))
+            np.testing.assert_array_equal(np.concatenate([f[f"data/{d}/obs/{key}"][:] for d in demos]), want)
+        rows = pq.read_table(sorted(glob.glob(str(out / "p" / "data" / "*" / "*.parquet")))[0]).to_pandas()
+        png = np.stack([np.asarray(Image.open(io.BytesIO(x["bytes"]))) for x in rows[channel]])
+        np.testing.assert_array_equal(png, want)

@@ -224,3 +224,25 @@ def test_video_copy_outside_hdf5_video_is_a_spec_error(tmp_path):
     assert proc.returncode == 2, proc.stderr
     assert "`video_copy` sets the video encoder, but profile `bad` stores no video" in proc.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_a_synthesized_lerobot_set_seeks_like_lerobots_and_is_copied(tmp_path):
+    """`chunkc synth --format lerobot` encodes as LeRobot does, keyframe every 2 frames included
+    (what LeRobot's decoders seek to), so every episode of its shared files is copied."""
+    run_chunkc("synth", "--format", "lerobot", "--episodes", "3", "--steps", "21", "--cameras", "1",
+               "--resolution", "64x64", "--fps", "10", tmp_path / "syn")
+    source = tmp_path / "syn" / "lerobot"
+    cam = "observation.images.cam0"
+    f = source / "videos" / cam / "chunk-000" / "file-000.mp4"
+    with av.open(str(f)) as c:
+        keys = [p.is_keyframe for p in c.demux(c.streams.video[0]) if p.size]
+    assert len(keys) == 63 and [i for i, k in enumerate(keys) if k] == list(range(0, 63, 2))
+    path = tmp_path / "spec.toml"
+    path.write_text("\n".join([
+        "version = 1", "[source]", 'format = "lerobot"', f'path = "{source}"', "[source.channels]",
+        'action = "action"', f'"{cam}" = "{cam}"', "[split]", "val_fraction = 0.0", "[output]", 'dir = "out"',
+        video_profile(),
+    ]) + "\n")
+    build(path)
+    # 21-frame episodes start on frames 0, 21 and 42: only 0 and 42 are keyframes.
+    assert stored(tmp_path / "out" / "video", cam)[1] == [1, 0, 1]
