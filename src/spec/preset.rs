@@ -88,9 +88,11 @@ pub struct VideoSettings {
     /// The keyframe interval: what the encoder writes, and the longest a copied stream may have.
     pub gop: u32,
     pub copy: StreamCopy,
-    /// Every `gop`-th frame a keyframe (SVT-AV1's closed GOPs). Off for the exports, whose
-    /// bytes and quality were measured with SVT-AV1's open GOPs as libavcodec asks for them
-    /// (intra frames that are not keyframes); on where files must seek as LeRobot's own do.
+    /// Every `gop`-th frame a keyframe (closed GOPs), as in LeRobot's own files: libavcodec's
+    /// SVT-AV1 wrapper otherwise asks for open GOPs, whose intra frames are not keyframes, and
+    /// a LeRobot reader seeking to a frame of a file shared by every episode would decode from
+    /// its first frame. On for parquet's LeRobot videos; x264 (hdf5's default) closes its GOPs
+    /// anyway.
     pub closed_gop: bool,
 }
 
@@ -134,7 +136,7 @@ impl Profile {
                     crf: DEFAULT_VIDEO_CRF,
                     gop: DEFAULT_VIDEO_GOP,
                     copy: StreamCopy::Never,
-                    closed_gop: false,
+                    closed_gop: true,
                 }
             }
             OutputFormat::Hdf5 if self.image_compression == ImageCompression::Video => {

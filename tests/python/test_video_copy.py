@@ -218,11 +218,17 @@ def test_copied_bytes_do_not_depend_on_threads_or_shards(tmp_path):
     assert files["j1"] == files["j2"] == files["shards"]
 
 
-def test_video_copy_outside_hdf5_video_is_a_spec_error(tmp_path):
-    path = spec(tmp_path, V21, '[profiles.bad]\npreset = "diffusion_policy"\nfps = 10\nvideo_copy = false\n')
+@pytest.mark.parametrize("keys, message", [
+    ("video_copy = false", "`video_copy` sets the video encoder, but profile `bad` stores no video"),
+    ('format = "parquet"\nimage_encoding = "video"\nvideo_copy = true',
+     "`video_copy` is for `image_compression = \"video\"` in hdf5; profile `bad` writes one LeRobot video"),
+])
+def test_video_copy_outside_hdf5_video_is_a_spec_error(tmp_path, keys, message):
+    path = spec(tmp_path, V21, f'[profiles.bad]\npreset = "diffusion_policy"\nfps = 10\n{keys}\n')
     proc = run_chunkc("build", "-q", path, check=False)
     assert proc.returncode == 2, proc.stderr
-    assert "`video_copy` sets the video encoder, but profile `bad` stores no video" in proc.stderr
+    assert message in proc.stderr
+    assert "spec.toml:" in proc.stderr
     assert not (tmp_path / "out").exists()
 
 
