@@ -65,6 +65,17 @@ def run_chunkc(*args, env=None, check=True):
     return proc
 
 
+def build_with_video(path, *args):
+    """`chunkc build -q ARGS PATH`, which must succeed; a binary without the `video` feature
+    fails the test with what to do (these tests are not skipped: CI builds with it)."""
+
+    proc = run_chunkc("build", "-q", *args, path, check=False)
+    if "without the `video` feature" in proc.stderr:
+        pytest.fail("the chunkc binary lacks the `video` feature: cargo build --release --features video")
+    assert proc.returncode == 0, proc.stderr
+    return proc
+
+
 def write_spec(directory: Path, profiles: str, source: Path = PUSHT, fps: float = 10,
                channels=None, split="val_fraction = 0.1\nseed = 0") -> Path:
     """A spec in `directory` reading `source`, with the given `[profiles.*]` TOML text."""

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import fixtures
-from conftest import REPO, import_loader, run_chunkc
+from conftest import REPO, build_with_video as build, import_loader, run_chunkc
 
 av = pytest.importorskip("av")
 Image = pytest.importorskip("PIL.Image")
@@ -65,14 +65,6 @@ def lerobot_spec(tmp_path, extra=""):
         "[profiles.video]", 'preset = "diffusion_policy"', "fps = 10", 'image_compression = "video"', extra,
     ]) + "\n")
     return path
-
-
-def build(path, *args):
-    proc = run_chunkc("build", "-q", *args, path, check=False)
-    if "without the `video` feature" in proc.stderr:
-        pytest.fail("the chunkc binary lacks the `video` feature: cargo build --release --features video")
-    assert proc.returncode == 0, proc.stderr
-    return proc
 
 
 def pillow_frames(root, cam):

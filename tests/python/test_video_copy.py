@@ -21,7 +21,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import REPO, import_loader, run_chunkc
+from conftest import REPO, build_with_video as build, import_loader, run_chunkc
 
 av = pytest.importorskip("av")
 
@@ -44,14 +44,6 @@ def spec(tmp_path, source, profiles, cam=TOP):
 
 def video_profile(name="video", extra=""):
     return f'[profiles.{name}]\npreset = "diffusion_policy"\nfps = 10\nimage_compression = "video"\n{extra}\n'
-
-
-def build(path, *args):
-    proc = run_chunkc("build", "-q", *args, path, check=False)
-    if "without the `video` feature" in proc.stderr:
-        pytest.fail("the chunkc binary lacks the `video` feature: cargo build --release --features video")
-    assert proc.returncode == 0, proc.stderr
-    return proc
 
 
 def stored(root, cam=TOP):
