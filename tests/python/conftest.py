@@ -68,7 +68,6 @@ def run_chunkc(*args, env=None, check=True):
 def build_with_video(path, *args):
     """`chunkc build -q ARGS PATH`, which must succeed; a binary without the `video` feature
     fails the test with what to do (these tests are not skipped: CI builds with it)."""
-
     proc = run_chunkc("build", "-q", *args, path, check=False)
     if "without the `video` feature" in proc.stderr:
         pytest.fail("the chunkc binary lacks the `video` feature: cargo build --release --features video")
