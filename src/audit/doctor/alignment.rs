@@ -16,80 +16,96 @@ pub const SHIFT_MAX: i64 = 9;
 /// Episodes shorter than this get no fit.
 pub const MIN_STEPS: usize = 40;
 
-/// One dimension's fit at one shift, in single precision: kept for every episode, dimension and
-/// shift (the judgement's inputs, far coarser than its rounding).
-#[derive(Debug, Clone, Copy, Default)]
-pub struct LagFit {
+use super::{columns, lanes};
+
+/// The shifts tried.
+pub const SHIFTS: usize = (SHIFT_MAX - SHIFT_MIN + 1) as usize;
+
+/// One dimension's fits at every shift (`SHIFT_MIN..=SHIFT_MAX`), in single precision: kept
+/// for every episode and dimension (the judgement's inputs, far coarser than its rounding).
+#[derive(Debug, Clone, Copy)]
+pub struct DimFits {
     /// Residual over total sum of squares of the state change (1 - R²).
-    pub unexplained: f32,
+    pub unexplained: [f32; SHIFTS],
     /// The action's coefficient.
-    pub alpha: f32,
-    /// |corr(a[t-ℓ], s[t+1])| - |corr(a[t-ℓ], s[t+1] - s[t])|: positive for an absolute target,
-    /// negative for a delta.
-    pub convention: f32,
+    pub alpha: [f32; SHIFTS],
+    /// The convention score in units of `1 / CONVENTION_STEPS` (see [`DimFits::convention`]):
+    /// it lies in [-1, 1] and is judged against margins of tenths.
+    convention: [i16; SHIFTS],
 }
 
-/// The fits of dimension `d` at every shift (`SHIFT_MIN..=SHIFT_MAX`), or None when the episode
-/// is too short or the state does not move.
+/// The convention score's resolution: steps per unit.
+const CONVENTION_STEPS: f64 = 16384.0;
+
+impl DimFits {
+    /// |corr(a[t-ℓ], s[t+1])| - |corr(a[t-ℓ], s[t+1] - s[t])| at shift index `i`: positive for
+    /// an absolute target, negative for a delta.
+    pub fn convention(&self, i: usize) -> f64 {
+        f64::from(self.convention[i]) / CONVENTION_STEPS
+    }
+}
+
+/// The buffers of one episode's fits, reused from dimension to dimension.
+#[derive(Default)]
+pub struct Scratch {
+    col: Vec<f32>,
+    x2: Vec<f32>,
+    y: Vec<f32>,
+}
+
+/// The fits of one dimension, from its action column `a` and state column `s` (equally long),
+/// at every shift, or None when the episode is too short or the state does not move.
 ///
-/// The action column is centred once (by its episode mean), so that each shift's sums are its
-/// window's sliding sums and two dot products over contiguous slices (with the state and the
-/// state change; the next state's follows from them): one fused pass per shift.
-pub fn fit_dim(
-    a: &[f64],
-    s: &[f64],
-    n: usize,
-    a_dim: usize,
-    s_dim: usize,
-    d: usize,
-) -> Option<Vec<LagFit>> {
+/// The series are centred first (the action by its episode mean, the state and its change by
+/// their window's), so that each shift's sums are its window's sliding sums and two dot
+/// products over contiguous slices, with the state and with the state change (the next state's
+/// follows from them): all sixteen shifts' in one sweep ([`lanes::shifted_dots`]).
+pub fn fit_dim(a: &[f32], s: &[f32], scratch: &mut Scratch) -> Option<DimFits> {
+    let n = a.len().min(s.len());
     if n < MIN_STEPS {
         return None;
     }
     let (t0, t1) = ((SHIFT_MAX) as usize, n - (-SHIFT_MIN) as usize);
     let len = t1 - t0;
-    let centred = |v: Vec<f64>| {
-        let m = v.iter().sum::<f64>() / v.len() as f64;
-        v.into_iter().map(|x| x - m).collect::<Vec<f64>>()
-    };
-    let yc = centred(
-        (t0..t1)
-            .map(|t| s[(t + 1) * s_dim + d] - s[t * s_dim + d])
-            .collect(),
-    );
-    let x2c = centred((t0..t1).map(|t| s[t * s_dim + d]).collect());
-    let nextc = centred((t0..t1).map(|t| s[(t + 1) * s_dim + d]).collect());
-    let dot = |p: &[f64], q: &[f64]| p.iter().zip(q).map(|(a, b)| a * b).sum::<f64>();
-    let syy = dot(&yc, &yc);
+    let padded = len.div_ceil(lanes::LANES) * lanes::LANES;
+    let w = state_window(&s[t0..t1 + 1], padded, scratch);
+    let syy = w.syy;
     if syy.is_nan() || syy <= 0.0 {
         return None;
     }
-    let s22 = dot(&x2c, &x2c);
-    let s2y = dot(&x2c, &yc);
-    let snn = dot(&nextc, &nextc);
-    let corr = |sxy: f64, sxx: f64, syy: f64| {
-        if sxx <= 0.0 || syy <= 0.0 {
-            0.0
-        } else {
-            sxy / (sxx * syy).sqrt()
-        }
-    };
-    let col = centred((0..n).map(|t| a[t * a_dim + d]).collect());
-    let mut out = Vec::with_capacity((SHIFT_MAX - SHIFT_MIN + 1) as usize);
-    // The window's sums of the action and its square, slid one row earlier per shift.
+    let (s22, s2y) = (w.s22, w.s2y);
+    // The action column, centred, with room for the last shift's padded rows.
+    let col = &mut scratch.col;
+    col.clear();
+    col.extend_from_slice(&a[..n]);
+    let mean = (columns::sum(col) / n as f64) as f32;
+    col.iter_mut().for_each(|x| *x -= mean);
+    col.resize(padded + lanes::SHIFTS - 1, 0.0);
+    // Shift `shift` reads the action's rows `t0 - shift..t1 - shift`: window `k = t0 - shift`.
+    let (dots2, dotsy) = lanes::shifted_dots(col, &scratch.x2, &scratch.y);
     let first = (t0 as i64 - SHIFT_MIN) as usize;
-    let (mut sx, mut sxx) = col[first..first + len]
-        .iter()
-        .fold((0.0, 0.0), |(s, q), x| (s + x, q + x * x));
-    for shift in SHIFT_MIN..=SHIFT_MAX {
-        // The action shifted by `shift`, in place: rows t0 - shift .. t1 - shift.
-        let start = (t0 as i64 - shift) as usize;
-        if start != first {
-            let (come, go) = (col[start], col[start + len]);
+    // The window's sums of the action and its square, slid one row earlier per shift.
+    let (mut sx, mut sxx) = sum_and_squares(&col[first..first + len]);
+    // One over the square roots of the state's and the next state's sums of squares, for the
+    // correlations (0 where there is no spread: the correlation is 0).
+    let inverse_root = |v: f64| if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 };
+    let (ryy, rnn) = (inverse_root(syy), inverse_root(w.snn));
+    let mut out = DimFits {
+        unexplained: [0.0; SHIFTS],
+        alpha: [0.0; SHIFTS],
+        convention: [0; SHIFTS],
+    };
+    for i in 0..SHIFTS {
+        let k = first - i;
+        if k != first {
+            let (come, go) = (f64::from(col[k]), f64::from(col[k + len]));
             sx += come - go;
             sxx += come * come - go * go;
         }
-        let (s12, s1y) = lane_dots(&col[start..start + len], &x2c, &yc);
+        // The state and its change were centred at single precision: the rest of their means,
+        // times the window's sum, is what their dot products miss.
+        let s12 = dots2[k] + w.rest2 * sx;
+        let s1y = dotsy[k] + w.resty * sx;
         // The next state is the current one plus the change (all centred): its sum with the
         // action is the sum of theirs.
         let s1n = s12 + s1y;
@@ -98,42 +114,121 @@ pub fn fit_dim(
         let det = s11 * s22 - s12 * s12;
         let (alpha, explained) = if s11 <= 0.0 {
             (0.0, if s22 > 0.0 { s2y * s2y / s22 } else { 0.0 })
-        } else if det > 1e-12 * s11 * s22 {
-            let alpha = (s22 * s1y - s12 * s2y) / det;
-            let beta = (s11 * s2y - s12 * s1y) / det;
+        } else if det > COLLINEAR * s11 * s22 {
+            let inv = 1.0 / det;
+            let alpha = (s22 * s1y - s12 * s2y) * inv;
+            let beta = (s11 * s2y - s12 * s1y) * inv;
             (alpha, alpha * s1y + beta * s2y)
         } else {
             (s1y / s11, s1y * s1y / s11)
         };
-        let convention = corr(s1n, s11, snn).abs() - corr(s1y, s11, syy).abs();
-        out.push(LagFit {
-            unexplained: ((syy - explained) / syy).clamp(0.0, 1.0) as f32,
-            alpha: alpha as f32,
-            convention: convention as f32,
-        });
+        let r11 = inverse_root(s11);
+        let convention = (s1n * r11 * rnn).abs() - (s1y * r11 * ryy).abs();
+        out.unexplained[i] = ((syy - explained) / syy).clamp(0.0, 1.0) as f32;
+        out.alpha[i] = alpha as f32;
+        // Rounded half away from zero (`as` truncates).
+        let steps = convention.clamp(-1.0, 1.0) * CONVENTION_STEPS;
+        out.convention[i] = (steps + 0.5f64.copysign(steps)) as i16;
     }
     Some(out)
 }
 
-/// `(Σx·p, Σx·q)` over equally long slices, four lanes at a time (the compiler turns them into
-/// vector instructions).
-fn lane_dots(x: &[f64], p: &[f64], q: &[f64]) -> (f64, f64) {
-    let (mut xp, mut xq) = ([0.0f64; 4], [0.0f64; 4]);
-    let (xc, pc, qc) = (x.chunks_exact(4), p.chunks_exact(4), q.chunks_exact(4));
-    let tail = xc.remainder().len();
-    for ((x, p), q) in xc.zip(pc).zip(qc) {
-        for k in 0..4 {
-            xp[k] += x[k] * p[k];
-            xq[k] += x[k] * q[k];
+/// Below this share of `s11·s22` left by their product, the shifted action and the state are
+/// collinear at the sums' single-precision resolution: the action alone is fitted.
+const COLLINEAR: f64 = 1e-6;
+
+/// The state's sums over the fit's window.
+struct Window {
+    /// Sums of squares about the mean: the state, its change, the next state.
+    s22: f64,
+    syy: f64,
+    snn: f64,
+    /// The state's and its change's sum of products about their means.
+    s2y: f64,
+    /// What the single-precision centring left of the state's and the change's means.
+    rest2: f64,
+    resty: f64,
+}
+
+/// The window `s` (its rows and the next one) into `scratch.x2` (the state) and `scratch.y`
+/// (its change), centred and padded with zeros to `padded`, and their sums.
+///
+/// One pass takes the state relative to its first value and the change (both exact in single
+/// precision for neighbouring values) and sums them, their squares and their product in
+/// double precision (four lanes each, a fixed order); the sums about the means follow, and a
+/// second pass centres both series.
+fn state_window(s: &[f32], padded: usize, scratch: &mut Scratch) -> Window {
+    let len = s.len() - 1;
+    let p = s[0];
+    let (x2, y) = (&mut scratch.x2, &mut scratch.y);
+    x2.clear();
+    x2.resize(padded, 0.0);
+    y.clear();
+    y.resize(padded, 0.0);
+    let mut acc = [[0.0f64; 4]; 5];
+    let add = |acc: &mut [[f64; 4]; 5], l: usize, u: f32, d: f32| {
+        let (u, d) = (f64::from(u), f64::from(d));
+        acc[0][l] += u;
+        acc[1][l] += u * u;
+        acc[2][l] += d;
+        acc[3][l] += d * d;
+        acc[4][l] += u * d;
+    };
+    let whole = len / 4 * 4;
+    for (((sc, nc), xc), yc) in s[..whole]
+        .chunks_exact(4)
+        .zip(s[1..whole + 1].chunks_exact(4))
+        .zip(x2.chunks_exact_mut(4))
+        .zip(y.chunks_exact_mut(4))
+    {
+        for l in 0..4 {
+            xc[l] = sc[l] - p;
+            yc[l] = nc[l] - sc[l];
+            add(&mut acc, l, xc[l], yc[l]);
         }
     }
-    let sum = |a: [f64; 4]| (a[0] + a[1]) + (a[2] + a[3]);
-    let (mut a, mut b) = (sum(xp), sum(xq));
-    for i in x.len() - tail..x.len() {
-        a += x[i] * p[i];
-        b += x[i] * q[i];
+    for t in whole..len {
+        x2[t] = s[t] - p;
+        y[t] = s[t + 1] - s[t];
+        add(&mut acc, 0, x2[t], y[t]);
     }
-    (a, b)
+    let [su, suu, sy, syy, suy] = acc.map(|a| (a[0] + a[1]) + (a[2] + a[3]));
+    let n = len as f64;
+    let (mu, my) = (su / n, sy / n);
+    let (mu32, my32) = (mu as f32, my as f32);
+    x2[..len].iter_mut().for_each(|v| *v -= mu32);
+    y[..len].iter_mut().for_each(|v| *v -= my32);
+    // The next state is the state plus its change.
+    let (sv, svv) = (su + sy, suu + 2.0 * suy + syy);
+    Window {
+        s22: suu - su * mu,
+        syy: syy - sy * my,
+        snn: svv - sv * (sv / n),
+        s2y: suy - su * my,
+        rest2: f64::from(mu32) - mu,
+        resty: f64::from(my32) - my,
+    }
+}
+
+/// `(Σ f64(x), Σ f64(x)²)`, four lanes each, a fixed order.
+fn sum_and_squares(x: &[f32]) -> (f64, f64) {
+    let (mut s, mut q) = ([0.0f64; 4], [0.0f64; 4]);
+    let chunks = x.chunks_exact(4);
+    let tail = chunks.remainder();
+    for c in chunks {
+        for l in 0..4 {
+            let v = f64::from(c[l]);
+            s[l] += v;
+            q[l] += v * v;
+        }
+    }
+    let (mut s, mut q) = ((s[0] + s[1]) + (s[2] + s[3]), (q[0] + q[1]) + (q[2] + q[3]));
+    for &v in tail {
+        let v = f64::from(v);
+        s += v;
+        q += v * v;
+    }
+    (s, q)
 }
 
 /// The reported lag of shift index `i` (into a fit vector).
@@ -145,9 +240,9 @@ pub fn lag_of(i: usize) -> i32 {
 mod tests {
     use super::*;
 
-    fn tracking(n: usize, late: usize) -> (Vec<f64>, Vec<f64>) {
-        let cmd: Vec<f64> = (0..n + late)
-            .map(|t| (t as f64 * 0.07).sin() + 0.4 * (t as f64 * 0.19).cos())
+    fn tracking(n: usize, late: usize) -> (Vec<f32>, Vec<f32>) {
+        let cmd: Vec<f32> = (0..n + late)
+            .map(|t| (t as f32 * 0.07).sin() + 0.4 * (t as f32 * 0.19).cos())
             .collect();
         let mut s = vec![0.0; n];
         let mut x = cmd[0];
@@ -156,7 +251,7 @@ mod tests {
             x += 0.3 * (cmd[t + late] - x);
         }
         // The recorded action is `late` steps behind what drove the state.
-        let a: Vec<f64> = cmd[..n].to_vec();
+        let a: Vec<f32> = cmd[..n].to_vec();
         (a, s)
     }
 
@@ -164,13 +259,13 @@ mod tests {
     fn finds_the_lag_of_a_first_order_tracker() {
         for late in [0usize, 3] {
             let (a, s) = tracking(200, late);
-            let fits = fit_dim(&a, &s, 200, 1, 1, 0).unwrap();
-            let best = (0..fits.len())
-                .min_by(|&i, &j| fits[i].unexplained.total_cmp(&fits[j].unexplained))
+            let fits = fit_dim(&a, &s, &mut Scratch::default()).unwrap();
+            let best = (0..SHIFTS)
+                .min_by(|&i, &j| fits.unexplained[i].total_cmp(&fits.unexplained[j]))
                 .unwrap();
             assert_eq!(lag_of(best), 1 - late as i32, "late {late}");
-            assert!(fits[best].convention > 0.3);
-            assert!((fits[best].alpha - 0.3).abs() < 0.01);
+            assert!(fits.convention(best) > 0.3);
+            assert!((fits.alpha[best] - 0.3).abs() < 0.01);
         }
     }
 }

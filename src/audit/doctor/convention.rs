@@ -18,7 +18,7 @@
 //!   degrees among radians, action and state alike, leaves the gain as it is (an idle episode
 //!   moves less, but holds its level).
 
-use super::alignment::{lag_of, LagFit};
+use super::alignment::{lag_of, DimFits};
 use super::stats::median;
 
 pub const TRACKED_R2: f64 = 0.5;
@@ -69,7 +69,7 @@ pub struct Judged {
 /// mean square (about 0) and the standard deviation of action dimension d in episode e.
 // Long function: tracked dimensions, lags, conventions and units, each from the one before.
 pub fn judge(
-    fits: &[&[Option<Vec<LagFit>>]],
+    fits: &[&[Option<DimFits>]],
     rms: &[Vec<f64>],
     stds: &[Vec<f64>],
     units_ratio: f64,
@@ -80,8 +80,9 @@ pub fn judge(
         .filter(|&d| {
             let best = fits.iter().filter_map(|f| f.get(d)?.as_ref()).map(|v| {
                 1.0 - v
+                    .unexplained
                     .iter()
-                    .map(|x| f64::from(x.unexplained))
+                    .map(|&x| f64::from(x))
                     .fold(f64::INFINITY, f64::min)
             });
             median(best) > TRACKED_R2
@@ -100,15 +101,14 @@ pub fn judge(
         let mut sums = vec![0.0; shifts];
         let mut fitted = 0usize;
         for (e, f) in fits.iter().enumerate() {
-            let used: Vec<&Vec<LagFit>> =
-                tracked.iter().filter_map(|&d| f.get(d)?.as_ref()).collect();
+            let used: Vec<&DimFits> = tracked.iter().filter_map(|&d| f.get(d)?.as_ref()).collect();
             if used.len() < tracked.len() {
                 continue;
             }
             let unexplained: Vec<f64> = (0..shifts)
                 .map(|i| {
                     used.iter()
-                        .map(|v| f64::from(v[i].unexplained))
+                        .map(|v| f64::from(v.unexplained[i]))
                         .sum::<f64>()
                         / used.len() as f64
                 })
@@ -125,7 +125,7 @@ pub fn judge(
                 *s += 1.0 - u;
             }
             fitted += 1;
-            let score = median(used.iter().map(|v| f64::from(v[best].convention)));
+            let score = median(used.iter().map(|v| v.convention(best)));
             out.conventions[e] = if score > CONVENTION_MARGIN {
                 Some(Convention::Absolute)
             } else if score < -CONVENTION_MARGIN {
@@ -158,7 +158,7 @@ pub fn judge(
                         .iter()
                         .map(|&d| {
                             f[d].as_ref()
-                                .map_or(f64::NAN, |v| f64::from(v[l.best].alpha))
+                                .map_or(f64::NAN, |v| f64::from(v.alpha[l.best]))
                         })
                         .collect(),
                 )

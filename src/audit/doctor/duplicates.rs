@@ -8,11 +8,19 @@
 //! signatures bounds the comparisons ([`pairs`]); the later episode of a pair, in source order,
 //! is the one flagged.
 
+use super::columns::Columns;
+
 pub const POINTS: usize = 32;
 
-/// The resampled action of one `(n, width)` episode, `POINTS × width` values.
-pub fn signature(a: &[f64], n: usize, width: usize) -> Vec<f64> {
+/// The resampled action of one episode (its columns), `POINTS × width` values in single
+/// precision, point-major.
+pub fn signature(a: &Columns) -> Vec<f32> {
+    let (n, width) = (a.n(), a.width());
     let mut out = Vec::with_capacity(POINTS * width);
+    if n == 0 {
+        out.resize(POINTS * width, 0.0);
+        return out;
+    }
     for p in 0..POINTS {
         let pos = if n > 1 {
             p as f64 * (n - 1) as f64 / (POINTS - 1) as f64
@@ -20,9 +28,11 @@ pub fn signature(a: &[f64], n: usize, width: usize) -> Vec<f64> {
             0.0
         };
         let (lo, frac) = (pos.floor() as usize, pos - pos.floor());
-        let hi = (lo + 1).min(n.saturating_sub(1));
+        let hi = (lo + 1).min(n - 1);
         for d in 0..width {
-            out.push(a[lo * width + d] * (1.0 - frac) + a[hi * width + d] * frac);
+            let x = a.col(d);
+            let v = f64::from(x[lo]) * (1.0 - frac) + f64::from(x[hi]) * frac;
+            out.push(v as f32);
         }
     }
     out
@@ -131,18 +141,12 @@ mod tests {
     #[test]
     fn finds_the_copy_not_the_neighbours() {
         let ep = |phase: f64| {
-            signature(
-                &(0..50)
-                    .map(|t| (t as f64 * 0.1 + phase).sin())
-                    .collect::<Vec<_>>(),
-                50,
-                1,
-            )
+            let x: Vec<f32> = (0..50)
+                .map(|t| (t as f64 * 0.1 + phase).sin() as f32)
+                .collect();
+            signature(&Columns::of(&x, 50, 1))
         };
-        let sigs: Vec<Vec<f32>> = [ep(0.0), ep(1.0), ep(0.0001), ep(2.0)]
-            .into_iter()
-            .map(|s| s.into_iter().map(|v| v as f32).collect())
-            .collect();
+        let sigs: Vec<Vec<f32>> = vec![ep(0.0), ep(1.0), ep(0.0001), ep(2.0)];
         let views: Vec<&[f32]> = sigs.iter().map(|s| &s[..]).collect();
         assert_eq!(
             pairs(&views, &[1.0], &[50; 4], 0.01)

@@ -7,7 +7,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use super::features::Features;
-use super::{alignment, convention, duplicates, shift, short, stats};
+use super::{alignment, convention, duplicates, shift, short, signal, stats};
 use super::{DoctorSummary, Finding, ShiftDim, MISALIGNED_GAIN, STUCK_UNCHANGED};
 use crate::audit::report::{AuditReport, Flag, Verdict};
 use crate::error::{Error, Result};
@@ -126,15 +126,20 @@ fn units_and_alignment(
     feats: &[Features],
     found: &mut Found,
 ) -> convention::Judged {
-    let fits: Vec<&[Option<Vec<alignment::LagFit>>]> = feats.iter().map(|f| &f.fits[..]).collect();
-    let stds: Vec<Vec<f64>> = feats.iter().map(|f| f.stds.clone()).collect();
+    let fits: Vec<&[Option<alignment::DimFits>]> = feats.iter().map(|f| &f.fits[..]).collect();
+    let stds: Vec<Vec<f64>> = feats
+        .iter()
+        .map(|f| f.action.iter().map(|m| f64::from(m.std)).collect())
+        .collect();
     let rms: Vec<Vec<f64>> = feats
         .iter()
         .map(|f| {
-            f.action_means
+            f.action
                 .iter()
-                .zip(&f.stds)
-                .map(|(m, s)| (m * m + s * s).sqrt())
+                .map(|m| {
+                    let s = f64::from(m.std);
+                    (m.mean * m.mean + s * s).sqrt()
+                })
                 .collect()
         })
         .collect();
@@ -211,32 +216,38 @@ fn signal_checks(
                 feats
                     .iter()
                     .zip(scale)
-                    .map(|(f, u)| f.signal[d].step_sigma / u),
+                    .map(|(f, u)| f64::from(f.signal[d].step_sigma) / u),
             )
         })
         .collect();
     for (d, &sigma) in step_sigma.iter().enumerate() {
         let long = |f: &Features| {
-            f.n >= 10 && f.signal[d].run.0 as f64 >= cfg.frozen_fraction * f.n as f64
+            f.n >= 10 && f64::from(f.signal[d].run.len) >= cfg.frozen_fraction * f.n as f64
         };
         let static_share = feats.iter().filter(|f| long(f)).count() as f64 / episodes as f64;
-        let clip_median = stats::median(feats.iter().map(|f| f.signal[d].clip.0));
-        let (lowest, highest) = range(feats.iter().map(|f| (f.signal[d].min, f.signal[d].max)));
+        let clip_median = stats::median(feats.iter().map(|f| f.signal[d].clip(f.n).0));
+        let (lowest, highest) = range(
+            feats
+                .iter()
+                .map(|f| (f64::from(f.signal[d].min), f64::from(f.signal[d].max))),
+        );
         for (e, f) in feats.iter().enumerate() {
             let sig = &f.signal[d];
-            let at_limit = sig.run.2 == lowest || sig.run.2 == highest;
+            let clip = sig.clip(f.n);
+            let value = f64::from(sig.run.value);
+            let at_limit = value == lowest || value == highest;
             if long(f) && static_share < 0.5 && !at_limit {
-                let (len, from, value) = sig.run;
+                let (len, from) = (sig.run.len, sig.run.start);
                 found.add(e, Flag::Frozen, cfg.frozen, format!(
                     "action[{d}] holds {value} for {len} of {} steps from step {from}, where it moves in most episodes", f.n),
                     &[("dim", d as f64), ("steps", len as f64), ("from", from as f64), ("value", value)]);
-            } else if sig.clip.0 >= cfg.clip_fraction
+            } else if clip.0 >= cfg.clip_fraction
                 && clip_median < cfg.clip_fraction
                 && !long(f)
-                && sig.clip.1 != lowest
-                && sig.clip.1 != highest
+                && clip.1 != lowest
+                && clip.1 != highest
             {
-                let (share, bound, side) = sig.clip;
+                let (share, bound, side) = clip;
                 found.add(
                     e,
                     Flag::Clipped,
@@ -249,22 +260,21 @@ fn signal_checks(
                 );
             }
             if sigma > 0.0 {
-                if let Some(&(size, step)) = sig.spikes.first() {
-                    // Against the episode's own step changes (the fault is "k of its own
-                    // robust std"), never below half the dataset's: a dimension that holds
-                    // still in this episode does not turn its sensor noise into spikes.
-                    let own = (sig.step_sigma / scale[e]).max(0.5 * sigma);
-                    let z = size / scale[e] / own;
-                    if z > cfg.jump_threshold {
-                        let count = sig
-                            .spikes
-                            .iter()
-                            .filter(|s| s.0 / scale[e] / own > cfg.jump_threshold)
-                            .count();
-                        found.add(e, Flag::Jump, cfg.jump, format!(
-                            "action[{d}] spikes at step {step} by {z:.1} robust std of its step changes ({count} such steps)"),
-                            &[("dim", d as f64), ("step", step as f64), ("z", z)]);
-                    }
+                let (size, step) = (f64::from(sig.spikes[0].size), sig.spikes[0].step);
+                // Against the episode's own step changes (the fault is "k of its own robust
+                // std"), never below half the dataset's: a dimension that holds still in this
+                // episode does not turn its sensor noise into spikes.
+                let own = (f64::from(sig.step_sigma) / scale[e]).max(0.5 * sigma);
+                let z = size / scale[e] / own;
+                if z > cfg.jump_threshold {
+                    let count = sig
+                        .spikes
+                        .iter()
+                        .filter(|s| f64::from(s.size) / scale[e] / own > cfg.jump_threshold)
+                        .count();
+                    found.add(e, Flag::Jump, cfg.jump, format!(
+                        "action[{d}] spikes at step {step} by {z:.1} robust std of its step changes ({count} such steps)"),
+                        &[("dim", d as f64), ("step", f64::from(step)), ("z", z)]);
                 }
             }
         }
@@ -283,13 +293,21 @@ fn range(pairs: impl Iterator<Item = (f64, f64)>) -> (f64, f64) {
 fn constant_dims(feats: &[Features], a_dim: usize, s_dim: usize) -> Vec<(String, usize, f64)> {
     let mut constant = Vec::new();
     for d in 0..a_dim {
-        let (lo, hi) = range(feats.iter().map(|f| (f.signal[d].min, f.signal[d].max)));
+        let (lo, hi) = range(
+            feats
+                .iter()
+                .map(|f| (f64::from(f.signal[d].min), f64::from(f.signal[d].max))),
+        );
         if lo == hi {
             constant.push(("action".to_string(), d, lo));
         }
     }
     for d in 0..s_dim {
-        let (lo, hi) = range(feats.iter().map(|f| f.state_range[d]));
+        let (lo, hi) = range(
+            feats
+                .iter()
+                .map(|f| (f64::from(f.state[d].lo), f64::from(f.state[d].hi))),
+        );
         if lo == hi {
             constant.push(("observation.state".to_string(), d, lo));
         }
@@ -318,12 +336,13 @@ fn stuck_dims(
                 .iter()
                 .filter(|f| {
                     let (run, unchanged) = if channel == "action" {
-                        (f.signal[d].run.0, f.signal[d].unchanged)
+                        (f.signal[d].run.len, f.signal[d].unchanged)
                     } else {
-                        f.state_runs[d]
+                        (f.state[d].run, f.state[d].unchanged)
                     };
+                    let unchanged = signal::unchanged_share(unchanged, f.n);
                     f.n >= 10
-                        && (run as f64 >= cfg.frozen_fraction * f.n as f64
+                        && (f64::from(run) >= cfg.frozen_fraction * f.n as f64
                             || unchanged >= STUCK_UNCHANGED)
                 })
                 .count();
@@ -344,7 +363,7 @@ fn duplicate_pairs(
 ) -> Vec<(usize, usize, f64)> {
     // One over each dimension's typical spread.
     let scale: Vec<f64> = (0..cx.a_dim)
-        .map(|d| stats::median(feats.iter().map(|f| f.stds[d])))
+        .map(|d| stats::median(feats.iter().map(|f| f64::from(f.action[d].std))))
         .map(|s| if s > 0.0 { 1.0 / s } else { 1.0 })
         .collect();
     let sigs: Vec<&[f32]> = feats.iter().map(|f| &f.signature[..]).collect();
@@ -401,9 +420,9 @@ fn shifts(feats: &[Features], a_dim: usize, s_dim: usize) -> Vec<ShiftDim> {
                 .iter()
                 .map(|f| {
                     if channel == "action" {
-                        f.action_means[d]
+                        f.action[d].mean
                     } else {
-                        f.state_means[d]
+                        f.state[d].mean
                     }
                 })
                 .collect();

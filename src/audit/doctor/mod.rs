@@ -17,15 +17,18 @@
 //! - `judge`: every check over the features, one function each; the findings into the report.
 //! - `stats`: medians, MAD, mode.
 //! - `signal`: frozen, clipped, jump (and the constant dimensions).
-//! - `alignment`: the per-episode lag fits.
+//! - `columns`: an episode's channel by column, and the sums the features share.
+//! - `alignment`: the per-episode lag fits; `lanes`: their inner loop.
 //! - `convention`: tracked dimensions, lag mode, conventions, units.
 //! - `duplicates`, `shift`, `short`.
 
 mod alignment;
+mod columns;
 mod convention;
 mod duplicates;
 mod features;
 mod judge;
+mod lanes;
 mod shift;
 mod short;
 mod signal;
@@ -41,8 +44,8 @@ use super::timing::Repair;
 use crate::error::Result;
 use crate::source::{ChannelData, ChannelKind, Episode, Manifest, Source};
 use crate::spec::{DoctorAction, LoadedSpec};
+use features::features;
 pub use features::Features;
-use features::{features, hold_finite};
 pub use shift::ShiftDim;
 
 /// `misaligned` needs the dataset's lag to leave at least this many times the unexplained share
@@ -137,19 +140,8 @@ impl Probe {
 
     /// What an episode reduces to, from its action (and state) values.
     fn reduce(&self, action: &[f32], state: Option<&[f32]>) -> Features {
-        let to64 = |v: &[f32]| v.iter().map(|&x| f64::from(x)).collect::<Vec<f64>>();
-        // Non-finite values are `[audit] non_finite`'s to judge (an error naming the step, or
-        // the episode left out) when the build reads the episode: here each is held at the
-        // last finite value of its column, so that it sets off no check.
-        let mut a = to64(action);
-        hold_finite(&mut a, self.a_dim);
-        let s = state.map(|s| {
-            let mut s = to64(s);
-            hold_finite(&mut s, self.s_dim);
-            s
-        });
-        let n = a.len() / self.a_dim;
-        features(&a, s.as_deref(), n, self.a_dim, self.s_dim)
+        let n = action.len() / self.a_dim;
+        features(action, state, n, self.a_dim, self.s_dim)
     }
 
     /// What an episode the build has read reduces to (its channels in manifest order).
