@@ -14,6 +14,7 @@ pub const POINTS: usize = 32;
 
 /// The resampled action of one episode (its columns), `POINTS × width` values in single
 /// precision, point-major.
+#[inline(always)]
 pub fn signature(a: &Columns) -> Vec<f32> {
     let (n, width) = (a.n(), a.width());
     let mut out = Vec::with_capacity(POINTS * width);
