@@ -60,6 +60,7 @@ pub struct Scratch {
 /// their window's), so that each shift's sums are its window's sliding sums and two dot
 /// products over contiguous slices, with the state and with the state change (the next state's
 /// follows from them): all sixteen shifts' in one sweep ([`lanes::shifted_dots`]).
+#[inline(always)]
 pub fn fit_dim(a: &[f32], s: &[f32], scratch: &mut Scratch) -> Option<DimFits> {
     let n = a.len().min(s.len());
     if n < MIN_STEPS {
@@ -157,6 +158,7 @@ struct Window {
 /// precision for neighbouring values) and sums them, their squares and their product in
 /// double precision (four lanes each, a fixed order); the sums about the means follow, and a
 /// second pass centres both series.
+#[inline(always)]
 fn state_window(s: &[f32], padded: usize, scratch: &mut Scratch) -> Window {
     let len = s.len() - 1;
     let p = s[0];
@@ -211,6 +213,7 @@ fn state_window(s: &[f32], padded: usize, scratch: &mut Scratch) -> Window {
 }
 
 /// `(Σ f64(x), Σ f64(x)²)`, four lanes each, a fixed order.
+#[inline(always)]
 fn sum_and_squares(x: &[f32]) -> (f64, f64) {
     let (mut s, mut q) = ([0.0f64; 4], [0.0f64; 4]);
     let chunks = x.chunks_exact(4);

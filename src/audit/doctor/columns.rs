@@ -14,6 +14,7 @@ pub struct Columns {
 
 impl Columns {
     /// The first `n` rows of `rows` (`width` values each), by column.
+    #[inline(always)]
     pub fn of(rows: &[f32], n: usize, width: usize) -> Columns {
         let rows = &rows[..n * width];
         let mut data = vec![0.0f32; n * width];
@@ -71,6 +72,7 @@ impl Columns {
 
 /// `Σ f64(x)` over `x`, in four interleaved double-precision lanes (a fixed order: the same sum
 /// on every machine, without a serial chain of additions).
+#[inline(always)]
 pub fn sum(x: &[f32]) -> f64 {
     let mut lanes = [0.0f64; 4];
     let chunks = x.chunks_exact(4);
@@ -88,6 +90,7 @@ pub fn sum(x: &[f32]) -> f64 {
 }
 
 /// `Σ (f64(x) - centre)²` over `x`, in four lanes as [`sum`].
+#[inline(always)]
 pub fn squares_about(x: &[f32], centre: f64) -> f64 {
     let mut lanes = [0.0f64; 4];
     let chunks = x.chunks_exact(4);

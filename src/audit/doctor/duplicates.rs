@@ -8,12 +8,15 @@
 //! signatures bounds the comparisons ([`pairs`]); the later episode of a pair, in source order,
 //! is the one flagged.
 
+use rayon::prelude::*;
+
 use super::columns::Columns;
 
 pub const POINTS: usize = 32;
 
 /// The resampled action of one episode (its columns), `POINTS × width` values in single
 /// precision, point-major.
+#[inline(always)]
 pub fn signature(a: &Columns) -> Vec<f32> {
     let (n, width) = (a.n(), a.width());
     let mut out = Vec::with_capacity(POINTS * width);
@@ -57,9 +60,30 @@ fn projections(s: &[f32], scale: &[f64]) -> [f64; PROJECTIONS] {
 
 /// A signature's values times `scale` (per dimension, repeating), in double precision.
 fn scaled<'a>(s: &'a [f32], scale: &'a [f64]) -> impl Iterator<Item = f64> + 'a {
-    s.iter()
-        .enumerate()
-        .map(move |(k, v)| f64::from(*v) * scale[k % scale.len()])
+    s.chunks(scale.len().max(1))
+        .flat_map(move |row| row.iter().zip(scale).map(|(v, k)| f64::from(*v) * k))
+}
+
+/// The RMS difference of two equally long signatures times `scale`, when below `tolerance`:
+/// the sum stops as soon as it is past what the tolerance allows (most pairs a grid cell
+/// holds are no duplicates).
+fn rms_within(a: &[f32], b: &[f32], scale: &[f64], tolerance: f64) -> Option<f64> {
+    let n = a.len().max(1) as f64;
+    // Past this sum of squares the RMS is at the tolerance or above (with room for rounding:
+    // the verdict is the final comparison's).
+    let limit = tolerance * tolerance * n * (1.0 + 1e-9);
+    let mut total = 0.0;
+    for (p, q) in a.chunks(scale.len().max(1)).zip(b.chunks(scale.len().max(1))) {
+        for ((x, y), k) in p.iter().zip(q).zip(scale) {
+            let d = f64::from(*x) * k - f64::from(*y) * k;
+            total += d * d;
+        }
+        if total > limit {
+            return None;
+        }
+    }
+    let rms = (total / n).sqrt();
+    (rms < tolerance).then_some(rms)
 }
 
 /// Pairs `(earlier, later, rms)` of positions whose signatures, times `scale` (per dimension: one
@@ -70,7 +94,9 @@ fn scaled<'a>(s: &'a [f32], scale: &'a [f64]) -> impl Iterator<Item = f64> + 'a 
 /// Episodes go into a hash grid by their [`projections`]; each is compared exactly (lengths, then
 /// the RMS difference) only with the episodes of its own and the neighbouring cells, so the work
 /// grows with the episodes times the crowding of a cell, not with their square, and no pair
-/// within `tolerance` is missed.
+/// within `tolerance` is missed. The comparisons run in parallel, each episode's against its
+/// later neighbours; the matches are then kept in the order a single thread would meet them,
+/// so the pairs do not depend on the threads.
 pub fn pairs(
     signatures: &[&[f32]],
     scale: &[f64],
@@ -80,12 +106,11 @@ pub fn pairs(
     type Cell = [i64; PROJECTIONS];
     let cell_of =
         |s: &[f32]| -> Cell { projections(s, scale).map(|x| (x / tolerance).floor() as i64) };
-    let cells: Vec<Cell> = signatures.iter().map(|s| cell_of(s)).collect();
+    let cells: Vec<Cell> = signatures.par_iter().map(|s| cell_of(s)).collect();
     let mut grid: std::collections::HashMap<Cell, Vec<usize>> = Default::default();
     for (i, c) in cells.iter().enumerate() {
         grid.entry(*c).or_default().push(i);
     }
-    let mut best: std::collections::BTreeMap<usize, (usize, f64)> = Default::default();
     let offsets: Vec<Cell> = (0..3usize.pow(PROJECTIONS as u32))
         .map(|k| {
             let mut o = [0i64; PROJECTIONS];
@@ -97,35 +122,39 @@ pub fn pairs(
             o
         })
         .collect();
-    for (i, c) in cells.iter().enumerate() {
-        for o in &offsets {
-            let mut near = *c;
-            for (x, d) in near.iter_mut().zip(o) {
-                *x += d;
-            }
-            // Each pair once: from its earlier episode.
-            for &j in grid.get(&near).map_or(&[][..], |v| &v[..]) {
-                if j <= i {
-                    continue;
+    // Per episode, its matches among the later episodes of its own and the neighbouring cells.
+    let matches: Vec<Vec<(usize, f64)>> = (0..cells.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut found = Vec::new();
+            for o in &offsets {
+                let mut near = cells[i];
+                for (x, d) in near.iter_mut().zip(o) {
+                    *x += d;
                 }
-                let (li, lj) = (lengths[i] as f64, lengths[j] as f64);
-                if (li - lj).abs() > 0.05 * li.max(lj) || signatures[i].len() != signatures[j].len()
-                {
-                    continue;
-                }
-                let n = signatures[i].len().max(1) as f64;
-                let rms = (scaled(signatures[i], scale)
-                    .zip(scaled(signatures[j], scale))
-                    .map(|(p, q)| (p - q) * (p - q))
-                    .sum::<f64>()
-                    / n)
-                    .sqrt();
-                if rms < tolerance {
-                    let e = best.entry(j).or_insert((i, rms));
-                    if rms < e.1 || (rms == e.1 && i < e.0) {
-                        *e = (i, rms);
+                // Each pair once: from its earlier episode.
+                for &j in grid.get(&near).map_or(&[][..], |v| &v[..]) {
+                    let (li, lj) = (lengths[i] as f64, lengths[j] as f64);
+                    if j <= i
+                        || (li - lj).abs() > 0.05 * li.max(lj)
+                        || signatures[i].len() != signatures[j].len()
+                    {
+                        continue;
+                    }
+                    if let Some(rms) = rms_within(signatures[i], signatures[j], scale, tolerance) {
+                        found.push((j, rms));
                     }
                 }
+            }
+            found
+        })
+        .collect();
+    let mut best: std::collections::BTreeMap<usize, (usize, f64)> = Default::default();
+    for (i, found) in matches.into_iter().enumerate() {
+        for (j, rms) in found {
+            let e = best.entry(j).or_insert((i, rms));
+            if rms < e.1 || (rms == e.1 && i < e.0) {
+                *e = (i, rms);
             }
         }
     }

@@ -16,7 +16,7 @@
 //! - `features`: what one episode reduces to (read once, in parallel).
 //! - `judge`: every check over the features, one function each; the findings into the report.
 //! - `stats`: medians, MAD, mode.
-//! - `signal`: frozen, clipped, jump (and the constant dimensions).
+//! - `signal`: frozen, clipped, jump (and the constant dimensions); `spikes`: jump's search.
 //! - `columns`: an episode's channel by column, and the sums the features share.
 //! - `alignment`: the per-episode lag fits; `lanes`: their inner loop.
 //! - `convention`: tracked dimensions, lag mode, conventions, units.
@@ -32,6 +32,7 @@ mod lanes;
 mod shift;
 mod short;
 mod signal;
+mod spikes;
 mod stats;
 
 use std::collections::BTreeMap;

@@ -15,13 +15,15 @@
 //! - **jump**: a one-step spike: a value off the line through its two neighbours by more than
 //!   `jump_threshold` robust standard deviations of the dimension's step changes, whose
 //!   neighbours echo it (a step out and straight back) and which stands out from the curvature
-//!   two steps away ([`spikes`]). Measured from the line, not from each neighbour, a spike riding
+//!   two steps away ([`spikes::largest`]). Measured from the line, not from each neighbour, a spike riding
 //!   on a fast motion is as visible as one on a still signal. The reference is the median over
 //!   episodes of each episode's MAD of step changes, after dividing every episode by its units
 //!   factor, so a units-changed episode is not "full of jumps", and a few spikes do not inflate
 //!   it. A gripper or hand closing in one step is a step (one neighbour on each side of the
 //!   line, no echo), and the turning point of a fast motion (the G1 set's hand joints closing
 //!   and opening within a few steps) bends the steps around it: neither is a spike.
+
+use super::spikes;
 
 /// One episode's per-dimension signal features, compact (kept for every episode until the
 /// judgement): the values are the source's own single precision, the shares are counts (the
@@ -40,7 +42,7 @@ pub struct DimSignal {
     pub step_sigma: f32,
     /// The largest spikes (the distance from the line through the neighbours), largest first
     /// (size 0: none).
-    pub spikes: [Spike; 3],
+    pub spikes: [spikes::Spike; 3],
     pub min: f32,
     pub max: f32,
 }
@@ -51,13 +53,6 @@ pub struct Run {
     pub len: u32,
     pub start: u32,
     pub value: f32,
-}
-
-/// A one-step spike: its size and step.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Spike {
-    pub size: f32,
-    pub step: u32,
 }
 
 impl DimSignal {
@@ -82,11 +77,11 @@ pub fn unchanged_share(unchanged: u32, n: usize) -> f64 {
 pub struct Scratch {
     steps: Vec<f32>,
     keys: Vec<u32>,
-    r: Vec<f64>,
-    sizes: Vec<f64>,
+    spikes: spikes::Scratch,
 }
 
 /// The features of one column `x` (finite values).
+#[inline(always)]
 pub fn dim_signal(x: &[f32], scratch: &mut Scratch) -> DimSignal {
     let n = x.len();
     let (min, max) = bounds(x);
@@ -98,11 +93,12 @@ pub fn dim_signal(x: &[f32], scratch: &mut Scratch) -> DimSignal {
     if n == 0 {
         return out;
     }
-    out.run = longest_run(x);
-    out.unchanged = unchanged(x);
     let steps = &mut scratch.steps;
     steps.clear();
-    steps.extend(x.windows(2).map(|w| w[1] - w[0]));
+    steps.extend(x[1..].iter().zip(x).map(|(b, a)| b - a));
+    // A step of 0 is a value equal to the one before (finite values).
+    out.unchanged = steps.iter().map(|&d| u32::from(d == 0.0)).sum();
+    out.run = longest_run(x, out.unchanged);
     out.step_sigma = if steps.is_empty() {
         0.0
     } else {
@@ -140,173 +136,67 @@ pub fn dim_signal(x: &[f32], scratch: &mut Scratch) -> DimSignal {
         let lo = if count(min) >= 2 { at(min) } else { 0 };
         (out.clip_steps, out.clip_max) = if hi >= lo { (hi, true) } else { (lo, false) };
     }
-    out.spikes = spikes(x, scratch);
+    out.spikes = spikes::largest(x, &mut scratch.spikes);
     out
 }
 
-/// The lowest and highest value (∞ and -∞ when empty).
+/// The lowest and highest value (∞ and -∞ when empty), eight lanes at a time.
+#[inline(always)]
 pub fn bounds(x: &[f32]) -> (f32, f32) {
-    x.iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        })
+    let (mut lo, mut hi) = ([f32::INFINITY; 8], [f32::NEG_INFINITY; 8]);
+    let chunks = x.chunks_exact(8);
+    let tail = chunks.remainder();
+    for c in chunks {
+        for l in 0..8 {
+            lo[l] = lo[l].min(c[l]);
+            hi[l] = hi[l].max(c[l]);
+        }
+    }
+    for (l, &v) in tail.iter().enumerate() {
+        lo[l] = lo[l].min(v);
+        hi[l] = hi[l].max(v);
+    }
+    (
+        lo.into_iter().fold(f32::INFINITY, f32::min),
+        hi.into_iter().fold(f32::NEG_INFINITY, f32::max),
+    )
 }
 
 /// How a column holds still: its longest run of one exact value (steps) and the number of
 /// steps equal to the step before (what `stuck` judges of the state).
+#[inline(always)]
 pub fn held(x: &[f32]) -> (u32, u32) {
     if x.is_empty() {
         return (0, 0);
     }
-    (longest_run(x).len, unchanged(x))
+    let unchanged = x[1..].iter().zip(x).map(|(b, a)| u32::from(b == a)).sum();
+    (longest_run(x, unchanged).len, unchanged)
 }
 
-/// The longest run of one exact value (the first of the longest); `x` is not empty. A run ends
-/// where a value differs from the one before (no chain through the run's first value).
-fn longest_run(x: &[f32]) -> Run {
+/// The longest run of one exact value (the first of the longest) of `x` (not empty), whose
+/// `unchanged` steps equal the one before: none, and every run is one step long.
+#[inline(always)]
+fn longest_run(x: &[f32], unchanged: u32) -> Run {
     let (mut start, mut best) = (0usize, (1usize, 0usize));
-    for (t, w) in x.windows(2).enumerate() {
-        if w[1] != w[0] {
-            if t + 1 - start > best.0 {
-                best = (t + 1 - start, start);
+    if unchanged > 0 {
+        // A run ends where a value differs from the one before.
+        for (t, w) in x.windows(2).enumerate() {
+            if w[1] != w[0] {
+                if t + 1 - start > best.0 {
+                    best = (t + 1 - start, start);
+                }
+                start = t + 1;
             }
-            start = t + 1;
         }
-    }
-    if x.len() - start > best.0 {
-        best = (x.len() - start, start);
+        if x.len() - start > best.0 {
+            best = (x.len() - start, start);
+        }
     }
     Run {
         len: best.0 as u32,
         start: best.1 as u32,
         value: x[best.1],
     }
-}
-
-/// The steps equal to the step before.
-fn unchanged(x: &[f32]) -> u32 {
-    x.windows(2).map(|w| u32::from(w[1] == w[0])).sum()
-}
-
-/// [`spikes`]' sizes of the steps `2..n - 2` of `x` (`n` at least 5) into `sizes`, from the
-/// residuals `r`: equally long slices, one per offset, so that the loop runs without bounds
-/// checks (and vectorizes).
-fn interior_sizes(x: &[f32], r: &[f64], sizes: &mut [f64]) {
-    let m = sizes.len();
-    let (r0, r1, r2, r3, r4) = (
-        &r[..m],
-        &r[1..m + 1],
-        &r[2..m + 2],
-        &r[3..m + 3],
-        &r[4..m + 4],
-    );
-    let (xb, xt, xa) = (&x[1..m + 1], &x[2..m + 2], &x[3..m + 3]);
-    for (i, out) in sizes.iter_mut().enumerate() {
-        let rt = r2[i];
-        let size = rt.abs();
-        let (xt, xb, xa) = (f64::from(xt[i]), f64::from(xb[i]), f64::from(xa[i]));
-        let (before, after) = (xt - xb, xt - xa);
-        let echo = |ru: f64| (ru * rt < 0.0) & (ru.abs() >= 0.25 * size);
-        let spike = (size > 0.0)
-            & (before * after > 0.0)
-            & (before.abs().min(after.abs()) >= 0.5 * size)
-            & echo(r1[i])
-            & echo(r3[i])
-            & (3.0 * r0[i].abs().max(r4[i].abs()) < size);
-        *out = if spike { size } else { 0.0 };
-    }
-}
-
-/// The three largest one-step spikes of `x`: (size, step), largest first (size 0: none).
-///
-/// A spike is judged on the residual `r[t] = x[t] - (x[t-1] + x[t+1]) / 2`, the value's distance
-/// from the line through its neighbours: a smooth motion, however fast, keeps it small (it is
-/// the curvature), a one-step glitch of size s makes it s. The size is `|r[t]|`, when
-/// - it goes out and back: above (or below) both neighbours by at least half its size on each
-///   side (a held sample has one flat flank, an uneven step of a motion lies between its
-///   neighbours: timing artefacts, not glitches of the value);
-/// - both neighbours' residuals are the glitch's echo, of the other sign and at least a quarter
-///   of it (a single step out and back, not a V: a hand closing and opening has its neighbours
-///   on the line through theirs);
-/// - it stands out from the curvature around it: three times the residuals two steps away (the
-///   turning point of a fast motion bends its surroundings too).
-///
-/// Every step's size is computed first, without branches (the loop vectorizes), then the three
-/// largest picked.
-fn spikes(x: &[f32], scratch: &mut Scratch) -> [Spike; 3] {
-    let n = x.len();
-    let mut top = [Spike::default(); 3];
-    if n < 3 {
-        return top;
-    }
-    let r = &mut scratch.r;
-    r.clear();
-    r.push(0.0);
-    r.extend(x.windows(3).map(|w| {
-        let (a, b, c) = (f64::from(w[0]), f64::from(w[1]), f64::from(w[2]));
-        b - 0.5 * (a + c)
-    }));
-    r.push(0.0);
-    let size_at = |t: usize| -> f64 {
-        let rt = r[t];
-        let size = rt.abs();
-        let echo = |u: usize| r[u] * rt < 0.0 && r[u].abs() >= 0.25 * size;
-        let around = |u: Option<usize>| u.filter(|&u| u < n).map_or(0.0, |u| r[u].abs());
-        let (xt, xb, xa) = (f64::from(x[t]), f64::from(x[t - 1]), f64::from(x[t + 1]));
-        let (before, after) = (xt - xb, xt - xa);
-        let spike = size > 0.0
-            && before * after > 0.0
-            && before.abs().min(after.abs()) >= 0.5 * size
-            && (t < 2 || echo(t - 1))
-            && (t + 2 >= n || echo(t + 1))
-            && 3.0 * around(t.checked_sub(2)).max(around(Some(t + 2))) < size;
-        if spike {
-            size
-        } else {
-            0.0
-        }
-    };
-    let sizes = &mut scratch.sizes;
-    sizes.clear();
-    sizes.resize(n, 0.0);
-    sizes[1] = size_at(1);
-    sizes[n - 2] = size_at(n - 2);
-    // The steps with both neighbours' neighbours inside the episode: every condition applies.
-    if n >= 5 {
-        interior_sizes(x, r, &mut sizes[2..n - 2]);
-    }
-    // The three largest, kept in order as the steps go by (size descending, then step).
-    let mut kept = 0;
-    for (c, chunk) in sizes[..n - 1].chunks(8).enumerate() {
-        // Most steps are no spike (size 0): a chunk below the third largest is skipped whole.
-        let most = chunk.iter().fold(0.0f64, |m, &v| m.max(v));
-        if kept == 3 && most as f32 <= top[2].size {
-            continue;
-        }
-        for (i, &size) in chunk.iter().enumerate() {
-            let t = 8 * c + i;
-            if t == 0 {
-                continue;
-            }
-            let size = size as f32;
-            if kept == 3 && size <= top[2].size {
-                continue;
-            }
-            let at = top[..kept]
-                .iter()
-                .position(|p| size > p.size)
-                .unwrap_or(kept);
-            if kept < 3 {
-                kept += 1;
-            }
-            top.copy_within(at..kept - 1, at + 1);
-            top[at] = Spike {
-                size,
-                step: t as u32,
-            };
-        }
-    }
-    top
 }
 
 #[cfg(test)]
@@ -355,30 +245,5 @@ mod tests {
         let s = of(&clipped);
         assert_eq!(s.clip(100).2, "max");
         assert!(s.clip(100).0 > 0.2);
-    }
-
-    /// The three largest spikes, in order, against a plain scan of every step's size.
-    #[test]
-    fn keeps_the_three_largest_in_order() {
-        let mut x: Vec<f64> = (0..200).map(|t| (t as f64 * 0.05).sin()).collect();
-        for (t, s) in [(20, 1.0), (50, 3.0), (90, 2.0), (130, 3.0), (170, 0.5)] {
-            x[t] += s;
-        }
-        let got: Vec<(u32, f32)> = of(&x).spikes.iter().map(|s| (s.step, s.size)).collect();
-        assert_eq!(
-            got.iter().map(|g| g.0).collect::<Vec<_>>(),
-            vec![50, 130, 90]
-        );
-        assert!((got[0].1 - 3.0).abs() < 0.01 && (got[2].1 - 2.0).abs() < 0.01);
-        // No spike at all: the first three steps, size 0.
-        let flat: Vec<f64> = (0..50).map(|t| t as f64).collect();
-        let got: Vec<(u32, f32)> = of(&flat).spikes.iter().map(|s| (s.step, s.size)).collect();
-        assert_eq!(got, vec![(1, 0.0), (2, 0.0), (3, 0.0)]);
-        // Short columns: a spike at step 1 from three steps on, nothing to panic at.
-        for n in 0..8 {
-            let x: Vec<f64> = (0..n).map(|t| if t == 1 { 5.0 } else { 0.0 }).collect();
-            let s = of(&x);
-            assert_eq!(s.spikes[0].size > 0.0, n >= 3, "{n}");
-        }
     }
 }

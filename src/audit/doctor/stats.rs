@@ -32,6 +32,7 @@ pub fn mad_sigma(values: &[f64]) -> f64 {
 /// The median absolute deviation of single-precision values, none of them NaN ([`mad_sigma`]
 /// without its 1.4826): what every episode's step sigmas are made of. The selections run on
 /// integer keys (the same order as the values) in `keys`, a buffer reused across calls.
+#[inline(always)]
 pub fn mad_f32(values: &[f32], keys: &mut Vec<u32>) -> f32 {
     if values.is_empty() {
         return f32::NAN;
