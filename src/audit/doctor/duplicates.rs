@@ -73,7 +73,10 @@ fn rms_within(a: &[f32], b: &[f32], scale: &[f64], tolerance: f64) -> Option<f64
     // the verdict is the final comparison's).
     let limit = tolerance * tolerance * n * (1.0 + 1e-9);
     let mut total = 0.0;
-    for (p, q) in a.chunks(scale.len().max(1)).zip(b.chunks(scale.len().max(1))) {
+    for (p, q) in a
+        .chunks(scale.len().max(1))
+        .zip(b.chunks(scale.len().max(1)))
+    {
         for ((x, y), k) in p.iter().zip(q).zip(scale) {
             let d = f64::from(*x) * k - f64::from(*y) * k;
             total += d * d;
