@@ -271,6 +271,21 @@ def twin_builds(work, root):
                 before=clean, after=clean)
 
 
+def zarr_twin(work, label, root):
+    """[`twin_builds`] for a zarr replay buffer with the DEFAULT spec: two independent 1-thread
+    builds at once, the machine's own ceiling for `-j 2` against `-j 1`."""
+    outs = [work / "runs" / f"{label}_a", work / "runs-twin" / f"{label}_b"]
+    specs = [zarr_spec(root, out) for out in outs]
+
+    def clean():
+        for out in outs:
+            shutil.rmtree(out, ignore_errors=True)
+            (out.parent / "chunkc.lock").unlink(missing_ok=True)
+
+    script = '"$1" build -q -j 1 "$2" & first=$!; "$1" build -q -j 1 "$3" && wait $first'
+    return Case(label, ["bash", "-c", script, "twin", BIN, *specs], before=clean, after=clean)
+
+
 def io_floor(work, label, root, out, files=None):
     """`cat` of the source files (`files`, by default the episode files under `root`), then of the
     outputs in `out` (as the last build left them) into one file with `dd conv=fsync`."""
@@ -401,6 +416,7 @@ def main():
                 group.append(zarr_chunkc(work, f"zarr_{layout}_1p_1thread", root, threads=1)[0])
                 group.append(zarr_chunkc(work, f"zarr_{layout}_nodoctor_1thread", root,
                                          doctor=False, threads=1)[0])
+                group.append(zarr_twin(work, f"zarr_{layout}_twin_1thread", root))
             measure(group)
             for label in (f"zarr_{layout}_1p", f"zarr_{layout}_1p_half",
                           f"zarr_{layout}_nodoctor", f"zarr_{layout}_1p_1thread",
@@ -476,8 +492,14 @@ def main():
             row(f"zarr {layout}: numpy pipeline / chunkc doctor off (wall)",
                 pair(f"{z}_numpy", f"{z}_nodoctor"), "(reference)", lambda v: None)
             if layout == "episode":
+                twin = pair(f"{z}_1p_1thread", f"{z}_twin_1thread")
+                ceiling = None if twin is None else round(2 * twin, 3)
+                row(f"zarr {layout}: machine's ceiling, 2 x 1-thread / two 1-thread builds at "
+                    "once", ceiling, "(reference)", lambda v: None)
                 row(f"zarr {layout}: 1 thread / 2 threads, default spec (wall)",
-                    pair(f"{z}_1p_1thread", f"{z}_1p"), ">= 1.7", lambda v: v >= 1.7)
+                    pair(f"{z}_1p_1thread", f"{z}_1p"),
+                    ">= the machine's ceiling" if ceiling else ">= 1.7",
+                    lambda v, c=ceiling: v >= (c if c else 1.7))
                 row(f"zarr {layout}: 1 thread / 2 threads, doctor off (wall)",
                     pair(f"{z}_nodoctor_1thread", f"{z}_nodoctor"), "(reference)",
                     lambda v: None)

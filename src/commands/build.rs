@@ -2,8 +2,9 @@
 //! directory renamed into place, `chunkc.lock` updated.
 //!
 //! The dataset doctor rides on the same pass: each episode is reduced to its doctor features
-//! as it is read, and the features are judged once all are read, before anything is finished
-//! (an `= "error"` finding fails the build with nothing kept).
+//! from the values read (beside the writes, from the row store of the rate that keeps the
+//! source's steps, or else as it is read), and the features are judged before anything is
+//! committed (an `= "error"` finding fails the build with nothing kept).
 //!
 //! When `[audit] non_finite = "exclude_episode"` or a doctor check `= "exclude"` finds episodes
 //! to leave out, which ones depends only on the data, so the output stays deterministic: the

@@ -1,12 +1,20 @@
 //! The dataset doctor folded into the build's one pass: each episode reduces to its doctor
-//! features as the pass reads it (in parallel, from the values already decoded), the features
-//! are kept (a fixed size per episode, never the steps), and once every episode is read the
-//! judgement runs over them in source order, before anything is finished.
+//! features (in parallel, from the values already decoded, never read again from the source),
+//! the features are kept (a fixed size per episode, never the steps), and once every episode is
+//! reduced the judgement runs over them in source order, before anything is committed.
+//!
+//! Where a rate keeps the source's own steps, its row store holds the values as read, and the
+//! features are computed from it beside the writes ([`Doctor::take_stored`]): the writes leave
+//! cores idle, the pass does not. Otherwise each episode is reduced as the pass reads it
+//! ([`Doctor::take`]).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
 use std::time::Instant;
 
+use rayon::prelude::*;
+
+use super::rate::RateState;
 use super::Excluded;
 use crate::audit::doctor::{Features, Probe};
 use crate::error::Result;
@@ -46,11 +54,34 @@ impl<'a> Doctor<'a> {
 
     /// Reduces episode `i` (manifest position) to its features, once.
     pub(super) fn take(&self, i: usize, episode: &Episode) {
+        self.keep(i, || self.probe.features(episode));
+    }
+
+    /// Reduces every episode to its features from the rows `rate` stored, in parallel: a rate
+    /// that keeps the source's own steps stores the values as read, so the features are those
+    /// [`Doctor::take`] computes. The build runs this beside its writes.
+    pub(super) fn take_stored(&self, rate: &RateState) -> Result<()> {
+        let action = &rate.lowdim[self.probe.action_channel()];
+        let state = self.probe.state_channel().map(|c| &rate.lowdim[c]);
+        (0..self.slots.len()).into_par_iter().try_for_each(|i| {
+            let rows = rate.ends.range(i);
+            let a = action.rows(rows.start, rows.end)?;
+            let s = match state {
+                Some(store) => Some(store.rows(rows.start, rows.end)?),
+                None => None,
+            };
+            self.keep(i, || self.probe.reduce(&a, s.as_deref()));
+            Ok(())
+        })
+    }
+
+    /// Keeps episode `i`'s features, once, counting the time they took.
+    fn keep(&self, i: usize, features: impl FnOnce() -> Features) {
         let started = Instant::now();
         // Kept as an exact-size copy: the vectors built alongside the episode's temporaries
         // would pin the heap they were carved from (measured: 418 MiB peak for 5,000 episodes
         // of 400 steps kept as built, 167 MiB as copies).
-        let f = self.probe.features(episode).clone();
+        let f = features().clone();
         let _ = self.slots[i].set(f);
         let spent = started.elapsed().as_nanos() as u64;
         self.busy.fetch_add(spent, Ordering::Relaxed);

@@ -34,7 +34,7 @@ use std::collections::BTreeMap;
 use std::sync::atomic::AtomicUsize;
 
 use crate::error::Result;
-use crate::plan::{Plan, ProfilePlan, RateJob};
+use crate::plan::{Conversion, Plan, ProfilePlan, RateJob};
 use crate::render;
 use crate::resize::Resize;
 use crate::sink::{self, FrameEncoding, Sink, SinkContext};
@@ -73,7 +73,8 @@ pub fn spill_budget() -> usize {
 /// Where a build's episodes come from.
 pub enum Input<'a, 'd> {
     /// Read from the source; the dataset doctor, when given, computes its features from the
-    /// episodes as they are read and judges them before anything is finished.
+    /// values read (as they are read, or from the stored rows beside the writes) and judges
+    /// them before anything is committed.
     Source(Option<&'a mut Doctor<'d>>),
     /// Processed already, by the shards whose partials these are (in shard order, verified:
     /// see [`partial::verify`]), for `chunkc merge`.
@@ -162,7 +163,7 @@ pub fn execute(
         dirs,
         jobs,
     } = set_up(plan, stale, manifest, &staging)?;
-    let (mut feed, doctor) = match input {
+    let (mut feed, mut doctor) = match input {
         Input::Source(doctor) => (read::Feed::Source, doctor),
         Input::Partials(paths) => (
             read::Feed::Partials(
@@ -174,6 +175,11 @@ pub fn execute(
             None,
         ),
     };
+    // The rate whose store holds the source's own steps: the doctor reads it beside the writes.
+    let stored = doctor.as_ref().and_then(|_| {
+        jobs.iter()
+            .position(|j| j.conversion == Conversion::Decimate { factor: 1 })
+    });
     let pass = read::Pass {
         plan,
         source,
@@ -182,16 +188,14 @@ pub fn execute(
         jobs: &jobs,
         reads,
         progress,
-        doctor: doctor.as_deref(),
+        doctor: doctor.as_deref().filter(|_| stored.is_none()),
     };
     let excluded = read::read_all(&pass, &mut rates, &mut sinks, &mut feed)?;
     if !excluded.is_empty() {
         return Ok(Outcome::Exclude(excluded));
     }
-    if let Some(doctor) = doctor {
-        let _judging = crate::timings::phase("dataset doctor (judgement)");
-        let excluded = doctor.judge()?;
-        if !excluded.is_empty() {
+    if stored.is_none() {
+        if let Some(excluded) = judge(doctor.as_deref_mut())? {
             return Ok(Outcome::Exclude(excluded));
         }
     }
@@ -202,8 +206,45 @@ pub fn execute(
         renderer: &renderer,
     };
     let profiles = sinks.into_iter().zip(dirs).map(|((r, s), d)| (r, s, d));
-    let hashes = finish::all(&shared, stale, &rates, profiles.collect(), &staging)?;
+    let finish = || finish::all(&shared, stale, &rates, profiles.collect(), &staging);
+    let hashes = match finish_beside(finish, doctor, stored.map(|r| &rates[r]))? {
+        Ok(hashes) => hashes,
+        Err(excluded) => return Ok(Outcome::Exclude(excluded)),
+    };
     Ok(Outcome::Built(staging, hashes))
+}
+
+/// Finishes the profiles (`finish`). With a doctor and `stored` (the rate that keeps the
+/// source's steps), the doctor reduces every episode from that rate's rows beside the writes,
+/// then judges: the episodes it leaves out, if any, in place of the hashes.
+fn finish_beside(
+    finish: impl FnOnce() -> Result<FileHashes> + Send,
+    doctor: Option<&mut Doctor>,
+    stored: Option<&rate::RateState>,
+) -> Result<std::result::Result<FileHashes, Excluded>> {
+    let (Some(doctor), Some(rate)) = (doctor, stored) else {
+        return finish().map(Ok);
+    };
+    let (hashes, reduced) = rayon::join(finish, || {
+        let _features = crate::timings::phase("dataset doctor (beside the writes)");
+        doctor.take_stored(rate)
+    });
+    let hashes = hashes?;
+    reduced?;
+    Ok(match judge(Some(doctor))? {
+        Some(excluded) => Err(excluded),
+        None => Ok(hashes),
+    })
+}
+
+/// The doctor's judgement, when there is a doctor: the episodes it leaves out, if any.
+fn judge(doctor: Option<&mut Doctor>) -> Result<Option<Excluded>> {
+    let Some(doctor) = doctor else {
+        return Ok(None);
+    };
+    let _judging = crate::timings::phase("dataset doctor (judgement)");
+    let excluded = doctor.judge()?;
+    Ok((!excluded.is_empty()).then_some(excluded))
 }
 
 /// Per rate: its conversion, the resize of each camera it stores resized, and the frame

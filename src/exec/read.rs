@@ -1,6 +1,7 @@
 //! The one pass over the source: episodes decoded in batches, in parallel (rayon), consumed in
-//! episode order, so memory stays bounded by the batch and every write and every statistics
-//! merge happens in the same order whatever the thread count.
+//! episode order, so memory stays bounded by two low-dim batches (one consumed while the next is
+//! read) or one of camera frames, and every write and every statistics merge happens in the same order whatever the thread
+//! count.
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -71,10 +72,34 @@ pub(super) fn read_all(
         "reading episodes",
     );
     let _reading = timings::phase("read episodes");
+    // Low-dim batch k is consumed (in order, on one thread) while batch k + 1 is read and
+    // processed on the others, so no core waits on the sequential part. Camera episodes are
+    // hundreds of megabytes each: their batches take turns, so memory holds one.
+    let overlap = manifest
+        .channels
+        .iter()
+        .all(|c| c.kind == ChannelKind::Lowdim);
+    let mut ready: Option<(Range<usize>, Vec<Processed>)> = None;
     for batch in batches(manifest, 0..manifest.episodes.len()) {
-        let read = match feed {
-            Feed::Source => read_batch(pass, batch.clone(), !excluded.is_empty())?,
-            Feed::Partials(readers) => from_partials(readers, batch.clone())?,
+        let checking_only = !excluded.is_empty();
+        let next = |feed: &mut Feed| match feed {
+            Feed::Source => read_batch(pass, batch.clone(), checking_only),
+            Feed::Partials(readers) => from_partials(readers, batch.clone()),
+        };
+        let read = match ready.take() {
+            Some((previous, kept)) if !overlap => {
+                consume_and_push(pass, previous, kept, rates, sinks, &bar)?;
+                next(feed)?
+            }
+            Some((previous, kept)) => {
+                let (consumed, read) = rayon::join(
+                    || consume_and_push(pass, previous, kept, rates, sinks, &bar),
+                    || next(feed),
+                );
+                consumed?;
+                read?
+            }
+            None => next(feed)?,
         };
         let mut kept = Vec::with_capacity(read.len());
         for (i, r) in batch.clone().zip(read) {
@@ -90,12 +115,27 @@ pub(super) fn read_all(
             bar.inc(batch.len() as u64);
             continue;
         }
-        let pending = consume(pass, batch, kept, rates, sinks, &bar)?;
-        push_rows(rates, pending)?;
+        ready = Some((batch, kept));
+    }
+    if let Some((last, kept)) = ready {
+        consume_and_push(pass, last, kept, rates, sinks, &bar)?;
     }
     bar.finish_and_clear();
     recycle::clear();
     Ok(excluded)
+}
+
+/// [`consume`] then [`push_rows`]: the sequential part of a batch.
+fn consume_and_push(
+    pass: &Pass,
+    batch: Range<usize>,
+    processed: Vec<Processed>,
+    rates: &mut [RateState],
+    sinks: &mut [(usize, Box<dyn Sink>)],
+    bar: &indicatif::ProgressBar,
+) -> Result<()> {
+    let pending = consume(pass, batch, processed, rates, sinks, bar)?;
+    push_rows(rates, pending)
 }
 
 /// The records of the episodes `batch` from the partials that hold them.

@@ -1,5 +1,6 @@
 """The dataset doctor inside `chunkc build`'s one pass (issue 30): the build computes the doctor's
-features from the episodes it reads anyway and judges them before anything is finished. The
+features from the values it reads anyway (as it reads them, or from its row store beside the
+writes) and judges them before anything is committed. The
 oracle is `chunkc audit`, whose doctor reads the two channels in a pass of its own
 (`read_lowdim`, not the build's `read_episode`): both must reach the same findings. The outputs'
 bytes must not depend on the doctor when it only warns; its exclusions and errors must act as
@@ -11,6 +12,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 import zarr
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -43,8 +45,14 @@ def hashes(directory: Path) -> dict:
             for p in sorted(directory.rglob("*")) if p.is_file()}
 
 
-def test_build_finds_what_the_audit_finds(tmp_path):
+@pytest.mark.parametrize("fps", [10.0, 5.0])
+def test_build_finds_what_the_audit_finds(tmp_path, fps):
+    """At the source's rate (10) the build reduces the episodes from its row store beside the
+    writes; at 5 (every other step) no rate keeps the source's steps and the pass reduces each
+    episode as it reads it. Both must find what the audit finds."""
     spec = synth(tmp_path, "s")
+    spec.write_text(spec.read_text().replace("fps = 10.0\nformat", f"fps = {fps}\nformat"))
+    assert f"fps = {fps}\nformat" in spec.read_text()
     audit_stderr = run_chunkc("audit", spec).stdout + run_chunkc("audit", spec).stderr
     audit = json.loads((spec.parent / "out" / "audit" / "audit.json").read_text())
     flagged = audit["doctor"]["flagged"]

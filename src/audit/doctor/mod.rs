@@ -139,8 +139,18 @@ impl Probe {
         std::iter::once(self.action).chain(self.state).collect()
     }
 
-    /// What an episode reduces to, from its action (and state) values.
-    fn reduce(&self, action: &[f32], state: Option<&[f32]>) -> Features {
+    /// The manifest position of the action channel.
+    pub fn action_channel(&self) -> usize {
+        self.action
+    }
+
+    /// The manifest position of the state channel, when the source has one.
+    pub fn state_channel(&self) -> Option<usize> {
+        self.state
+    }
+
+    /// What an episode reduces to, from its action (and state) rows, row-major.
+    pub fn reduce(&self, action: &[f32], state: Option<&[f32]>) -> Features {
         let n = action.len() / self.a_dim;
         features(action, state, n, self.a_dim, self.s_dim)
     }
