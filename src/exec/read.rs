@@ -88,12 +88,12 @@ pub(super) fn read_all(
         };
         let read = match ready.take() {
             Some((previous, kept)) if !overlap => {
-                consume_and_push(pass, previous, kept, rates, sinks, &bar)?;
+                consume(pass, previous, kept, rates, sinks, &bar)?;
                 next(feed)?
             }
             Some((previous, kept)) => {
                 let (consumed, read) = rayon::join(
-                    || consume_and_push(pass, previous, kept, rates, sinks, &bar),
+                    || consume(pass, previous, kept, rates, sinks, &bar),
                     || next(feed),
                 );
                 consumed?;
@@ -118,24 +118,11 @@ pub(super) fn read_all(
         ready = Some((batch, kept));
     }
     if let Some((last, kept)) = ready {
-        consume_and_push(pass, last, kept, rates, sinks, &bar)?;
+        consume(pass, last, kept, rates, sinks, &bar)?;
     }
     bar.finish_and_clear();
     recycle::clear();
     Ok(excluded)
-}
-
-/// [`consume`] then [`push_rows`]: the sequential part of a batch.
-fn consume_and_push(
-    pass: &Pass,
-    batch: Range<usize>,
-    processed: Vec<Processed>,
-    rates: &mut [RateState],
-    sinks: &mut [(usize, Box<dyn Sink>)],
-    bar: &indicatif::ProgressBar,
-) -> Result<()> {
-    let pending = consume(pass, batch, processed, rates, sinks, bar)?;
-    push_rows(rates, pending)
 }
 
 /// The records of the episodes `batch` from the partials that hold them.
@@ -223,7 +210,7 @@ pub(super) fn read_batch(
 }
 
 /// The sequential part of a batch, in episode order: statistics partials merged, frames written
-/// to every sink of their rate; returns the low-dim rows per (rate, channel) for [`push_rows`].
+/// to every sink of their rate, then the low-dim rows per (rate, channel) pushed ([`push_rows`]).
 fn consume(
     pass: &Pass,
     batch: Range<usize>,
@@ -231,7 +218,7 @@ fn consume(
     rates: &mut [RateState],
     sinks: &mut [(usize, Box<dyn Sink>)],
     bar: &indicatif::ProgressBar,
-) -> Result<Vec<Vec<Vec<Rows>>>> {
+) -> Result<()> {
     let manifest = pass.source.manifest();
     let mut pending: Vec<Vec<Vec<Rows>>> = rates
         .iter()
@@ -272,7 +259,7 @@ fn consume(
         }
         bar.inc(1);
     }
-    Ok(pending)
+    push_rows(rates, pending)
 }
 
 /// Each store takes its episodes' rows in order, counting the training rows' first percentile

@@ -57,26 +57,27 @@ fn moments(x: &[f32]) -> Moments {
     Moments { mean, std }
 }
 
-/// What an episode of `n` steps reduces to, from its action rows (`a_dim` wide) and state rows
-/// (`s_dim` wide).
+/// An episode's steps and its action's and state's widths.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Shape {
+    pub n: usize,
+    pub a_dim: usize,
+    pub s_dim: usize,
+}
+
+/// What an episode reduces to, from its action rows and state rows (`shape`).
 ///
 /// Compiled twice, for the build's baseline target and for AVX2 (chosen at run time): every
 /// per-dimension loop is inlined into both, so that the AVX2 copy runs them twice as wide. The
 /// two compute the same bits (no FMA, and the compiler reorders no floating-point operation:
 /// the lanes of every sum are written out), so the report does not depend on the machine.
-pub(super) fn features(
-    action: &[f32],
-    state: Option<&[f32]>,
-    n: usize,
-    a_dim: usize,
-    s_dim: usize,
-) -> Features {
+pub(super) fn features(action: &[f32], state: Option<&[f32]>, shape: Shape) -> Features {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2 (checked just above).
-        return unsafe { features_avx2(action, state, n, a_dim, s_dim) };
+        return unsafe { features_avx2(action, state, shape) };
     }
-    reduce(action, state, n, a_dim, s_dim)
+    reduce(action, state, shape)
 }
 
 /// [`reduce`] compiled for AVX2 (without FMA: a fused multiply-add rounds once where the
@@ -86,19 +87,14 @@ pub(super) fn features(
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn features_avx2(
-    action: &[f32],
-    state: Option<&[f32]>,
-    n: usize,
-    a_dim: usize,
-    s_dim: usize,
-) -> Features {
-    reduce(action, state, n, a_dim, s_dim)
+unsafe fn features_avx2(action: &[f32], state: Option<&[f32]>, shape: Shape) -> Features {
+    reduce(action, state, shape)
 }
 
 /// [`features`], for whichever target its caller is compiled for.
 #[inline(always)]
-fn reduce(action: &[f32], state: Option<&[f32]>, n: usize, a_dim: usize, s_dim: usize) -> Features {
+fn reduce(action: &[f32], state: Option<&[f32]>, shape: Shape) -> Features {
+    let Shape { n, a_dim, s_dim } = shape;
     // Plain loops, no iterator adapters: a closure is a function of its own, compiled for the
     // baseline even when its caller is the AVX2 copy.
     let a = Columns::of(action, n, a_dim);
@@ -183,9 +179,14 @@ mod tests {
         if std::is_x86_feature_detected!("avx2") {
             for (n, dims, seed) in [(400, 14, 1), (157, 3, 2), (41, 1, 3), (7, 2, 4)] {
                 let (a, s) = episode(n, dims, seed);
-                let base = reduce(&a, Some(&s), n, dims, dims);
+                let shape = Shape {
+                    n,
+                    a_dim: dims,
+                    s_dim: dims,
+                };
+                let base = reduce(&a, Some(&s), shape);
                 // SAFETY: the CPU has AVX2 (checked just above).
-                let avx2 = unsafe { features_avx2(&a, Some(&s), n, dims, dims) };
+                let avx2 = unsafe { features_avx2(&a, Some(&s), shape) };
                 // Debug prints every float exactly (the shortest text that reads back the
                 // same bits, with its sign).
                 assert_eq!(format!("{base:?}"), format!("{avx2:?}"), "n {n}");

@@ -152,7 +152,12 @@ impl Probe {
     /// What an episode reduces to, from its action (and state) rows, row-major.
     pub fn reduce(&self, action: &[f32], state: Option<&[f32]>) -> Features {
         let n = action.len() / self.a_dim;
-        features(action, state, n, self.a_dim, self.s_dim)
+        let shape = features::Shape {
+            n,
+            a_dim: self.a_dim,
+            s_dim: self.s_dim,
+        };
+        features(action, state, shape)
     }
 
     /// What an episode the build has read reduces to (its channels in manifest order).
