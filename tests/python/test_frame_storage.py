@@ -176,12 +176,12 @@ def test_lerobot_video_source_stored_as_video(tmp_path):
     assert stored <= 1.2 * source, (stored, source)
 
 
-# A known defect, not fixed: SVT-AV1 1.4.1 (Debian 12's libsvtav1enc1) with `lp=1` sometimes
-# encodes a mini-GOP differently from run to run, even at `-j 1` (seen: the last episode's file of
-# this fixture, 2 runs of 8 differing in frames 8-13; `enable-tf=0` changed nothing). Until the
-# encoder is made deterministic, the `video` case is expected to fail now and then.
+# A known defect, not fixed: a re-encoded mp4 (hdf5 `video` storage: libx264, `threads=1`) is
+# sometimes different from run to run, even at `-j 1` (seen: this fixture's last episode, 5 distinct
+# files in 8 builds whose raw frames were identical; one mini-GOP's packets differ). Until the
+# cause is found, the `video` case is expected to fail now and then.
 VIDEO_NONDETERMINISM = pytest.mark.xfail(
-    reason="SVT-AV1 1.4.1 re-encodes are not always byte-identical run to run", strict=False)
+    reason="re-encoded mp4s are not always byte-identical run to run (open defect)", strict=False)
 
 
 @pytest.mark.parametrize("profile", ["jpeg", pytest.param("video", marks=VIDEO_NONDETERMINISM)])
