@@ -37,8 +37,9 @@ pub fn of(profile: &Profile) -> Option<LockedEncoder> {
         ("pix_fmt", video_encode::PIX_FMT.to_string()),
         ("threads", "1".to_string()),
     ];
-    if video.codec == VideoCodec::Libsvtav1 {
-        pairs.push(("preset", video_encode::SVTAV1_PRESET.to_string()));
+    match video.codec {
+        VideoCodec::Libsvtav1 => pairs.push(("preset", video_encode::SVTAV1_PRESET.to_string())),
+        VideoCodec::Libx264 => pairs.push(("x264_params", video_encode::X264_PARAMS.to_string())),
     }
     // Which source streams are copied instead of encoded (their bytes are the source's).
     match video.copy {

@@ -11,9 +11,15 @@
 //! - **Deterministic bytes**: an encoder that splits its work over threads may make different
 //!   decisions on different runs. Each stream is encoded with one thread (`thread_count = 1`,
 //!   SVT-AV1's `lp=1`, x264's `threads=1`); parallelism comes from encoding the cameras side by
-//!   side ([`Background`]), so the bytes are the same for any `-j`. The container carries no
-//!   wall clock and no library version: libavformat's and libavcodec's `bitexact` flags drop the
-//!   `encoder` tags, and mp4's `creation_time` stays unset (0).
+//!   side ([`Background`]), so the bytes are the same for any `-j`. x264 is also told
+//!   `cpu-independent=1` ([`X264_PARAMS`]): its macroblock-tree rate control then runs its
+//!   portable code, not the code chosen for this CPU. Without it, x264 r3095's AVX-512 path
+//!   makes decisions from heap memory it never wrote: the same frames, encoded in threads whose
+//!   heaps held different leftovers, gave 2 to 4 different files of 32, and builds varied run to
+//!   run whenever an encoder ran beside other work; and x264 with its assembly turned off
+//!   wrote other bytes than with it, so which code a CPU gets changed the file. The
+//!   container carries no wall clock and no library version: libavformat's and libavcodec's
+//!   `bitexact` flags drop the `encoder` tags, and mp4's `creation_time` stays unset (0).
 //! - **Streaming**: frames are converted and encoded as they arrive, packets are written as the
 //!   encoder gives them back; memory holds a few frames and the encoder's look-ahead, never an
 //!   episode's video. [`Background`] bounds the frames queued for its thread.
@@ -42,6 +48,10 @@ pub const PIX_FMT: &str = "yuv420p";
 
 /// SVT-AV1's preset (speed) as LeRobot sets it.
 pub const SVTAV1_PRESET: u32 = 12;
+
+/// x264's own options (FFmpeg's `x264-params`): the same algorithms on every CPU, so the bytes
+/// depend on neither the machine's instruction sets nor what its heap held before.
+pub const X264_PARAMS: &str = "cpu-independent=1";
 
 /// The libavcodec the encoders run in (`major.minor.micro`), or why there is none.
 pub fn library_version() -> String {
@@ -97,9 +107,31 @@ impl VideoStream {
                 shape.height, shape.width
             )));
         }
+        Self::create_on(path, shape, settings, None)
+    }
+
+    /// [`Self::create`] with x264 limited to the instruction sets `asm` names (x264's `asm`
+    /// option; `0`: none), as a machine without the others would encode.
+    #[cfg(all(test, feature = "video"))]
+    fn create_with_asm(
+        path: &Path,
+        shape: StreamShape,
+        settings: VideoSettings,
+        asm: &str,
+    ) -> Result<Self> {
+        Self::create_on(path, shape, settings, Some(asm))
+    }
+
+    fn create_on(
+        path: &Path,
+        shape: StreamShape,
+        settings: VideoSettings,
+        asm: Option<&str>,
+    ) -> Result<Self> {
+        let fail = |m: String| Error::output(format!("{}: {m}", path.display()));
         #[cfg(feature = "video")]
         {
-            let inner = imp::Inner::create(path, shape, settings).map_err(fail)?;
+            let inner = imp::Inner::create(path, shape, settings, asm).map_err(fail)?;
             Ok(VideoStream {
                 path: path.to_path_buf(),
                 shape,
@@ -109,7 +141,7 @@ impl VideoStream {
         }
         #[cfg(not(feature = "video"))]
         {
-            let _ = settings;
+            let _ = (shape, settings, asm);
             Err(fail(
                 "writing video needs a chunkc built with the `video` cargo feature".into(),
             ))
@@ -224,7 +256,7 @@ mod imp {
     use super::StreamShape;
     use crate::spec::{VideoCodec, VideoSettings};
 
-    use super::SVTAV1_PRESET;
+    use super::{SVTAV1_PRESET, X264_PARAMS};
 
     pub struct Inner {
         octx: format::context::Output,
@@ -266,7 +298,12 @@ mod imp {
 
     impl Inner {
         // Long function: FFmpeg's set-up sequence (format, stream, codec options, scaler), each step with its own error.
-        pub fn create(path: &Path, shape: StreamShape, s: VideoSettings) -> Result<Self, String> {
+        pub fn create(
+            path: &Path,
+            shape: StreamShape,
+            s: VideoSettings,
+            asm: Option<&str>,
+        ) -> Result<Self, String> {
             init()?;
             fn e(what: &str) -> impl Fn(ff::Error) -> String + '_ {
                 move |err| format!("{what}: {err}")
@@ -314,6 +351,11 @@ mod imp {
                 }
                 VideoCodec::Libx264 => {
                     opts.set("threads", "1");
+                    let params = match asm {
+                        Some(asm) => format!("{X264_PARAMS}:asm={asm}"),
+                        None => X264_PARAMS.to_string(),
+                    };
+                    opts.set("x264-params", &params);
                 }
             }
             let encoder = enc.open_with(opts).map_err(|err| {
@@ -465,6 +507,77 @@ mod tests {
         assert!(a == b, "two encodes of the same frames differ");
         // No library version in the container.
         assert!(!a.windows(4).any(|w| w == b"Lavf"));
+    }
+
+    /// hdf5 `video` storage's encoder, on frames with detail and motion.
+    fn x264_file(path: &Path, asm: Option<&str>) -> Vec<u8> {
+        let shape = StreamShape {
+            height: 64,
+            width: 96,
+            fps: 50.0,
+        };
+        let settings = crate::spec::STORAGE_VIDEO;
+        let mut s = match asm {
+            None => VideoStream::create(path, shape, settings),
+            Some(asm) => VideoStream::create_with_asm(path, shape, settings, asm),
+        }
+        .unwrap();
+        let mut state = 1u64;
+        for i in 0..38 {
+            let frame: Vec<u8> = (0..64 * 96 * 3)
+                .map(|p| {
+                    state = state
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    ((p / 3 % 96) * 3 + i * 5 + (state >> 60) as usize) as u8
+                })
+                .collect();
+            s.push(&frame).unwrap();
+        }
+        s.finish().unwrap();
+        std::fs::read(path).unwrap()
+    }
+
+    #[test]
+    fn x264_bytes_do_not_depend_on_what_the_heap_held() {
+        // Each encode runs on a new thread whose heap was first filled with other bytes and
+        // freed. x264's AVX-512 code used to read such leftovers (2 to 4 distinct files of 32).
+        let dir = tempfile::tempdir().unwrap();
+        let files: Vec<Vec<u8>> = (0..32u8)
+            .map(|k| {
+                let path = dir.path().join(format!("{k}.mp4"));
+                std::thread::spawn(move || {
+                    let dirt: Vec<Vec<u8>> = (0..4000)
+                        .map(|i| {
+                            vec![k.wrapping_mul(37).wrapping_add(i as u8); 16 + i * 37 % 20000]
+                        })
+                        .collect();
+                    drop(dirt);
+                    x264_file(&path, None)
+                })
+                .join()
+                .unwrap()
+            })
+            .collect();
+        let distinct: std::collections::BTreeSet<&Vec<u8>> = files.iter().collect();
+        assert_eq!(
+            distinct.len(),
+            1,
+            "{} different files of 32",
+            distinct.len()
+        );
+    }
+
+    #[test]
+    fn x264_bytes_do_not_depend_on_the_cpu() {
+        // What this machine runs, a machine without AVX-512, and x264's C code alone.
+        let dir = tempfile::tempdir().unwrap();
+        let native = x264_file(&dir.path().join("native.mp4"), None);
+        let avx2 = "MMX2,SSE,SSE2,SSE2Fast,LZCNT,SSE3,SSSE3,SSE4.1,SSE4.2,AVX,FMA3,BMI1,BMI2,AVX2";
+        for asm in [avx2, "0"] {
+            let other = x264_file(&dir.path().join("other.mp4"), Some(asm));
+            assert!(other == native, "x264 limited to `{asm}` wrote other bytes");
+        }
     }
 
     #[test]
