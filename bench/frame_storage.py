@@ -6,8 +6,9 @@ book/src/video-storage.md.
 
     .venv/bin/python bench/frame_storage.py DIR
         env: EPISODES (default 3), FRAMES (frames an episode, default 100), WORKERS (DataLoader
-        workers, default 2), BATCH (default 32), SAMPLES (samples timed per loader, default 384),
-        OUT (default bench/results-frame-storage.json)
+        workers, default 2), BATCH (default 32), SAMPLES (samples timed per loader, default 480),
+        ROUNDS (default 3: every loader is timed once a round, the rounds one after the other,
+        and the median is reported), OUT (default bench/results-frame-storage.json)
 
 The source is a LeRobot v3.0 dataset written by `chunkc synth --format lerobot` (two 480x640
 cameras at 10 fps, 14-D state and action, encoded as LeRobot encodes: libsvtav1, yuv420p, g=2,
@@ -25,6 +26,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
 REPO = Path(__file__).resolve().parents[1]
@@ -34,7 +37,8 @@ FRAMES = int(os.environ.get("FRAMES", "100"))
 H, W, FPS = 480, 640, 10
 WORKERS = int(os.environ.get("WORKERS", "2"))
 BATCH = int(os.environ.get("BATCH", "32"))
-SAMPLES = int(os.environ.get("SAMPLES", "384"))
+SAMPLES = int(os.environ.get("SAMPLES", "480"))
+ROUNDS = int(os.environ.get("ROUNDS", "3"))
 KEYS = ["observation.images.cam0", "observation.images.cam1"]
 PRESETS = {
     # name: (profile TOML, LeRobot delta_timestamps)
@@ -151,6 +155,7 @@ def main():
     results = {"episodes": EPISODES, "frames_per_episode": FRAMES, "cameras": len(KEYS),
                "resolution": f"{W}x{H}", "source": "LeRobot v3.0, libsvtav1 g=2 crf=30",
                "source_video_bytes": source_bytes, "workers": WORKERS, "batch": BATCH, "samples": SAMPLES,
+               "rounds": ROUNDS,
                "cpus": os.cpu_count(), "load_before": os.getloadavg(), "builds": {}, "loaders": {}}
     dirs = {}
     for storage in STORAGES:
@@ -159,23 +164,30 @@ def main():
         results["builds"][storage] = {"build_s": round(wall, 2), "bytes": sizes,
                                       "copied": copied_share(d / "act")}
         print(f"build {storage}: {wall:.1f} s, {sizes}", flush=True)
-    for preset, (_, deltas) in PRESETS.items():
-        row = {}
-        for storage in STORAGES:
-            row[f"chunkc_{storage}"] = timed(dataloader(chunkc_loader(dirs[storage] / preset)))
-            print(preset, storage, f"{row[f'chunkc_{storage}']:.1f} samples/s", flush=True)
-        for backend in ("torchcodec", "pyav"):
-            try:
-                row[f"lerobot_{backend}"] = timed(dataloader(lerobot(root, deltas, backend)))
-            except Exception as e:  # a backend missing on this machine is reported, not fatal
-                row[f"lerobot_{backend}"] = None
-                row[f"lerobot_{backend}_error"] = f"{type(e).__name__}: {e}"[:300]
-            print(preset, backend, row[f"lerobot_{backend}"], flush=True)
-        best = max(v for k, v in row.items() if k.startswith("lerobot_") and isinstance(v, float)) \
-            if any(isinstance(v, float) for k, v in row.items() if k.startswith("lerobot_")) else None
-        if best:
-            row["ratio_vs_best_lerobot"] = {s: round(row[f"chunkc_{s}"] / best, 2) for s in STORAGES}
-        results["loaders"][preset] = {k: (round(v, 1) if isinstance(v, float) else v) for k, v in row.items()}
+    # Every loader once a round, so that a slower spell of the machine hits them all alike.
+    runs = {preset: {} for preset in PRESETS}
+    for r in range(ROUNDS):
+        for preset, (_, deltas) in PRESETS.items():
+            loaders = {f"chunkc_{s}": (lambda s=s: chunkc_loader(dirs[s] / preset)) for s in STORAGES}
+            for backend in ("torchcodec", "pyav"):
+                loaders[f"lerobot_{backend}"] = lambda b=backend: lerobot(root, deltas, b)
+            for name, make in loaders.items():
+                try:
+                    v = timed(dataloader(make()))
+                except Exception as e:  # a backend missing on this machine is reported, not fatal
+                    if not name.startswith("lerobot_"):
+                        raise
+                    runs[preset][f"{name}_error"] = f"{type(e).__name__}: {e}"[:300]
+                    continue
+                runs[preset].setdefault(name, []).append(round(v, 1))
+                print(f"round {r}: {preset} {name} {v:.1f} samples/s", flush=True)
+    for preset, got in runs.items():
+        row = {k: (float(np.median(v)) if isinstance(v, list) else v) for k, v in got.items()}
+        lerobots = [v for k, v in row.items() if k.startswith("lerobot_") and isinstance(v, float)]
+        if lerobots:
+            row["ratio_vs_best_lerobot"] = {s: round(row[f"chunkc_{s}"] / max(lerobots), 2) for s in STORAGES}
+        row["rounds"] = {k: v for k, v in got.items() if isinstance(v, list)}
+        results["loaders"][preset] = row
     results["load_after"] = os.getloadavg()
     out.write_text(json.dumps(results, indent=2) + "\n")
     print(json.dumps(results, indent=2))

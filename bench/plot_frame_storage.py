@@ -41,7 +41,7 @@ def main():
                       label=preset.replace("_", " "))
     speed_ax.set_yticks(range(len(readers)), [name for name, _ in readers])
     speed_ax.set_xscale("log")
-    speed_ax.set_xlabel(f"samples/s, shuffled, {r['workers']} workers (log)")
+    speed_ax.set_xlabel(f"samples/s (log), {r['workers']} workers, median of {r.get('rounds', 1)}")
     speed_ax.set_title("loader throughput")
     speed_ax.legend(fontsize=8)
     fig.suptitle(f"{r['episodes']} episodes x {r['frames_per_episode']} frames, {r['cameras']} cameras "

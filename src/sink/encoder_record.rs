@@ -36,6 +36,7 @@ pub fn of(profile: &Profile) -> Option<LockedEncoder> {
         ("gop", video.gop.to_string()),
         ("pix_fmt", video_encode::PIX_FMT.to_string()),
         ("threads", "1".to_string()),
+        ("closed_gop", u8::from(video.closed_gop).to_string()),
     ];
     match video.codec {
         VideoCodec::Libsvtav1 => pairs.push(("preset", video_encode::SVTAV1_PRESET.to_string())),

@@ -334,9 +334,10 @@ mod imp {
             if global_header {
                 flags |= codec::Flags::GLOBAL_HEADER;
             }
-            // Closed GOPs when asked: libavcodec's SVT-AV1 wrapper otherwise asks for open
-            // ones, whose intra frames are not keyframes (a file's only random-access point is
-            // then its first frame).
+            // Closed GOPs when asked: libavcodec's SVT-AV1 and x264 wrappers otherwise ask for
+            // open ones (SVT-AV1's intra frames are then not keyframes: a file's only
+            // random-access point is its first frame; x264's frames shown before a keyframe
+            // refer to the GOP before it, so decoding from there reports missing references).
             if s.closed_gop {
                 flags |= codec::Flags::CLOSED_GOP;
             }

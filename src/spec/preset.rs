@@ -91,8 +91,9 @@ pub struct VideoSettings {
     /// Every `gop`-th frame a keyframe (closed GOPs), as in LeRobot's own files: libavcodec's
     /// SVT-AV1 wrapper otherwise asks for open GOPs, whose intra frames are not keyframes, and
     /// a LeRobot reader seeking to a frame of a file shared by every episode would decode from
-    /// its first frame. On for parquet's LeRobot videos; x264 (hdf5's default) closes its GOPs
-    /// anyway.
+    /// its first frame. On for every stream chunkc encodes: libavcodec's x264 wrapper, too, asks
+    /// for open GOPs unless told, and a reader that starts at an open GOP's keyframe gets
+    /// errors (and broken frames) for the frames shown before it, which refer to the GOP before.
     pub closed_gop: bool,
 }
 
@@ -115,13 +116,14 @@ pub const DEFAULT_VIDEO_GOP: u32 = 2;
 
 /// The encoder of hdf5's `image_compression = "video"` when the spec names none: H.264 (about
 /// twice as fast to decode on a data-loader CPU as AV1) at x264's own default quality, with a
-/// keyframe every 8 frames: a random frame decodes at most 8 (4.5 on average).
+/// keyframe every 8 frames (closed GOPs, each a random-access point): a random frame decodes at
+/// most 8 (4.5 on average).
 pub const STORAGE_VIDEO: VideoSettings = VideoSettings {
     codec: VideoCodec::Libx264,
     crf: 23,
     gop: 8,
     copy: StreamCopy::AnyCodec,
-    closed_gop: false,
+    closed_gop: true,
 };
 
 impl Profile {

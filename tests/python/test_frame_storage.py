@@ -160,11 +160,17 @@ def test_video_frames_are_pyav_decodes_of_the_stored_files(tmp_path):
                 # A keyframe at least every 8 frames.
                 idx = sorted(round(float(k * s.time_base) * 50) for k in keys)
                 assert idx[0] == 0 and max(np.diff(idx + [frames or idx[-1] + 1])) <= 8, idx
+                # Closed GOPs: decoding from any keyframe starts at that keyframe (an open GOP's
+                # first frames out would be earlier ones, which refer to the GOP before).
+                for k in keys[1:]:
+                    c.seek(k, stream=s, backward=True)
+                    assert next(c.decode(s)).pts == k, (cam, e, k)
         assert_loader_returns(root, cam, pyav_frames(root, cam))
     lock = json.loads((tmp_path / "chunkc.lock").read_text())["specs"]["spec.toml"]["profiles"]
     assert lock["video"]["encoder"]["name"] == "libx264"
     assert lock["video"]["encoder"]["settings"]["gop"] == "8"
     assert lock["video"]["encoder"]["settings"]["x264_params"] == "cpu-independent=1"
+    assert lock["video"]["encoder"]["settings"]["closed_gop"] == "1"
     assert lock["video"]["encoder"]["version"].startswith("libavcodec ")
 
 
