@@ -644,10 +644,10 @@ class _VideoFrames:
     """`image_compression = "video"`: one mp4 per episode (`videos/<camera>/episode_<id>.mp4`),
     decoded with PyAV (`pip install av`) as `frame.to_ndarray(format="rgb24")` gives it. A frame is
     found by seeking to the keyframe before it; each group of pictures (GOP) a batch needs is
-    decoded once, from its keyframe up to the last frame the batch wants from it, and the last
-    decoded GOP of each file is kept, so the windows of a batch (and the next batch's) that share
-    a GOP decode it once. Files are opened lazily in each process (each
-    DataLoader worker) and kept open, up to OPEN_FILES of them."""
+    decoded once, from its keyframe up to the last frame the batch wants from it, and only the
+    frames a window wants are converted to RGB. The last decoded GOP of each file is kept, so the
+    windows of a batch (and the next batch's) that share a GOP decode it once. Files are opened
+    lazily in each process (each DataLoader worker) and kept open, up to OPEN_FILES of them."""
 
     OPEN_FILES = 64
 
@@ -714,7 +714,8 @@ class _VideoFrames:
                 for frame in container.decode(stream):
                     i = self._index(frame.pts, stream)
                     if i >= first:
-                        frames[i - first] = frame.to_ndarray(format="rgb24")
+                        # Kept decoded; converted to RGB only when a window wants it (`pixels`).
+                        frames[i - first] = frame
                     if i >= upto:
                         break
             except av.error.FFmpegError as e:
@@ -725,6 +726,14 @@ class _VideoFrames:
                                  "is truncated or corrupt: rebuild the dataset")
             gops[ep] = (first, frames)
             return gops[ep]
+
+        def pixels(frames, i):
+            """Frame i of a decoded GOP as RGB, converted once (the frames before a wanted one,
+            decoded to reach it, are never converted)."""
+            f = frames[i]
+            if not isinstance(f, np.ndarray):
+                f = frames[i] = f.to_ndarray(format="rgb24")
+            return f
 
         def read(rows):
             rows = np.asarray(rows, dtype=np.int64)
@@ -742,7 +751,7 @@ class _VideoFrames:
                     wanted = ks[mine]
                     first, frames = gop(ep, int(wanted.min()), int(wanted.max()))
                     for j, k in zip(mine.tolist(), wanted.tolist()):
-                        out[j] = frames[k - first].reshape(self.shape)
+                        out[j] = pixels(frames, k - first).reshape(self.shape)
             return out
 
         return read
