@@ -95,18 +95,6 @@ pub struct VideoStream {
 impl VideoStream {
     /// Creates `path` (its directory must exist) for RGB24 frames of `shape`.
     pub fn create(path: &Path, shape: StreamShape, settings: VideoSettings) -> Result<Self> {
-        let fail = |m: String| Error::output(format!("{}: {m}", path.display()));
-        if shape.height < 2
-            || shape.width < 2
-            || !shape.height.is_multiple_of(2)
-            || !shape.width.is_multiple_of(2)
-        {
-            return Err(fail(format!(
-                "cannot encode {}x{} frames as {PIX_FMT} video: height and width must be even \
-                 and at least 2",
-                shape.height, shape.width
-            )));
-        }
         Self::create_on(path, shape, settings, None)
     }
 
@@ -129,6 +117,17 @@ impl VideoStream {
         asm: Option<&str>,
     ) -> Result<Self> {
         let fail = |m: String| Error::output(format!("{}: {m}", path.display()));
+        if shape.height < 2
+            || shape.width < 2
+            || !shape.height.is_multiple_of(2)
+            || !shape.width.is_multiple_of(2)
+        {
+            return Err(fail(format!(
+                "cannot encode {}x{} frames as {PIX_FMT} video: height and width must be even \
+                 and at least 2",
+                shape.height, shape.width
+            )));
+        }
         #[cfg(feature = "video")]
         {
             let inner = imp::Inner::create(path, shape, settings, asm).map_err(fail)?;
@@ -141,7 +140,7 @@ impl VideoStream {
         }
         #[cfg(not(feature = "video"))]
         {
-            let _ = (shape, settings, asm);
+            let _ = (settings, asm);
             Err(fail(
                 "writing video needs a chunkc built with the `video` cargo feature".into(),
             ))

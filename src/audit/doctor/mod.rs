@@ -7,11 +7,11 @@
 //! Each episode's action and state reduce to features of a fixed size ([`Features`]), in
 //! parallel: `build` computes them from the values it reads anyway (as it reads each episode,
 //! [`Probe::features`], or from its row store beside the writes, [`Probe::reduce`]); `audit`,
-//! `plan` and `check` read the two channels in a pass of their own ([`run`]). The judgement ([`judge`]) then runs over all features in source order, so the
-//! result depends neither on the thread count nor on the pass. Precision first: an episode's
-//! convention and units are judged before anything else ([`convention`]), every other check
-//! measures against robust dataset-wide references (medians, MADs), and so one fault does not
-//! set off another check.
+//! `plan` and `check` read the two channels in a pass of their own ([`run`]). The judgement
+//! ([`judge`]) then runs over all features in source order, so the result depends neither on the
+//! thread count nor on the pass. Precision first: an episode's convention and units are judged
+//! before anything else ([`convention`]), every other check measures against robust dataset-wide
+//! references (medians, MADs), and so one fault does not set off another check.
 //!
 //! - `features`: what one episode reduces to (read once, in parallel).
 //! - `judge`: every check over the features, one function each; the findings into the report.
