@@ -306,11 +306,15 @@ pub struct DoctorSpec {
     /// One-step spikes in an action dimension.
     #[serde(default)]
     pub jump: DoctorAction,
-    /// Flag `jump` when a value lies off the line through its two neighbours by more than this
-    /// many robust standard deviations of the dimension's step changes in the episode (at least
-    /// half the dataset's median), going out and straight back.
+    /// Flag `jump` when a value lies off the line through its two neighbours, going out and
+    /// straight back, by more than this many times the dimension's motion scale: the median over
+    /// episodes of the 90th percentile of that distance at the steps where it moves (how much a
+    /// real motion of the dimension bends from step to step).
     #[serde(default = "default_jump_threshold")]
     pub jump_threshold: f64,
+    /// ... and by more than this fraction of the dimension's range over the dataset.
+    #[serde(default = "default_jump_range")]
+    pub jump_range: f64,
     /// Near-copies of an earlier episode (the later one is flagged).
     #[serde(default)]
     pub duplicate: DoctorAction,
@@ -363,7 +367,10 @@ fn default_clip_fraction() -> f64 {
     0.05
 }
 fn default_jump_threshold() -> f64 {
-    4.0
+    8.0
+}
+fn default_jump_range() -> f64 {
+    0.05
 }
 fn default_duplicate_tolerance() -> f64 {
     0.01
@@ -388,6 +395,7 @@ impl Default for DoctorSpec {
             clip_fraction: default_clip_fraction(),
             jump: DoctorAction::Warn,
             jump_threshold: default_jump_threshold(),
+            jump_range: default_jump_range(),
             duplicate: DoctorAction::Warn,
             duplicate_tolerance: default_duplicate_tolerance(),
             misaligned: DoctorAction::Warn,

@@ -7,8 +7,10 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use super::features::Features;
-use super::{alignment, convention, duplicates, shift, short, signal, stats};
-use super::{DoctorSummary, Finding, ShiftDim, MISALIGNED_GAIN, STUCK_UNCHANGED};
+use super::found::Found;
+use super::judge_signal::signal_checks;
+use super::{alignment, convention, duplicates, shift, short, signal, stats, warnings};
+use super::{DoctorSummary, ShiftDim, MISALIGNED_GAIN, STUCK_UNCHANGED};
 use crate::audit::report::{AuditReport, Flag, Verdict};
 use crate::error::{Error, Result};
 use crate::spec::{DoctorAction, DoctorSpec, LoadedSpec};
@@ -28,27 +30,6 @@ pub struct Context<'a> {
 /// Episodes flagged, per flag name.
 type Flagged = BTreeMap<String, u64>;
 
-/// The findings being gathered, per episode (in the features' order).
-struct Found(Vec<Vec<Finding>>);
-
-impl Found {
-    fn add(
-        &mut self,
-        e: usize,
-        flag: Flag,
-        action: DoctorAction,
-        detail: String,
-        ev: &[(&str, f64)],
-    ) {
-        self.0[e].push(Finding {
-            flag,
-            action,
-            detail,
-            evidence: ev.iter().map(|(k, v)| (k.to_string(), *v)).collect(),
-        });
-    }
-}
-
 /// Judges `feats` and puts the flags, findings, verdicts, warnings and summary into `report`
 /// (episodes matched by id). Returns the ids the doctor excludes (`= "exclude"`), with why;
 /// an `= "error"` finding is the error.
@@ -61,22 +42,24 @@ pub fn judge(
     let mut found = Found(vec![Vec::new(); feats.len()]);
     let judged = units_and_alignment(cfg, feats, &mut found);
     let scale = units_scale(cfg, &judged);
-    let step_sigma = signal_checks(cfg, feats, &scale, cx.a_dim, &mut found);
+    let motion_scale = signal_checks(cfg, feats, &scale, cx.a_dim, &mut found);
     let constant = constant_dims(feats, cx.a_dim, cx.s_dim);
     let stuck = stuck_dims(cfg, feats, &constant, cx.a_dim, cx.s_dim);
     let pairs = duplicate_pairs(cfg, feats, cx, &mut found);
     short_episodes(cx, feats, &mut found);
     let shifts = shifts(feats, cx.a_dim, cx.s_dim);
+    let groups = warnings::flag_groups(cx.ids, &found.0);
     let (flagged, excluded) = into_report(cx, found, report)?;
-    warnings(
-        cx,
-        report,
-        &flagged,
-        &constant,
-        &stuck,
-        &shifts,
-        judged.mode,
-    );
+    let inputs = warnings::Inputs {
+        spec: cx.spec,
+        episodes: feats.len(),
+        groups: &groups,
+        constant: &constant,
+        stuck: &stuck,
+        shifts: &shifts,
+        lag_mode: judged.mode,
+    };
+    warnings::warnings(&inputs, report);
     let mut conventions: BTreeMap<String, u64> = BTreeMap::new();
     for (c, l) in judged.conventions.iter().zip(&judged.lags) {
         if l.is_some() {
@@ -105,7 +88,7 @@ pub fn judge(
             .copied()
             .zip(judged.units.iter().copied())
             .collect(),
-        step_sigma,
+        motion_scale,
         constant,
         stuck,
         shift: shifts,
@@ -199,101 +182,11 @@ fn units_scale(cfg: &DoctorSpec, judged: &convention::Judged) -> Vec<f64> {
         .collect()
 }
 
-/// Frozen, clipped and jump, per action dimension against the dataset. Returns the step sigmas
-/// (the jump check's reference, per dimension).
-// Long function: the three signal checks share the per-dimension references they compute.
-fn signal_checks(
-    cfg: &DoctorSpec,
-    feats: &[Features],
-    scale: &[f64],
-    a_dim: usize,
-    found: &mut Found,
-) -> Vec<f64> {
-    let episodes = feats.len();
-    let step_sigma: Vec<f64> = (0..a_dim)
-        .map(|d| {
-            stats::median(
-                feats
-                    .iter()
-                    .zip(scale)
-                    .map(|(f, u)| f64::from(f.signal[d].step_sigma) / u),
-            )
-        })
-        .collect();
-    for (d, &sigma) in step_sigma.iter().enumerate() {
-        let long = |f: &Features| {
-            f.n >= 10 && f64::from(f.signal[d].run.len) >= cfg.frozen_fraction * f.n as f64
-        };
-        let static_share = feats.iter().filter(|f| long(f)).count() as f64 / episodes as f64;
-        let clip_median = stats::median(feats.iter().map(|f| f.signal[d].clip(f.n).0));
-        let (lowest, highest) = range(
-            feats
-                .iter()
-                .map(|f| (f64::from(f.signal[d].min), f64::from(f.signal[d].max))),
-        );
-        for (e, f) in feats.iter().enumerate() {
-            let sig = &f.signal[d];
-            let clip = sig.clip(f.n);
-            let value = f64::from(sig.run.value);
-            let at_limit = value == lowest || value == highest;
-            if long(f) && static_share < 0.5 && !at_limit {
-                let (len, from) = (sig.run.len, sig.run.start);
-                found.add(e, Flag::Frozen, cfg.frozen, format!(
-                    "action[{d}] holds {value} for {len} of {} steps from step {from}, where it moves in most episodes", f.n),
-                    &[("dim", d as f64), ("steps", len as f64), ("from", from as f64), ("value", value)]);
-            } else if clip.0 >= cfg.clip_fraction
-                && clip_median < cfg.clip_fraction
-                && !long(f)
-                && clip.1 != lowest
-                && clip.1 != highest
-            {
-                let (share, bound, side) = clip;
-                found.add(
-                    e,
-                    Flag::Clipped,
-                    cfg.clipped,
-                    format!(
-                        "action[{d}] sits at its {side} {bound} for {:.0}% of the steps",
-                        100.0 * share
-                    ),
-                    &[("dim", d as f64), ("share", share), ("bound", bound)],
-                );
-            }
-            if sigma > 0.0 {
-                let (size, step) = (f64::from(sig.spikes[0].size), sig.spikes[0].step);
-                // Against the episode's own step changes (the fault is "k of its own robust
-                // std"), never below half the dataset's: a dimension that holds still in this
-                // episode does not turn its sensor noise into spikes.
-                let own = (f64::from(sig.step_sigma) / scale[e]).max(0.5 * sigma);
-                let z = size / scale[e] / own;
-                if z > cfg.jump_threshold {
-                    let count = sig
-                        .spikes
-                        .iter()
-                        .filter(|s| f64::from(s.size) / scale[e] / own > cfg.jump_threshold)
-                        .count();
-                    found.add(e, Flag::Jump, cfg.jump, format!(
-                        "action[{d}] spikes at step {step} by {z:.1} robust std of its step changes ({count} such steps)"),
-                        &[("dim", d as f64), ("step", f64::from(step)), ("z", z)]);
-                }
-            }
-        }
-    }
-    step_sigma
-}
-
-/// The lowest and highest of `(min, max)` pairs.
-fn range(pairs: impl Iterator<Item = (f64, f64)>) -> (f64, f64) {
-    pairs.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (a, b)| {
-        (lo.min(a), hi.max(b))
-    })
-}
-
 /// `channel[dim]` constant over the whole dataset, with its value.
 fn constant_dims(feats: &[Features], a_dim: usize, s_dim: usize) -> Vec<(String, usize, f64)> {
     let mut constant = Vec::new();
     for d in 0..a_dim {
-        let (lo, hi) = range(
+        let (lo, hi) = stats::range(
             feats
                 .iter()
                 .map(|f| (f64::from(f.signal[d].min), f64::from(f.signal[d].max))),
@@ -303,7 +196,7 @@ fn constant_dims(feats: &[Features], a_dim: usize, s_dim: usize) -> Vec<(String,
         }
     }
     for d in 0..s_dim {
-        let (lo, hi) = range(
+        let (lo, hi) = stats::range(
             feats
                 .iter()
                 .map(|f| (f64::from(f.state[d].lo), f64::from(f.state[d].hi))),
@@ -496,9 +389,15 @@ fn into_report(
                 }
             }
         }
+        // The reason names only what excluded it, not every finding of the episode.
+        let causes: Vec<String> = list
+            .iter()
+            .filter(|f| f.action == DoctorAction::Exclude)
+            .map(|f| format!("{}: {}", f.flag.name(), f.detail))
+            .collect();
         audit.findings = list;
         if let Some(last) = excluded.last_mut().filter(|x| x.0 == audit.id) {
-            last.1 = format!("audit: {}", audit.detail);
+            last.1 = format!("dataset doctor: {}", causes.join("; "));
         }
     }
     if let Some(message) = error {
@@ -511,88 +410,4 @@ fn into_report(
         .count() as f64
         / report.episodes.len().max(1) as f64;
     Ok((flagged, excluded))
-}
-
-/// The dataset-wide warnings: flag counts, constant and stuck dimensions, shift, the lag.
-// Long function: one paragraph per warning, in the order `chunkc audit` prints them.
-fn warnings(
-    cx: &Context,
-    report: &mut AuditReport,
-    flagged: &BTreeMap<String, u64>,
-    constant: &[(String, usize, f64)],
-    stuck: &[(String, usize, f64)],
-    shifts: &[ShiftDim],
-    lag_mode: Option<i32>,
-) {
-    let cfg = &cx.spec.spec.audit.doctor;
-    if !flagged.is_empty() {
-        let counts: Vec<String> = flagged.iter().map(|(k, v)| format!("{k} {v}")).collect();
-        report.warnings.push(format!(
-            "the dataset doctor flagged episodes: {}",
-            counts.join(", ")
-        ));
-    }
-    for (channel, d, v) in constant {
-        let mut affected = Vec::new();
-        for p in &cx.spec.profiles {
-            let mode = p
-                .normalize
-                .get(channel)
-                .copied()
-                .unwrap_or(p.normalize_lowdim);
-            affected.push(format!("`{}` ({mode:?})", p.name));
-        }
-        report.warnings.push(format!(
-            "`{channel}[{d}]` is constant ({v}) over the whole dataset: its std and range are 0, so z-score and min-max normalization divide by the floor; profiles {}",
-            affected.join(", ")
-        ));
-    }
-    for (channel, d, share) in stuck {
-        report.warnings.push(format!(
-            "`{channel}[{d}]` holds still (one value for {:.0}% of the steps, or unchanged in {:.0}% of them) in {:.0}% of the episodes: an unused or stuck degree of freedom",
-            100.0 * cfg.frozen_fraction,
-            100.0 * STUCK_UNCHANGED,
-            100.0 * share
-        ));
-    }
-    for channel in ["action", "observation.state"] {
-        let mut dims = Vec::new();
-        let mut worst: Option<(usize, usize, f64)> = None;
-        for s in shifts.iter().filter(|s| s.channel == channel) {
-            let Some((q, &dev)) = s
-                .deviations
-                .iter()
-                .enumerate()
-                .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-            else {
-                continue;
-            };
-            if dev.abs() > cfg.shift_threshold {
-                dims.push(s.dim.to_string());
-                if worst.is_none_or(|w| dev.abs() > w.2.abs()) {
-                    worst = Some((s.dim, q, dev));
-                }
-            }
-        }
-        if let Some((d, q, dev)) = worst {
-            report.warnings.push(format!(
-                "distribution shift across the recording in `{channel}` dimensions {}: the largest, `{channel}[{d}]`, has its quarter {} of the episodes (recording order) {dev:+.2} robust std from the dataset's median",
-                dims.join(", "),
-                q + 1
-            ));
-        }
-    }
-    if let Some(mode) = lag_mode {
-        if mode.abs_diff(1) > cfg.lag_tolerance {
-            let names: Vec<String> = cx
-                .spec
-                .profiles
-                .iter()
-                .map(|p| format!("`{}` ({})", p.name, p.alignment.name()))
-                .collect();
-            report.warnings.push(format!(
-                "the actions first show in the state {mode} steps later (the dataset's mode), where the profiles' alignment ({}) assumes the action of step t is executed from the observation of step t and shows at t + 1",
-                names.join(", ")));
-        }
-    }
 }

@@ -14,7 +14,9 @@
 //! references (medians, MADs), and so one fault does not set off another check.
 //!
 //! - `features`: what one episode reduces to (read once, in parallel).
-//! - `judge`: every check over the features, one function each; the findings into the report.
+//! - `judge`: every check over the features, one function each; the findings into the report
+//!   (`found`); `judge_signal`: the signal checks' judgement; `warnings`: the dataset-wide
+//!   warnings, one line per kind.
 //! - `stats`: medians, MAD, mode.
 //! - `signal`: frozen, clipped, jump (and the constant dimensions); `spikes`: jump's search.
 //! - `columns`: an episode's channel by column, and the sums the features share.
@@ -27,13 +29,16 @@ mod columns;
 mod convention;
 mod duplicates;
 mod features;
+mod found;
 mod judge;
+mod judge_signal;
 mod lanes;
 mod shift;
 mod short;
 mod signal;
 mod spikes;
 mod stats;
+mod warnings;
 
 use std::collections::BTreeMap;
 
@@ -85,8 +90,10 @@ pub struct DoctorSummary {
     pub conventions: BTreeMap<String, u64>,
     /// Per episode in source order: (id, the action's units factor against the dataset).
     pub units: Vec<(u64, f64)>,
-    /// Per action dimension, the reference of the jump check (robust std of step changes).
-    pub step_sigma: Vec<f64>,
+    /// Per action dimension, the reference of the jump check: its motion scale (the median
+    /// episode's 90th percentile of a moving step's distance from the line through its
+    /// neighbours).
+    pub motion_scale: Vec<f64>,
     /// `channel[dim]` constant over the whole dataset, with the value.
     pub constant: Vec<(String, usize, f64)>,
     /// `channel[dim]` holding still in most episodes, with the share of episodes.

@@ -2,26 +2,32 @@
 //! makes, made robust): frozen dimensions, clipped runs, one-step spikes, and dimensions constant
 //! over the whole dataset.
 //!
+//! Each is measured against the dimension's own motion and range, because real joints sit still
+//! for most of an episode, move in quantized steps (servo ticks: the median step is 0) or are
+//! not used at all, and a reference taken over every step (the robust std of the step changes)
+//! is then the sensor's noise, against which every real motion looks like a fault. Calibrated on
+//! real LeRobot datasets of six robots (book: doctor.md, "Calibrated on real data").
+//!
 //! - **frozen**: the longest run of one exact value covers at least `frozen_fraction` of the
-//!   episode, in a dimension that does not hold still like that in most episodes (a gripper that
-//!   never moves in the dataset is `constant`, not frozen), at a value that is not the
-//!   dimension's dataset-wide min or max (a hand closed on an object holds its limit).
+//!   episode and at least twice the dimension's median over the episodes (a joint that rests
+//!   for half of most episodes rests), in a dimension where at most a fifth of the other
+//!   episodes hold that long (a dimension unused in many episodes is `stuck`, a dataset-wide
+//!   warning, not a fault of each), at a value that is not the dimension's dataset-wide min or
+//!   max (a hand closed on an object holds its limit).
 //! - **clipped**: at least `clip_fraction` of the steps sit exactly at the episode's max (or min)
-//!   in runs of two or more that the signal enters and leaves moving (a full step of at least
-//!   half the episode's typical step on each side: a hand at rest decelerates into its extreme,
-//!   a saturated command runs into it), at a bound inside the range the other episodes reach
-//!   (a hand fully closed sits at the dataset's limit by design), in a dimension whose median
-//!   episode does not sit at its bounds.
-//! - **jump**: a one-step spike: a value off the line through its two neighbours by more than
-//!   `jump_threshold` robust standard deviations of the dimension's step changes, whose
-//!   neighbours echo it (a step out and straight back) and which stands out from the curvature
-//!   two steps away ([`spikes::largest`]). Measured from the line, not from each neighbour, a spike riding
-//!   on a fast motion is as visible as one on a still signal. The reference is the median over
-//!   episodes of each episode's MAD of step changes, after dividing every episode by its units
-//!   factor, so a units-changed episode is not "full of jumps", and a few spikes do not inflate
-//!   it. A gripper or hand closing in one step is a step (one neighbour on each side of the
-//!   line, no echo), and the turning point of a fast motion (the G1 set's hand joints closing
-//!   and opening within a few steps) bends the steps around it: neither is a spike.
+//!   in two or more runs of two or more steps, each entered and left moving (a full step of at
+//!   least half the episode's 90th percentile of its non-zero steps on each side: a joint at
+//!   rest decelerates into its extreme; a saturated command runs into the same ceiling again
+//!   and again), none at the episode's start or end (a rest pose), at a bound inside the range
+//!   the other episodes reach, in a dimension whose median episode does not sit at its bounds.
+//! - **jump**: a one-step spike: a value off the line through its two neighbours, going out and
+//!   straight back ([`spikes::largest`]), by more than `jump_threshold` times the dimension's
+//!   motion scale and `jump_range` of its range over the dataset. The motion scale is the median
+//!   over episodes of each episode's 90th percentile of that same distance at the steps where
+//!   the dimension moves: how much the dimension's real motion bends from one step to the next.
+//!   A still or quantized dimension has no step sigma to speak of, but a scale of its motion
+//!   all the same; a dimension whose range is its noise (an arm that is not used) has a motion
+//!   scale of the size of its range. Episodes in other units are measured in the dataset's.
 
 use super::spikes;
 
@@ -34,12 +40,15 @@ pub struct DimSignal {
     pub run: Run,
     /// Steps at the episode's max (or min) in runs of two or more (see [`dim_signal`]).
     pub clip_steps: u32,
+    /// How many runs `clip_steps` counts.
+    pub clip_runs: u32,
     /// Whether `clip_steps` counts the max (else the min).
     pub clip_max: bool,
     /// Steps equal to the step before.
     pub unchanged: u32,
-    /// 1.4826 × MAD of the step changes.
-    pub step_sigma: f32,
+    /// The 90th percentile of the distance from the line through the neighbours at the steps
+    /// where the dimension moves (NaN with fewer than [`MOTION_STEPS`] such steps).
+    pub motion: f32,
     /// The largest spikes (the distance from the line through the neighbours), largest first
     /// (size 0: none).
     pub spikes: [spikes::Spike; 3],
@@ -67,6 +76,9 @@ impl DimSignal {
     }
 }
 
+/// The fewest moving steps an episode's motion scale is taken from.
+pub const MOTION_STEPS: usize = 10;
+
 /// The share of an episode's `n` steps equal to the step before, from their count.
 pub fn unchanged_share(unchanged: u32, n: usize) -> f64 {
     f64::from(unchanged) / n.saturating_sub(1).max(1) as f64
@@ -78,6 +90,18 @@ pub struct Scratch {
     steps: Vec<f32>,
     keys: Vec<u32>,
     spikes: spikes::Scratch,
+}
+
+/// The 90th percentile (the lower of the two nearest ranks) of non-negative finite values given
+/// as their bits (whose integer order is their order); NaN when there are fewer than `least`.
+#[inline(always)]
+fn p90_of_bits(bits: &mut [u32], least: usize) -> f32 {
+    let m = bits.len();
+    if m < least.max(1) {
+        return f32::NAN;
+    }
+    let k = (9 * (m - 1)) / 10;
+    f32::from_bits(*bits.select_nth_unstable(k).1)
 }
 
 /// The features of one column `x` (finite values).
@@ -99,19 +123,33 @@ pub fn dim_signal(x: &[f32], scratch: &mut Scratch) -> DimSignal {
     // A step of 0 is a value equal to the one before (finite values).
     out.unchanged = steps.iter().map(|&d| u32::from(d == 0.0)).sum();
     out.run = longest_run(x, out.unchanged);
-    out.step_sigma = if steps.is_empty() {
-        0.0
-    } else {
-        (1.4826 * f64::from(super::stats::mad_f32(steps, &mut scratch.keys))) as f32
-    };
+    // The motion scale: the distance from the line through the neighbours at the steps where
+    // the dimension moves (either neighbour differs).
+    let keys = &mut scratch.keys;
+    keys.clear();
+    for t in 1..n.saturating_sub(1) {
+        if x[t] != x[t - 1] || x[t + 1] != x[t] {
+            let r = f64::from(x[t]) - 0.5 * (f64::from(x[t - 1]) + f64::from(x[t + 1]));
+            keys.push((r.abs() as f32).to_bits());
+        }
+    }
+    out.motion = p90_of_bits(keys, MOTION_STEPS);
     if max > min {
         // Steps in runs (two or more) at `bound` that the signal enters and leaves moving: a
-        // full step of at least half the episode's typical step on each side (a hand at rest
-        // decelerates into its extreme; a saturated command runs into it).
-        let half = 0.5 * f64::from(out.step_sigma);
+        // full step of at least half the episode's 90th percentile of its non-zero steps on each
+        // side (a joint at rest decelerates into its extreme; a saturated command runs into
+        // it), away from the episode's ends (a rest pose).
+        keys.clear();
+        keys.extend(
+            steps
+                .iter()
+                .filter(|&&d| d != 0.0)
+                .map(|d| d.abs().to_bits()),
+        );
+        let half = 0.5 * f64::from(p90_of_bits(keys, 1));
         let brisk = |t: usize, u: usize| (f64::from(x[t]) - f64::from(x[u])).abs() >= half;
         let at = |bound: f32| {
-            let mut count = 0;
+            let (mut count, mut runs) = (0, 0);
             let mut t = 0;
             while t < n {
                 if x[t] != bound {
@@ -122,19 +160,25 @@ pub fn dim_signal(x: &[f32], scratch: &mut Scratch) -> DimSignal {
                 while t < n && x[t] == bound {
                     t += 1;
                 }
-                let enters = start < 2 || brisk(start - 1, start - 2);
-                let leaves = t + 1 >= n || brisk(t + 1, t);
+                let enters = start >= 2 && brisk(start - 1, start - 2);
+                let leaves = t + 1 < n && brisk(t + 1, t);
                 if t - start >= 2 && enters && leaves {
                     count += t - start;
+                    runs += 1;
                 }
             }
-            count as u32
+            (count as u32, runs)
         };
         // Runs of two or more need two values at the bound: most columns touch theirs once.
         let count = |bound: f32| x.iter().map(|&v| u32::from(v == bound)).sum::<u32>();
-        let hi = if count(max) >= 2 { at(max) } else { 0 };
-        let lo = if count(min) >= 2 { at(min) } else { 0 };
-        (out.clip_steps, out.clip_max) = if hi >= lo { (hi, true) } else { (lo, false) };
+        let hi = if count(max) >= 2 { at(max) } else { (0, 0) };
+        let lo = if count(min) >= 2 { at(min) } else { (0, 0) };
+        let (best, is_max) = if hi.0 >= lo.0 {
+            (hi, true)
+        } else {
+            (lo, false)
+        };
+        (out.clip_steps, out.clip_runs, out.clip_max) = (best.0, best.1, is_max);
     }
     out.spikes = spikes::largest(x, &mut scratch.spikes);
     out

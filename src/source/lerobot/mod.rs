@@ -341,6 +341,14 @@ mod tests {
             ("episode_index", "42".into()),
         ];
         assert_eq!(fill(t, &v), "data/chunk-000/episode_000042.parquet");
+        // A v2.1 template naming the chunk `chunk_index` (as a real SO-101 set's does).
+        let t = "data/chunk-{chunk_index:03d}/episode_{episode_index:06d}.parquet";
+        let v = [
+            ("episode_chunk", "0".into()),
+            ("chunk_index", "0".into()),
+            ("episode_index", "7".into()),
+        ];
+        assert_eq!(fill(t, &v), "data/chunk-000/episode_000007.parquet");
         let t = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4";
         let v = [
             ("video_key", "observation.images.top".into()),

@@ -31,8 +31,11 @@ pub(super) fn list(root: &Path, info: &Info, media: &[&KeyInfo]) -> Result<Listi
     l.tasks = tasks;
     rows.sort();
     for (e, len) in rows {
+        // Some v2.1 writers name the chunk `chunk_index` (v3.0's word) in their templates.
+        let chunk = (e / chunks_size).to_string();
         let values = [
-            ("episode_chunk", (e / chunks_size).to_string()),
+            ("episode_chunk", chunk.clone()),
+            ("chunk_index", chunk),
             ("episode_index", e.to_string()),
         ];
         let rel = PathBuf::from(fill(data_path, &values));
