@@ -31,7 +31,7 @@ def synth(tmp: Path, name: str, faults=FAULTS, episodes=80) -> Path:
 
 def doctor_lines(text: str) -> list:
     return sorted(l.removeprefix("warning: ") for l in text.splitlines()
-                  if "dataset doctor flagged episodes" in l)
+                  if l.removeprefix("warning: ").startswith("dataset doctor: `"))
 
 
 def scaled(spec: Path) -> list:
@@ -57,12 +57,17 @@ def test_build_finds_what_the_audit_finds(tmp_path, fps):
     audit = json.loads((spec.parent / "out" / "audit" / "audit.json").read_text())
     flagged = audit["doctor"]["flagged"]
     assert set(flagged) >= {"units", "jump", "duplicate"}, flagged
-    expected = "the dataset doctor flagged episodes: " + ", ".join(
-        f"{k} {v}" for k, v in sorted(flagged.items()))
-    assert expected in audit["warnings"]
-    assert expected in audit_stderr
+    # One line per flag, counting episodes of the episodes judged, listing them.
+    n = len(audit["episodes"])
+    expected = doctor_lines("\n".join(audit["warnings"]))
+    assert len(expected) == len(flagged), expected
+    for line, (flag, count) in zip(expected, sorted(flagged.items())):
+        assert line.startswith(f"dataset doctor: `{flag}` in {count} of {n} episodes"), line
+        ids = sorted(e["id"] for e in audit["episodes"] if flag in e["flags"])
+        assert f"episodes {', '.join(map(str, ids[:12]))}" in line, line
+    assert doctor_lines(audit_stderr) == expected
     build = run_chunkc("build", spec)
-    assert doctor_lines(build.stderr) == [expected], build.stderr
+    assert doctor_lines(build.stderr) == expected, build.stderr
     assert "the dataset doctor took" in build.stderr
 
 
@@ -95,7 +100,10 @@ def test_build_excludes_and_errors_as_the_audit_does(tmp_path):
     run_chunkc("build", spec)
     meta = json.loads((spec.parent / "out" / "act" / "meta.json").read_text())
     assert sorted(e["id"] for e in meta["excluded"]) == units
-    assert all(e["reason"].startswith("audit: ") and "units: " in e["reason"] for e in meta["excluded"])
+    # The reason names what excluded the episode, not its other (warn-only) findings.
+    assert all(e["reason"].startswith("dataset doctor: units: ") for e in meta["excluded"])
+    others = {"jump", "frozen", "clipped", "duplicate", "misaligned", "mixed_convention", "short"}
+    assert not any(f"{o}: " in e["reason"] for e in meta["excluded"] for o in others)
     assert sorted(set(range(80)) - set(meta["episodes"])) == units
     # An `= "error"` finding fails the build, naming the check and the episode; nothing is
     # written (a fresh output directory stays without the profile).

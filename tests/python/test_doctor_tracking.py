@@ -1,7 +1,7 @@
 """The doctor's `jump` and `units` checks on a realistic set made by a generator of our own
 (`tracking_set.py`, independent of `chunkc synth`'s fault injection): the state tracks the
 commanded action, `state[t+1] = state[t] + a (cmd[t] - state[t]) + noise`; a tenth of the
-episodes get three single-step spikes of 5-10 robust std of a dimension's step changes in one
+episodes get three single-step spikes of 10-30% of a dimension's range in one
 action dimension, another tenth are recorded in degrees where the rest are radians (action and
 state both scaled). Over several seeds, each of the two flags must reach precision and recall of
 0.95 against the generator's truth file, no other doctor check may fire on these sets, and the

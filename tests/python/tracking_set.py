@@ -8,9 +8,11 @@ waypoints, plus a slow sinusoid), and a state that tracks it as a first-order sy
 process noise and a little sensor noise. The recorded action is `cmd`.
 
 Faults, each in its own share of the episodes (never two in one episode):
-- `spike`: three single-step spikes in one action dimension, each `k` robust standard deviations
-  of that dimension's step changes (k drawn in [spike_min, spike_max]); the truth records the
-  steps.
+- `spike`: three single-step spikes in one action dimension, at least 10 steps apart, each a
+  share `k` of that dimension's range over the dataset (k drawn in [spike_min, spike_max],
+  10-30% by default: a
+  glitch is large against the dimension's motion, not against the noise of its steps, which on
+  real still or quantized joints is nothing); the truth records the steps.
 - `units`: the episode recorded in degrees where the rest are radians: action and state both
   multiplied by 180/pi.
 
@@ -75,13 +77,8 @@ def track(rng, cmd, gain):
     return s + rng.normal(0, 0.0005, s.shape)
 
 
-def robust_step_sigma(x):
-    d = np.diff(x)
-    return 1.4826 * np.median(np.abs(d - np.median(d)))
-
-
 def generate(episodes=200, seed=0, faults=KINDS, fraction=0.1, dim=6, steps=(150, 250),
-             spike_min=5.0, spike_max=10.0):
+             spike_min=0.1, spike_max=0.3):
     """Per episode {"action", "observation.state"} float32 arrays, and the truth per episode."""
     rng = np.random.default_rng(seed)
     gain = rng.uniform(0.2, 0.5, dim)
@@ -91,18 +88,24 @@ def generate(episodes=200, seed=0, faults=KINDS, fraction=0.1, dim=6, steps=(150
     for k, kind in enumerate(faults):
         for e in order[k * share:(k + 1) * share]:
             kind_of[int(e)] = kind
-    data, truth = [], {}
+    clean = []
     for e in range(episodes):
         n = int(rng.integers(*steps))
         cmd = command(rng, n, dim)
-        state = track(rng, cmd, gain)
+        clean.append((cmd, track(rng, cmd, gain)))
+    # The spikes' sizes are shares of each dimension's range over the dataset.
+    every = np.concatenate([c for c, _ in clean])
+    span = every.max(0) - every.min(0)
+    data, truth = [], {}
+    for e, (cmd, state) in enumerate(clean):
+        n = len(cmd)
         kind = kind_of.get(e)
         if kind == "spike":
             d = int(rng.integers(dim))
-            sigma = robust_step_sigma(cmd[:, d])
-            at = np.sort(rng.choice(np.arange(10, n - 10), 3, replace=False))
+            # Three single glitches, at least 10 steps apart (not one three-step burst).
+            at = np.sort(rng.choice(np.arange(10, n - 10, 10), 3, replace=False))
             for t in at:
-                cmd[t, d] += rng.choice([-1, 1]) * rng.uniform(spike_min, spike_max) * sigma
+                cmd[t, d] += rng.choice([-1, 1]) * rng.uniform(spike_min, spike_max) * span[d]
             truth[e] = [{"kind": "spike", "dim": d, "steps": at.tolist()}]
         elif kind == "units":
             cmd, state = cmd * 180 / np.pi, state * 180 / np.pi

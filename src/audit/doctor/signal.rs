@@ -15,10 +15,11 @@
 //!   warning, not a fault of each), at a value that is not the dimension's dataset-wide min or
 //!   max (a hand closed on an object holds its limit).
 //! - **clipped**: at least `clip_fraction` of the steps sit exactly at the episode's max (or min)
-//!   in two or more runs of two or more steps, each entered and left moving (a full step of at
-//!   least half the episode's 90th percentile of its non-zero steps on each side: a joint at
-//!   rest decelerates into its extreme; a saturated command runs into the same ceiling again
-//!   and again), none at the episode's start or end (a rest pose), at a bound inside the range
+//!   in two or more runs of two or more steps, each entered and left moving (a step of at least
+//!   0.15 times the episode's 90th percentile of its non-zero steps and three quanta, its
+//!   smallest non-zero step, on each side: a joint at rest decelerates into its extreme, down
+//!   to single servo ticks; a saturated command runs into the same ceiling again and again),
+//!   none at the episode's start or end (a rest pose), at a bound inside the range
 //!   the other episodes reach, in a dimension whose median episode does not sit at its bounds.
 //! - **jump**: a one-step spike: a value off the line through its two neighbours, going out and
 //!   straight back ([`spikes::largest`]), by more than `jump_threshold` times the dimension's
@@ -75,6 +76,10 @@ impl DimSignal {
         }
     }
 }
+
+/// A run at a bound counts as `clipped` when the signal enters and leaves it with a step of at
+/// least this share of the episode's 90th percentile of its non-zero steps.
+const CLIP_ENTRY: f64 = 0.15;
 
 /// The fewest moving steps an episode's motion scale is taken from.
 pub const MOTION_STEPS: usize = 10;
@@ -136,9 +141,10 @@ pub fn dim_signal(x: &[f32], scratch: &mut Scratch) -> DimSignal {
     out.motion = p90_of_bits(keys, MOTION_STEPS);
     if max > min {
         // Steps in runs (two or more) at `bound` that the signal enters and leaves moving: a
-        // full step of at least half the episode's 90th percentile of its non-zero steps on each
-        // side (a joint at rest decelerates into its extreme; a saturated command runs into
-        // it), away from the episode's ends (a rest pose).
+        // step of at least 0.15 times the episode's 90th percentile of its non-zero steps, and
+        // of three quanta (its smallest non-zero step), on each side (a joint at rest
+        // decelerates into its extreme, down to single servo ticks; a saturated command runs
+        // into it), away from the episode's ends (a rest pose).
         keys.clear();
         keys.extend(
             steps
@@ -146,7 +152,8 @@ pub fn dim_signal(x: &[f32], scratch: &mut Scratch) -> DimSignal {
                 .filter(|&&d| d != 0.0)
                 .map(|d| d.abs().to_bits()),
         );
-        let half = 0.5 * f64::from(p90_of_bits(keys, 1));
+        let quantum = keys.iter().copied().min().map_or(0.0, f32::from_bits);
+        let half = (CLIP_ENTRY * f64::from(p90_of_bits(keys, 1))).max(3.0 * f64::from(quantum));
         let brisk = |t: usize, u: usize| (f64::from(x[t]) - f64::from(x[u])).abs() >= half;
         let at = |bound: f32| {
             let (mut count, mut runs) = (0, 0);
