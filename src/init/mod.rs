@@ -1,16 +1,20 @@
 //! `chunkc init` and `chunkc inspect`: from a dataset folder to a first spec.
 //!
 //! [`inspect`] detects the layout ([`crate::source::detect`]), lists every key the source offers
-//! and decides what each is for ([`roles`]), finds the rate (stored, from timestamps, or a
+//! and decides what each is for ([`roles`]; [`state`] picks the robot state, guessing when it
+//! must so that the spec observes something), finds the rate (stored, from timestamps, or a
 //! guess it says is one: [`propose::rate_guess`]), checks that each camera the spec would name
-//! can be read (a LeRobot camera whose videos are missing is left out, with the reason), runs
+//! can be read ([`cameras`]: a LeRobot camera whose videos are missing for some episodes is
+//! kept and those episodes excluded; one that cannot be read is left out, with the reason), runs
 //! the timing audit and the action's autocorrelation, and proposes a profile per target with
 //! the numbers behind each choice ([`propose`]). [`text`] writes that as a commented spec,
 //! [`summary`] as what both commands print. Nothing here writes a file: the `init` driver in
 //! `commands` checks the spec as `chunkc check` would and writes it.
 
+pub mod cameras;
 pub mod propose;
 pub mod roles;
+pub mod state;
 pub mod summary;
 pub mod text;
 
@@ -24,6 +28,7 @@ use crate::error::{Error, Result};
 use crate::source::{self, detect};
 use crate::spec::{LoadedSpec, SourceFormat};
 
+pub use cameras::MissingVideos;
 pub use propose::{AcfSummary, ProposedProfile, Rate};
 pub use roles::{KeyRole, Role};
 
@@ -68,6 +73,9 @@ pub struct Inspection {
     pub shortest: usize,
     pub longest: usize,
     pub keys: Vec<KeyRole>,
+    /// Cameras kept although some episodes have no video for them (the spec excludes those
+    /// episodes: `[audit] video = "exclude_episode"`).
+    pub missing_videos: Vec<MissingVideos>,
     /// Distinct tasks (language instructions) the source stores per episode.
     pub tasks: usize,
     pub timing: TimingSummary,
@@ -139,6 +147,7 @@ pub fn inspect(path: &Path, spec_dir: &Path, options: &InitOptions) -> Result<In
         fps: None,
         out_dir: &format!("out/{name}"),
         spec_dir: &spec_dir,
+        exclude_bad_videos: false,
     };
 
     // The keys, with a rate where the adapter needs one before it lists them.
@@ -181,9 +190,12 @@ pub fn inspect(path: &Path, spec_dir: &Path, options: &InitOptions) -> Result<In
         )));
     };
 
-    if found.format == SourceFormat::Lerobot {
-        leave_out_unreadable_cameras(&mut roles, &action, &draft, &spec_dir)?;
-    }
+    let missing_videos = if found.format == SourceFormat::Lerobot {
+        cameras::check(&mut roles, &action, &draft, &spec_dir)?
+    } else {
+        Vec::new()
+    };
+    let draft = draft.excluding_bad_videos(!missing_videos.is_empty());
 
     // The mapped channels, opened as the build will open them.
     let channels: Vec<_> = roles
@@ -203,7 +215,7 @@ pub fn inspect(path: &Path, spec_dir: &Path, options: &InitOptions) -> Result<In
         },
         guessed: false,
     });
-    let timing = timing(&spec, opened.as_ref())?;
+    let timing = timing(&spec, opened.as_ref(), &root)?;
     drop(opened);
 
     let lens: Vec<usize> = manifest.episodes.iter().map(|e| e.len).collect();
@@ -244,6 +256,7 @@ pub fn inspect(path: &Path, spec_dir: &Path, options: &InitOptions) -> Result<In
         shortest,
         longest,
         keys: roles,
+        missing_videos,
         tasks: tasks.len(),
         timing,
         acf,
@@ -252,35 +265,9 @@ pub fn inspect(path: &Path, spec_dir: &Path, options: &InitOptions) -> Result<In
     })
 }
 
-/// Each LeRobot camera opened as the build will read it (its videos are separate files): one
-/// that fails is left unmapped, with the first line of the reason.
-fn leave_out_unreadable_cameras(
-    roles: &mut [KeyRole],
-    action: &KeyRole,
-    draft: &text::Draft,
-    spec_dir: &Path,
-) -> Result<()> {
-    for r in roles.iter_mut().filter(|r| r.role.is_camera()) {
-        let Some(channel) = r.channel.clone() else {
-            continue;
-        };
-        let pair = vec![text::mapping_of(action), (channel, r.key.clone(), None)];
-        let trial = parse(
-            &draft.render_minimal(&pair),
-            spec_dir,
-            "(init camera check)",
-        )?;
-        if let Err(e) = source::open(&trial) {
-            let reason = e.to_string();
-            r.channel = None;
-            r.note = Some(format!("left out: {}", reason.lines().next().unwrap_or("")));
-        }
-    }
-    Ok(())
-}
-
-/// The timing audit of the opened source, counted.
-fn timing(spec: &LoadedSpec, opened: &dyn source::Source) -> Result<TimingSummary> {
+/// The timing audit of the opened source, counted (a missing video is not counted as one that
+/// disagrees with its rows: [`cameras`] lists those).
+fn timing(spec: &LoadedSpec, opened: &dyn source::Source, root: &Path) -> Result<TimingSummary> {
     let (report, _) = audit::run(spec, opened, true)?;
     let count = |v: Verdict| report.episodes.iter().filter(|e| e.verdict == v).count();
     Ok(TimingSummary {
@@ -292,7 +279,7 @@ fn timing(spec: &LoadedSpec, opened: &dyn source::Source) -> Result<TimingSummar
         video_problems: report
             .video
             .iter()
-            .filter(|v| v.check.problem.is_some())
+            .filter(|v| v.check.problem.is_some() && root.join(&v.check.file).exists())
             .count(),
         warnings: report.warnings,
     })

@@ -2,6 +2,8 @@
 //! the robot state the presets call `observation.state`, cameras, point clouds, other
 //! observations, and the bookkeeping columns a spec never maps.
 //!
+//! Which key is the state is [`super::state`]'s to decide.
+//!
 //! Names follow the sources' own conventions: a LeRobot dataset's keys are already chunkc names
 //! and are kept; elsewhere one camera is `observation.image` (Push-T's and Diffusion Policy's
 //! name), several are `observation.images.<leaf>` (LeRobot's), the state is
@@ -42,7 +44,7 @@ impl Role {
             Role::Video => "video",
             Role::PointCloud => "point cloud",
             Role::Observation => "observation",
-            Role::Unmapped => "low-dim (not mapped)",
+            Role::Unmapped => "low-dim",
             Role::Bookkeeping => "bookkeeping",
             Role::Unusable => "unusable",
         }
@@ -62,6 +64,9 @@ pub struct KeyRole {
     pub role: Role,
     /// The channel name it maps to (`None`: not mapped).
     pub channel: Option<String>,
+    /// Not mapped, but offered as a commented line: the channel name that line gives it (what
+    /// `inspect` prints, and the spec's `# "name" = "key"`).
+    pub suggested: Option<String>,
     /// Only some columns (`[start, end)`), when the key holds more than the channel.
     pub columns: Option<[usize; 2]>,
     /// Why it was mapped or left out, where that was a guess.
@@ -69,7 +74,7 @@ pub struct KeyRole {
 }
 
 /// The last path component: `observations/images/top` -> `top`, `observation.images.top` -> `top`.
-fn leaf(key: &str) -> &str {
+pub(super) fn leaf(key: &str) -> &str {
     key.rsplit(['/', '.']).next().unwrap_or(key)
 }
 
@@ -85,9 +90,12 @@ fn clean(name: &str) -> String {
         .collect()
 }
 
-/// The channel name a key that is not mapped would take when a user uncomments it.
-pub fn suggested_name(r: &KeyRole) -> String {
-    if r.role.is_camera() {
+/// The channel name a key that is not mapped would take when a user uncomments it: a LeRobot
+/// `observation.*` key keeps its name, as mapped ones do.
+fn suggested_name(r: &KeyRole, format: SourceFormat) -> String {
+    if format == SourceFormat::Lerobot && r.key.starts_with("observation.") {
+        r.key.clone()
+    } else if r.role.is_camera() {
         format!("observation.images.{}", clean(leaf(&r.key)))
     } else {
         format!("observation.{}", clean(leaf(&r.key)))
@@ -112,17 +120,6 @@ const BOOKKEEPING: &[&str] = &[
     "success",
     // ALOHA's JPEG episodes: each frame's compressed length, per camera.
     "compress_len",
-];
-
-const STATE_NAMES: &[&str] = &[
-    "state",
-    "qpos",
-    "proprio",
-    "proprioception",
-    "robot_state",
-    "joint_positions",
-    "joint_pos",
-    "joint_position",
 ];
 
 /// Whether a key sits in an observation group (`obs/…`, `observations/…`,
@@ -151,6 +148,7 @@ pub fn assign(format: SourceFormat, keys: &[KeyInfo], robosuite_clock: bool) -> 
             dtype: k.dtype.clone(),
             role: first_role(format, k),
             channel: None,
+            suggested: None,
             columns: None,
             note: None,
         })
@@ -169,44 +167,8 @@ pub fn assign(format: SourceFormat, keys: &[KeyInfo], robosuite_clock: bool) -> 
         rows[i].channel = Some("action".into());
     }
 
-    // The state: a key named like one, in an observation group; else one whose name ends like
-    // one (robomimic's `obs/robot0_joint_pos`); else robosuite's `states`.
-    let candidates = |exact: bool| {
-        rows.iter()
-            .enumerate()
-            .filter(|(_, r)| r.role == Role::Observation && r.shape.len() == 1)
-            .filter(move |(_, r)| {
-                let l = leaf(&r.key);
-                if exact {
-                    STATE_NAMES.contains(&l)
-                } else {
-                    STATE_NAMES.iter().any(|s| l.ends_with(&format!("_{s}")))
-                }
-            })
-            .min_by_key(|(_, r)| r.key.len())
-            .map(|(i, _)| i)
-    };
-    let (exact, suffix) = (candidates(true), candidates(false));
-    if let Some(i) = exact.or(suffix) {
-        rows[i].role = Role::State;
-        rows[i].channel = Some("observation.state".into());
-        if exact.is_none() {
-            rows[i].note = Some("guessed as the robot state from its name".into());
-        }
-    } else if robosuite_clock {
-        if let Some(r) = rows
-            .iter_mut()
-            .find(|r| r.key == "states" && r.shape.len() == 1)
-        {
-            r.role = Role::State;
-            r.channel = Some("observation.state".into());
-            r.columns = Some([1, r.shape[0]]);
-            r.note = Some(
-                "robosuite's simulator state without its clock (column 0 is the time chunkc reads as timestamps)"
-                    .into(),
-            );
-        }
-    }
+    // The state by its name, before the other keys take theirs.
+    super::state::by_name(&mut rows, robosuite_clock);
 
     let cameras = rows.iter().filter(|r| r.role.is_camera()).count();
     let lerobot = format == SourceFormat::Lerobot;
@@ -238,15 +200,21 @@ pub fn assign(format: SourceFormat, keys: &[KeyInfo], robosuite_clock: bool) -> 
         taken.push(name.clone());
         r.channel = Some(name);
     }
+    // With no state yet, the one low-dim key left is taken for it (a guess, said in its note).
+    super::state::claim_the_only_one(&mut rows);
     for r in rows.iter_mut().filter(|r| r.role == Role::Unmapped) {
-        r.note = Some(format!(
-            "not in an observation group; uncomment to use it as `{}`",
-            suggested_name(r)
-        ));
+        let name = suggested_name(r, format);
+        r.note = Some(if robosuite_clock {
+            "robosuite records it beside the states; uncomment to observe it".into()
+        } else {
+            format!("not in an observation group; uncomment to use it as `{name}`")
+        });
+        r.suggested = Some(name);
     }
-    if robosuite_clock {
-        for r in rows.iter_mut().filter(|r| r.role == Role::Unmapped) {
-            r.note = Some("robosuite records it beside the states; uncomment to observe it".into());
+    // Everything else a commented line offers (a name two keys wanted, an unusable shape).
+    for r in rows.iter_mut().filter(|r| r.role != Role::Bookkeeping) {
+        if r.channel.is_none() && r.suggested.is_none() {
+            r.suggested = Some(suggested_name(r, format));
         }
     }
     rows

@@ -36,23 +36,25 @@ pub fn summary(ins: &Inspection) -> String {
     let shapes: Vec<String> = ins.keys.iter().map(|k| shape(&k.shape)).collect();
     let sw = shapes.iter().map(String::len).max().unwrap_or(0);
     for (k, s) in ins.keys.iter().zip(&shapes) {
-        let to = match (&k.channel, k.columns) {
-            (Some(c), Some([a, b])) => format!("-> {c} (columns {a}..{b})"),
-            (Some(c), None) => format!("-> {c}"),
-            (None, _) => "   (not mapped)".into(),
+        // The names are the spec's: a mapped channel, or the commented line's.
+        let to = match (&k.channel, k.columns, &k.suggested) {
+            (Some(c), Some([a, b]), _) => format!("-> {c} (columns {a}..{b})"),
+            (Some(c), None, _) => format!("-> {c}"),
+            (None, _, Some(s)) => format!("-> {s} (commented out)"),
+            (None, _, None) => String::new(),
         };
         let note = k
             .note
             .as_ref()
             .map(|n| format!("  [{n}]"))
             .unwrap_or_default();
-        let _ = writeln!(
-            w,
+        let line = format!(
             "    {:width$}  {s:sw$}  {:8}  {:12} {to}{note}",
             k.key,
             k.dtype,
             k.role.word()
         );
+        let _ = writeln!(w, "{}", line.trim_end());
     }
     let timing = &ins.timing;
     if timing.timestamps {

@@ -113,11 +113,20 @@ pub struct Draft<'a> {
     pub out_dir: &'a str,
     /// Where the spec lives (absolute): paths in it are relative to this.
     pub spec_dir: &'a Path,
+    /// `[audit] video = "exclude_episode"`: a camera's missing videos exclude their episodes.
+    pub exclude_bad_videos: bool,
 }
 
 impl<'a> Draft<'a> {
     pub fn with_fps(self, fps: Option<f64>) -> Self {
         Draft { fps, ..self }
+    }
+
+    pub fn excluding_bad_videos(self, exclude_bad_videos: bool) -> Self {
+        Draft {
+            exclude_bad_videos,
+            ..self
+        }
     }
 
     fn source_path(&self) -> String {
@@ -137,6 +146,9 @@ impl<'a> Draft<'a> {
         let _ = writeln!(t, "[source.channels]");
         for m in channels {
             let _ = writeln!(t, "{}", channel_line(m));
+        }
+        if self.exclude_bad_videos {
+            let _ = writeln!(t, "[audit]\nvideo = \"exclude_episode\"");
         }
         let _ = writeln!(t, "[audit.doctor]\nenabled = false");
         let _ = writeln!(t, "[output]\ndir = {}", quote(self.out_dir));
@@ -159,6 +171,7 @@ pub fn spec(ins: &Inspection, spec_dir: &Path, out_dir: &str) -> String {
         fps: ins.spec_fps,
         out_dir,
         spec_dir,
+        exclude_bad_videos: !ins.missing_videos.is_empty(),
     };
     let mut t = String::new();
     let w = &mut t;
@@ -225,7 +238,7 @@ pub fn spec(ins: &Inspection, spec_dir: &Path, out_dir: &str) -> String {
     if !left.is_empty() {
         let _ = writeln!(w, "# Not mapped:");
         for r in left {
-            let name = super::roles::suggested_name(r);
+            let name = r.suggested.clone().unwrap_or_default();
             let why = r.note.clone().unwrap_or_else(|| r.role.word().to_string());
             let _ = writeln!(
                 w,
@@ -275,6 +288,18 @@ pub fn spec(ins: &Inspection, spec_dir: &Path, out_dir: &str) -> String {
     }
 
     let _ = writeln!(w, "\n[audit]");
+    if draft.exclude_bad_videos {
+        let missing: Vec<String> = ins
+            .missing_videos
+            .iter()
+            .map(|m| format!("`{}` in {} episode(s)", m.channel, m.episodes.len()))
+            .collect();
+        let _ = writeln!(
+            w,
+            "video = \"exclude_episode\"  # episodes without their camera videos are left out: {} (listed under [source.channels])",
+            missing.join(", ")
+        );
+    }
     let timing = &ins.timing;
     if timing.timestamps {
         let _ = writeln!(

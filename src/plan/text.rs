@@ -57,7 +57,10 @@ pub fn render_text(plan: &Plan) -> String {
     let _ = writeln!(
         s,
         "audit   {} s steps{}: {}{}",
-        a.expected_interval,
+        // Rounded: 1/30 Hz is `0.0333`, not `0.03333333333333333`.
+        format!("{:.4}", a.expected_interval)
+            .trim_end_matches('0')
+            .trim_end_matches('.'),
         if a.timestamps {
             ""
         } else {

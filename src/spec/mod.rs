@@ -11,6 +11,8 @@
 //!   resolved; `validate_camera` checks it (the checks against the source's frames are the
 //!   plan's).
 //! - `diagnostic`: renders an error with the offending text underlined.
+//! - `observations`: the warning for a profile whose preset needs observations in a spec that
+//!   maps none (`chunkc check`).
 //! - `output_location`: where the outputs may go (never into the source; through a symlink
 //!   only when the spec allows it).
 //! - `reference`: the spec's documentation read from the JSON Schema (book chapter, hints).
@@ -22,6 +24,7 @@ pub mod export_keys;
 mod image_storage;
 mod load;
 pub mod model;
+mod observations;
 mod output_location;
 mod preset;
 pub mod reference;
@@ -35,6 +38,7 @@ pub use image_storage::DEFAULT_IMAGE_QUALITY;
 pub(crate) use load::dotted as dotted_key;
 pub use load::LoadedSpec;
 pub use model::*;
+pub use observations::missing_observations;
 pub use output_location::check_output_location;
 pub use preset::{
     Profile, StreamCopy, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP, STORAGE_VIDEO,

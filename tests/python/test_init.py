@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import REPO, bits, load_dataset, run_chunkc
+from conftest import REPO, bits, build_with_video, load_dataset, run_chunkc, write_spec
 
 DATA = REPO / "tests" / "data"
 SPECS = REPO / "specs"
@@ -159,7 +159,7 @@ def test_a_guessed_rate_is_marked_and_fps_overrides_it(tmp_path):
     assert "GUESS" in other.read_text()
 
 
-def test_a_camera_without_its_videos_is_left_out_with_the_reason(tmp_path):
+def test_a_camera_without_any_of_its_videos_is_left_out_with_the_reason(tmp_path):
     source = tmp_path / "set"
     shutil.copytree(DATA / "lerobot_video_v3_av1", source)
     info = json.loads((source / "meta/info.json").read_text())
@@ -174,6 +174,7 @@ def test_a_camera_without_its_videos_is_left_out_with_the_reason(tmp_path):
     text = spec.read_text()
     left = [l for l in text.splitlines() if l.startswith("#") and cameras[0] in l]
     assert left and "left out" in left[0] and "missing" in left[0], text
+    assert "exclude_episode" not in text
     run_chunkc("build", "-q", spec)
 
 
@@ -230,3 +231,174 @@ def test_fps_that_contradicts_a_lerobot_dataset_is_refused(tmp_path):
     proc = run_chunkc("init", DATA / "lerobot_g1_subset", "--out", out, "--fps", 25, check=False)
     assert proc.returncode != 0 and "--fps 25 disagrees" in proc.stderr and "30" in proc.stderr
     assert not out.exists()
+
+
+# Issue 37: a spec a policy can train on.
+
+
+def renamed_lerobot(source: Path, dest: Path, names: dict) -> Path:
+    """A copy of the LeRobot set `source` whose keys are renamed (`names`: old -> new) in its
+    parquet files (row groups kept: one per episode), `meta/info.json` and the episode stats."""
+    import pyarrow.parquet as pq
+
+    shutil.copytree(source, dest)
+
+    def rename(column):
+        for old, new in names.items():
+            if column == old:
+                return new
+            if column.startswith(f"stats/{old}/"):
+                return f"stats/{new}/" + column[len(f"stats/{old}/"):]
+        return column
+
+    for path in sorted(dest.rglob("*.parquet")):
+        pf = pq.ParquetFile(path)
+        columns = [rename(c) for c in pf.schema_arrow.names]
+        groups = [pf.read_row_group(i).rename_columns(columns) for i in range(pf.num_row_groups)]
+        schema = groups[0].schema.remove_metadata()
+        with pq.ParquetWriter(path, schema) as w:
+            for g in groups:
+                w.write_table(g.cast(schema))
+    info_path = dest / "meta" / "info.json"
+    info = json.loads(info_path.read_text())
+    info["features"] = {names.get(k, k): v for k, v in info["features"].items()}
+    info_path.write_text(json.dumps(info, indent=2))
+    stats = dest / "meta" / "episodes_stats.jsonl"
+    if stats.exists():
+        rows = [json.loads(l) for l in stats.read_text().splitlines() if l.strip()]
+        for row in rows:
+            row["stats"] = {names.get(k, k): v for k, v in row["stats"].items()}
+        stats.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return dest
+
+
+ACTIONS_STATE = {"action": "actions", "observation.state": "state"}
+
+
+@pytest.mark.parametrize("fixture", ["lerobot_g1_subset", "lerobot_v3_synthetic"])
+def test_a_lerobot_set_with_actions_and_state_keys_observes_the_state(tmp_path, fixture):
+    """The issue's dexterous hand: keys `actions` / `state`, no `observation.` group. The state
+    is mapped as `observation.state`, saying it is a guess; the spec checks without a warning and
+    builds a dataset whose loader returns the state."""
+    source = renamed_lerobot(DATA / fixture, tmp_path / "set", ACTIONS_STATE)
+    spec = tmp_path / "spec.toml"
+    proc = run_chunkc("init", source, "--out", spec)
+    text = spec.read_text()
+    channels = tomllib.loads(text)["source"]["channels"]
+    assert channels["action"] == "actions"
+    assert channels["observation.state"] == "state", text
+    line = next(l for l in text.splitlines() if l.startswith('"observation.state"'))
+    assert "GUESSED" in line, line
+    assert "not in an observation group" not in text
+    assert "-> observation.state" in proc.stderr
+    checked = run_chunkc("check", spec)
+    assert "warning" not in checked.stderr, checked.stderr
+    run_chunkc("build", "-q", spec)
+    generated = tomllib.loads(text)
+    width = json.loads((source / "meta" / "info.json").read_text())["features"]["state"]["shape"][0]
+    for profile in generated["profiles"]:
+        ds = load_dataset(tmp_path / generated["output"]["dir"] / profile)
+        sample = ds[0]
+        assert "observation.state" in sample, (profile, sorted(sample))
+        assert np.asarray(sample["observation.state"]).shape[-1] == width
+        assert np.isfinite(np.asarray(sample["observation.state"], dtype=np.float64)).all()
+    # The plan prints the step rounded.
+    plan = run_chunkc("plan", spec).stdout
+    rate = json.loads((source / "meta" / "info.json").read_text())["fps"]
+    assert f"{round(1 / rate, 4):g} s steps" in plan, plan
+
+
+def test_check_warns_about_a_preset_profile_without_observations(tmp_path):
+    profiles = '[profiles.act]\npreset = "act"\nfps = 10\nchunk = 8\n[profiles.dp]\npreset = "diffusion_policy"\n'
+    spec = write_spec(tmp_path, profiles, channels={"action": "action"})
+    proc = run_chunkc("check", spec)
+    assert proc.returncode == 0
+    warnings = [l for l in proc.stderr.splitlines() if l.startswith("warning:")]
+    assert any("profile `act`" in w and "no observation" in w for w in warnings), proc.stderr
+    assert any("profile `dp`" in w and "diffusion_policy" in w for w in warnings), proc.stderr
+    assert "ok:" in proc.stderr
+    # One observation, low-dim or a camera, and it is quiet.
+    for channels in ({"action": "action", "observation.state": "state"},
+                     {"action": "action", "observation.image": "img"}):
+        d = tmp_path / next(iter(set(channels) - {"action"}))
+        d.mkdir()
+        quiet = run_chunkc("check", write_spec(d, profiles, channels=channels))
+        assert "no observation" not in quiet.stderr, quiet.stderr
+
+
+def missing_videos_set(tmp_path):
+    """lerobot_video_v21 (3 episodes, one mp4 per episode) without episode 1's video."""
+    source = tmp_path / "set"
+    shutil.copytree(DATA / "lerobot_video_v21", source)
+    videos = sorted(source.rglob("*.mp4"))
+    assert len(videos) == 3
+    gone = [p for p in videos if p.name == "episode_000001.mp4"]
+    for p in gone:
+        p.unlink()
+    return source
+
+
+def test_a_camera_with_some_videos_missing_is_kept_and_those_episodes_excluded(tmp_path):
+    source = missing_videos_set(tmp_path)
+    camera = "observation.images.top"
+    spec = tmp_path / "spec.toml"
+    run_chunkc("init", source, "--out", spec)
+    text = spec.read_text()
+    generated = tomllib.loads(text)
+    assert generated["source"]["channels"][camera] == camera, text
+    assert generated["audit"]["video"] == "exclude_episode", text
+    line = next(l for l in text.splitlines() if l.startswith(f'"{camera}"'))
+    assert "1 of 3 episodes has no video: 1" in line, line
+    assert "left out" not in line
+    build_with_video(spec)
+    for profile in generated["profiles"]:
+        meta = json.loads((tmp_path / generated["output"]["dir"] / profile / "meta.json").read_text())
+        assert meta["episodes"] == [0, 2], (profile, meta["episodes"])
+        assert 1 in [e["id"] if isinstance(e, dict) else e for e in meta["excluded"]], meta["excluded"]
+        sample = load_dataset(tmp_path / generated["output"]["dir"] / profile)[0]
+        assert camera in sample
+
+
+def spec_names(text: str):
+    """The channel names a spec maps and those its commented lines offer: {name: key}."""
+    mapped = tomllib.loads(text)["source"]["channels"]
+    names = {k: (v if isinstance(v, str) else v["key"]) for k, v in mapped.items()}
+    commented = {}
+    for line in text.splitlines():
+        if line.startswith('# "') and '" = "' in line:
+            name, _, rest = line[2:].partition(" = ")
+            commented[json.loads(name)] = json.loads(rest.split("  #")[0])
+    return names, commented
+
+
+@pytest.mark.parametrize("case", ["actions_state", "missing_video", "robosuite", "left_out_camera"])
+def test_inspect_prints_the_names_the_spec_uses(tmp_path, case):
+    if case == "actions_state":
+        source = renamed_lerobot(DATA / "lerobot_g1_subset", tmp_path / "set", ACTIONS_STATE)
+    elif case == "missing_video":
+        source = missing_videos_set(tmp_path)
+    elif case == "left_out_camera":
+        # The single camera `image` outside any group: its line and inspect's agree on the name.
+        source = renamed_lerobot(DATA / "lerobot_video_v21", tmp_path / "set",
+                                 {"observation.images.top": "image"})
+        shutil.rmtree(source / "videos")
+    else:
+        source = DATA / "robosuite_panda_lift.hdf5"
+    spec = tmp_path / "spec.toml"
+    run_chunkc("init", source, "--out", spec)
+    mapped, commented = spec_names(spec.read_text())
+    keys = json.loads(run_chunkc("inspect", source, "--json").stdout)["keys"]
+    for k in keys:
+        if k["channel"] is not None:
+            assert mapped.get(k["channel"]) == k["key"], (k, mapped)
+        elif k["role"] != "bookkeeping":
+            assert commented.get(k["suggested"]) == k["key"], (k, commented)
+    printed = run_chunkc("inspect", source).stdout
+    assert "(not mapped)" not in printed, printed
+    for k in keys:
+        name = k["channel"] or k["suggested"]
+        if name is not None:
+            line = next(l for l in printed.splitlines() if l.strip().startswith(k["key"] + " "))
+            assert f"-> {name}" in line, (line, name)
+    if case == "left_out_camera":
+        assert "observation.image" in commented and "observation.images.image" not in commented
