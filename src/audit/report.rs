@@ -4,7 +4,11 @@
 //! interval_std, interval_min, interval_max, flags, verdict}`, `repaired_fraction`; `video`
 //! (one entry per episode and camera) appears only for sources with video.
 
+use std::collections::BTreeMap;
+
 use serde::Serialize;
+
+use crate::spec::DoctorAction;
 
 /// The whole audit of one source.
 #[derive(Debug, Clone, Serialize)]
@@ -33,7 +37,7 @@ pub struct AuditReport {
     pub video: Vec<VideoAudit>,
     /// The dataset doctor's dataset-wide results (`[audit.doctor]`); absent when it did not run.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub doctor: Option<super::doctor::DoctorSummary>,
+    pub doctor: Option<DoctorSummary>,
     /// Wall seconds the doctor took (`None`: it did not run). Printed by `build` and `audit`,
     /// kept out of `audit.json`, whose bytes depend only on the source and the spec.
     #[serde(skip)]
@@ -77,7 +81,39 @@ pub struct EpisodeAudit {
     pub repaired_frames: usize,
     /// The dataset doctor's findings, one per flag it added, with their evidence.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub findings: Vec<super::doctor::Finding>,
+    pub findings: Vec<Finding>,
+}
+
+impl EpisodeAudit {
+    /// Why an excluded episode is left out: the timing or video audit's sentence, and the
+    /// doctor's findings set to `"exclude"`, never the findings that only warn (they would read
+    /// as causes).
+    pub fn exclusion_reason(&self) -> String {
+        let mut timing = self.detail.clone();
+        for f in &self.findings {
+            let sentence = format!("{}: {}", f.flag.name(), f.detail);
+            for form in [format!("; {sentence}"), format!("{sentence}; "), sentence] {
+                if let Some(at) = timing.find(&form) {
+                    timing.replace_range(at..at + form.len(), "");
+                    break;
+                }
+            }
+        }
+        let doctor: Vec<String> = self
+            .findings
+            .iter()
+            .filter(|f| f.action == DoctorAction::Exclude)
+            .map(|f| format!("{}: {}", f.flag.name(), f.detail))
+            .collect();
+        let mut parts = Vec::new();
+        if !timing.is_empty() {
+            parts.push(format!("audit: {timing}"));
+        }
+        if !doctor.is_empty() {
+            parts.push(format!("dataset doctor: {}", doctor.join("; ")));
+        }
+        parts.join("; ")
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
@@ -127,4 +163,59 @@ pub struct RepairExample {
     pub before: Vec<f64>,
     pub after_t: Vec<f64>,
     pub after: Vec<f64>,
+}
+
+/// One doctor flag on one episode, with why and its evidence numbers.
+#[derive(Debug, Clone, Serialize)]
+pub struct Finding {
+    pub flag: Flag,
+    pub action: DoctorAction,
+    pub detail: String,
+    pub evidence: BTreeMap<String, f64>,
+}
+
+/// The doctor's dataset-wide results, in `audit.json` under `doctor`.
+#[derive(Debug, Clone, Serialize)]
+pub struct DoctorSummary {
+    pub action_channel: String,
+    pub state_channel: Option<String>,
+    /// Episodes flagged per flag name.
+    pub flagged: BTreeMap<String, u64>,
+    /// Action dimensions (shared with the state) the alignment checks used.
+    pub tracked_dims: Vec<usize>,
+    /// Episodes per lag (steps from an action to the state that first shows it).
+    pub lag_histogram: BTreeMap<i32, u64>,
+    pub lag_mode: Option<i32>,
+    /// (lag, mean R² of the state change over the fitted episodes).
+    pub lag_curve: Vec<(i32, f64)>,
+    /// The majority convention, `absolute` or `delta`.
+    pub convention: Option<String>,
+    /// Episodes per convention (`absolute`, `delta`, `unclear`).
+    pub conventions: BTreeMap<String, u64>,
+    /// Per episode in source order: (id, the action's units factor against the dataset).
+    pub units: Vec<(u64, f64)>,
+    /// Per action dimension, the reference of the jump check: its motion scale (the median
+    /// episode's 90th percentile of a moving step's distance from the line through its
+    /// neighbours).
+    pub motion_scale: Vec<f64>,
+    /// `channel[dim]` constant over the whole dataset, with the value.
+    pub constant: Vec<(String, usize, f64)>,
+    /// `channel[dim]` holding still in most episodes, with the share of episodes.
+    pub stuck: Vec<(String, usize, f64)>,
+    /// Every dimension's quarters (in recording order) as robust deviations.
+    pub shift: Vec<ShiftDim>,
+    /// (earlier id, later id, RMS difference in spreads).
+    pub duplicates: Vec<(u64, u64, f64)>,
+    /// The thresholds the charts draw (`[audit.doctor]`).
+    pub units_ratio: f64,
+    pub shift_threshold: f64,
+}
+
+/// One channel dimension's quarters, as deviations from the dataset in robust standard
+/// deviations.
+#[derive(Debug, Clone, Serialize)]
+pub struct ShiftDim {
+    pub channel: String,
+    pub dim: usize,
+    pub deviations: Vec<f64>,
 }

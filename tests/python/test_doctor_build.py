@@ -30,8 +30,8 @@ def synth(tmp: Path, name: str, faults=FAULTS, episodes=80) -> Path:
 
 
 def doctor_lines(text: str) -> list:
-    return sorted(l.removeprefix("warning: ") for l in text.splitlines()
-                  if l.removeprefix("warning: ").startswith("dataset doctor: `"))
+    lines = (l.strip().removeprefix("warning: ") for l in text.splitlines())
+    return sorted(l for l in lines if l.startswith("dataset doctor: `"))
 
 
 def scaled(spec: Path) -> list:
@@ -71,6 +71,39 @@ def test_build_finds_what_the_audit_finds(tmp_path, fps):
     assert "the dataset doctor took" in build.stderr
 
 
+def test_plan_audit_and_build_judge_the_same_episodes(tmp_path):
+    """Episodes the timing audit excludes (holes of more than `max_dropped` frames) are never
+    read by the build, so `plan` and `audit` must not judge them either: the same lines, the same
+    counts, counted in episodes of the episodes judged (issue 37: plan said clipped 34 of 50
+    where build said 28 of 43)."""
+    out = tmp_path / "d"
+    run_chunkc("synth", out, "--format", "lerobot", "--episodes", 80, "--steps", 150,
+               "--action-dim", 6, "--state-dim", 6, "--fps", 10, "--seed", 0,
+               "--faults", "jump,scale:10,drop:0.3", "--fault-fraction", 0.1)
+    spec = out / "spec.toml"
+    run_chunkc("audit", spec)
+    audit = json.loads((out / "out" / "audit" / "audit.json").read_text())
+    timing_excluded = [e["id"] for e in audit["episodes"]
+                       if e["verdict"] == "exclude" and not e.get("findings")]
+    assert len(timing_excluded) >= 5, timing_excluded
+    judged = len(audit["episodes"]) - len(timing_excluded)
+    lines = doctor_lines("\n".join(audit["warnings"]))
+    assert lines and all(f" of {judged} episodes" in l for l in lines), lines
+    # The excluded episodes carry no doctor flag: they were not judged.
+    assert not any(f["flag"] for e in audit["episodes"] if e["id"] in timing_excluded
+                   for f in e.get("findings", []))
+    plan = run_chunkc("plan", spec)
+    assert doctor_lines(plan.stdout + plan.stderr) == lines
+    build = run_chunkc("build", spec)
+    assert doctor_lines(build.stderr) == lines
+    meta = json.loads((out / "out" / "act" / "meta.json").read_text())
+    reasons = {e["id"]: e["reason"] for e in meta["excluded"]}
+    assert sorted(reasons) == sorted(timing_excluded)
+    # An exclusion's reason is the audit's: no doctor finding reads as its cause.
+    assert all(r.startswith("audit: ") and "jump: " not in r and "units: " not in r
+               for r in reasons.values()), reasons
+
+
 def test_the_doctor_does_not_change_the_outputs(tmp_path):
     spec = synth(tmp_path, "s")
     out = spec.parent / "out" / "act"
@@ -80,10 +113,14 @@ def test_the_doctor_does_not_change_the_outputs(tmp_path):
     assert "the dataset doctor" not in run_chunkc("build", spec).stderr
     off = {k: (out / k).read_bytes() for k in hashes(out)}
     assert on.keys() == off.keys()
-    # Only the spec's hash (in meta.json and the README) differs: the spec did.
+    # Only the spec's hash (in meta.json and the README) differs: the spec did; and the card's
+    # audit section, which says whether the doctor ran and what it found.
     def unhashed(files):
         h = json.loads(files["meta.json"])["spec_hash"]
-        return {k: v.replace(h.encode(), b"H").replace(h[:16].encode(), b"H") for k, v in files.items()}
+        out = {k: v.replace(h.encode(), b"H").replace(h[:16].encode(), b"H") for k, v in files.items()}
+        card = out["README.md"].decode()
+        out["README.md"] = (card[:card.index("## Audit")] + card[card.index("## Storage"):]).encode()
+        return out
     assert sorted(k for k in on if on[k] != off[k]) == ["README.md", "meta.json"]
     assert unhashed(on) == unhashed(off)
 

@@ -15,7 +15,7 @@ const FROZEN_OVER_MEDIAN: f64 = 2.0;
 
 /// ... in a dimension where at most this share of the other episodes hold one value as long
 /// (else it is `stuck`, a dataset-wide warning, not `frozen` in each).
-const FROZEN_OTHERS_LONG: f64 = 0.2;
+const FROZEN_OTHERS_LONG: f64 = 0.1;
 
 /// Frozen, clipped and jump, per action dimension against the dataset. Returns the jump check's
 /// reference per dimension (the motion scale, in the dataset's units).

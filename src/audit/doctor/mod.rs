@@ -40,19 +40,16 @@ mod spikes;
 mod stats;
 mod warnings;
 
-use std::collections::BTreeMap;
-
 use rayon::prelude::*;
-use serde::Serialize;
 
-use super::report::{AuditReport, Flag};
+use super::report::AuditReport;
 use super::timing::Repair;
+pub use crate::audit::report::{DoctorSummary, Finding, ShiftDim};
 use crate::error::Result;
 use crate::source::{ChannelData, ChannelKind, Episode, Manifest, Source};
-use crate::spec::{DoctorAction, LoadedSpec};
+use crate::spec::LoadedSpec;
 use features::features;
 pub use features::Features;
-pub use shift::ShiftDim;
 
 /// `misaligned` needs the dataset's lag to leave at least this many times the unexplained share
 /// of the episode's own lag.
@@ -60,52 +57,6 @@ pub const MISALIGNED_GAIN: f64 = 2.0;
 
 /// A dimension unchanged from step to step in this share of an episode's steps holds still.
 pub const STUCK_UNCHANGED: f64 = 0.8;
-
-/// One doctor flag on one episode, with why and its evidence numbers.
-#[derive(Debug, Clone, Serialize)]
-pub struct Finding {
-    pub flag: Flag,
-    pub action: DoctorAction,
-    pub detail: String,
-    pub evidence: BTreeMap<String, f64>,
-}
-
-/// The doctor's dataset-wide results, in `audit.json` under `doctor`.
-#[derive(Debug, Clone, Serialize)]
-pub struct DoctorSummary {
-    pub action_channel: String,
-    pub state_channel: Option<String>,
-    /// Episodes flagged per flag name.
-    pub flagged: BTreeMap<String, u64>,
-    /// Action dimensions (shared with the state) the alignment checks used.
-    pub tracked_dims: Vec<usize>,
-    /// Episodes per lag (steps from an action to the state that first shows it).
-    pub lag_histogram: BTreeMap<i32, u64>,
-    pub lag_mode: Option<i32>,
-    /// (lag, mean R² of the state change over the fitted episodes).
-    pub lag_curve: Vec<(i32, f64)>,
-    /// The majority convention, `absolute` or `delta`.
-    pub convention: Option<String>,
-    /// Episodes per convention (`absolute`, `delta`, `unclear`).
-    pub conventions: BTreeMap<String, u64>,
-    /// Per episode in source order: (id, the action's units factor against the dataset).
-    pub units: Vec<(u64, f64)>,
-    /// Per action dimension, the reference of the jump check: its motion scale (the median
-    /// episode's 90th percentile of a moving step's distance from the line through its
-    /// neighbours).
-    pub motion_scale: Vec<f64>,
-    /// `channel[dim]` constant over the whole dataset, with the value.
-    pub constant: Vec<(String, usize, f64)>,
-    /// `channel[dim]` holding still in most episodes, with the share of episodes.
-    pub stuck: Vec<(String, usize, f64)>,
-    /// Every dimension's quarters (in recording order) as robust deviations.
-    pub shift: Vec<ShiftDim>,
-    /// (earlier id, later id, RMS difference in spreads).
-    pub duplicates: Vec<(u64, u64, f64)>,
-    /// The thresholds the charts draw (`[audit.doctor]`).
-    pub units_ratio: f64,
-    pub shift_threshold: f64,
-}
 
 /// What the doctor reads of every episode: the positions and widths of the `action` and
 /// `observation.state` channels. None when `[audit.doctor] enabled = false`, or the source has
@@ -213,17 +164,20 @@ pub fn run(
         return Ok(());
     };
     let wanted = probe.channels();
+    // The episodes the build reads: not those the timing or video audit already excluded, so
+    // that `plan`, `audit` and `build` judge the same episodes and count the same.
+    let judged: Vec<usize> = (0..manifest.episodes.len())
+        .filter(|&k| repairs[k] != Repair::Exclude)
+        .collect();
     let feats: Vec<Features> =
-        crate::error::in_order((0..manifest.episodes.len()).into_par_iter().map(
-            |i| -> Result<Features> {
-                let data = source.read_lowdim(i, &wanted)?;
-                Ok(probe.reduce(&data[0], probe.state.map(|_| &data[1][..])))
-            },
-        ))?;
-    let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
+        crate::error::in_order(judged.par_iter().map(|&i| -> Result<Features> {
+            let data = source.read_lowdim(i, &wanted)?;
+            Ok(probe.reduce(&data[0], probe.state.map(|_| &data[1][..])))
+        }))?;
+    let ids: Vec<u64> = judged.iter().map(|&k| manifest.episodes[k].id).collect();
     let excluded = probe.judge(spec, manifest.fps, &ids, &feats, report)?;
     for (id, _) in excluded {
-        if let Some(k) = ids.iter().position(|&i| i == id) {
+        if let Some(k) = manifest.episodes.iter().position(|e| e.id == id) {
             repairs[k] = Repair::Exclude;
         }
     }

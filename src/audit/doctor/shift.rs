@@ -8,19 +8,8 @@
 //! shift. It is a dataset-wide finding (a warning and the report's plot), not a per-episode flag.
 //! Needs at least [`MIN_EPISODES`].
 
-use serde::Serialize;
-
 pub const MIN_EPISODES: usize = 40;
 pub const QUARTERS: usize = 4;
-
-/// One channel dimension's quarters, as deviations from the dataset in robust standard
-/// deviations.
-#[derive(Debug, Clone, Serialize)]
-pub struct ShiftDim {
-    pub channel: String,
-    pub dim: usize,
-    pub deviations: Vec<f64>,
-}
 
 /// The quarters' deviations of one dimension's episode means (in recording order), or None when
 /// there are too few episodes or the means do not vary.

@@ -10,7 +10,7 @@
 //!
 //! - **frozen**: the longest run of one exact value covers at least `frozen_fraction` of the
 //!   episode and at least twice the dimension's median over the episodes (a joint that rests
-//!   for half of most episodes rests), in a dimension where at most a fifth of the other
+//!   for half of most episodes rests), in a dimension where at most a tenth of the other
 //!   episodes hold that long (a dimension unused in many episodes is `stuck`, a dataset-wide
 //!   warning, not a fault of each), at a value that is not the dimension's dataset-wide min or
 //!   max (a hand closed on an object holds its limit).
