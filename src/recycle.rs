@@ -12,7 +12,7 @@
 //! A buffer from [`take`] holds whatever its last user left in it: the caller must overwrite
 //! every byte before anything reads it (the video decoder does: every row gets its frame, or the
 //! episode fails and the buffer comes back unread), so the output bytes never depend on which
-//! buffer was reused. A pool keeps at most [`MAX_BUFFERS`] buffers, only those of at least
+//! buffer was reused. A pool keeps at most [`MAX_BUFFERS_PER_THREAD`] buffers per thread, only those of at least
 //! [`MIN_BYTES`], and [`clear`] frees them when a pass ends, so memory stays bounded by what a
 //! batch of episodes held at once.
 
@@ -21,8 +21,10 @@ use std::sync::Mutex;
 /// Buffers smaller than this are not worth keeping (an allocator reuses them by itself).
 pub const MIN_BYTES: usize = 4 << 20;
 
-/// The most buffers kept at once.
-pub const MAX_BUFFERS: usize = 64;
+/// The most buffers kept at once, per thread of the pool: a batch of camera episodes is one per
+/// thread ([`crate::exec`]), so more would only hold memory no decode will ask for (64 kept
+/// buffers of 400 MB grew a 43-episode 640x480 build to 7.9 GB).
+pub const MAX_BUFFERS_PER_THREAD: usize = 1;
 
 /// Kept buffers; the process has one ([`take`], [`give`], [`clear`]).
 pub struct Pool(Mutex<Vec<Vec<u8>>>);
@@ -69,7 +71,7 @@ impl Pool {
             return;
         }
         let mut kept = self.kept();
-        if kept.len() < MAX_BUFFERS {
+        if kept.len() < MAX_BUFFERS_PER_THREAD * rayon::current_num_threads().max(1) {
             kept.push(buf);
         }
     }

@@ -142,9 +142,14 @@ fn from_partials(readers: &mut [partial::Reader], batch: Range<usize>) -> Result
 
 /// The episodes `range` in batches decoded at once, in order: at least two per thread (to keep
 /// every thread busy), and more while their decoded values stay under [`BATCH_BYTES`] (short
-/// low-dim episodes: fewer pauses between batches). Memory stays bounded by the batch.
+/// low-dim episodes: fewer pauses between batches). Episodes with camera frames (hundreds of
+/// megabytes each) come one per thread. Memory stays bounded by the batch.
 pub(super) fn batches(manifest: &Manifest, range: Range<usize>) -> Vec<Range<usize>> {
-    let min = 2 * rayon::current_num_threads();
+    let cameras = manifest
+        .channels
+        .iter()
+        .any(|c| c.kind == ChannelKind::Image);
+    let min = if cameras { 1 } else { 2 } * rayon::current_num_threads();
     let step_bytes: usize = manifest
         .channels
         .iter()

@@ -121,7 +121,8 @@ impl LossyFrames {
                     .iter()
                     .map(|&(_, id)| u8::from(self.encoders.copied(at, id)))
                     .collect();
-                v.record_copies(&copied)?;
+                let refused = self.encoders.refusals(at);
+                v.record_copies(&copied, self.encoders.copied_codec(at), &refused)?;
             }
         }
         Ok(())

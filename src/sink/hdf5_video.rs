@@ -8,7 +8,9 @@
 //! /videos/<camera>/frames  (E,) int64     its frame count (= the episode's stored steps)
 //! /videos/<camera>/copied  (E,) uint8     1 where the file is the source video's own packets
 //!     attrs: encoding = "video", codec, crf, gop, pix_fmt, frame_shape = [H, W, 3]
-//!            (the encoder's; a copied file keeps the source's codec and pixel format)
+//!            (the encoder's; a copied file keeps the source's codec and pixel format: when
+//!            every file is copied, codec is the source's, crf and gop -1), stored = "copied" |
+//!            "encoded" | "mixed", copy_refused (why copies were refused, when any was)
 //! ```
 //! Where the episode's frames are a source video's own, unchanged, its packets are copied
 //! ([`super::video_copy`], `video_copy`); otherwise each file is encoded on a thread of its own
@@ -162,9 +164,46 @@ impl VideoChannel {
         (kept && size && span.frames == frames.len()).then(|| span.clone())
     }
 
-    /// Writes `/videos/<camera>/copied`: per stored episode, whether its file was copied.
-    pub(super) fn record_copies(&self, copied: &[u8]) -> Result<()> {
+    /// The longest keyframe interval a copy of the source's stream may have (`video_gop` when
+    /// the spec sets it, else the source's own).
+    fn copy_gop(&self) -> u32 {
+        self.settings.copy_gop.unwrap_or(u32::MAX)
+    }
+
+    /// Writes `/videos/<camera>/copied`: per stored episode, whether its file was copied; and
+    /// when every file was copied, the group's attributes describe the stored streams (the
+    /// source's codec, `crf` and `gop` -1: nothing was encoded), not the encoder's settings.
+    pub(super) fn record_copies(
+        &self,
+        copied: &[u8],
+        source_codec: Option<&str>,
+        refused: &[String],
+    ) -> Result<()> {
         self.copied.write_raw(copied)?;
+        let group = self
+            .copied
+            .file()?
+            .group(&format!("videos/{}", self.name))?;
+        let stored = match (copied.iter().all(|&c| c == 1), copied.contains(&1)) {
+            (true, _) if !copied.is_empty() => "copied",
+            (_, true) => "mixed",
+            _ => "encoded",
+        };
+        group
+            .new_attr::<VarLenUnicode>()
+            .create("stored")?
+            .write_scalar(&text(stored)?)?;
+        if !refused.is_empty() {
+            group
+                .new_attr::<VarLenUnicode>()
+                .create("copy_refused")?
+                .write_scalar(&text(&refused.join("; "))?)?;
+        }
+        if let (Some(codec), "copied") = (source_codec, stored) {
+            group.attr("codec")?.write_scalar(&text(codec)?)?;
+            group.attr("crf")?.write_scalar(&-1i64)?;
+            group.attr("gop")?.write_scalar(&-1i64)?;
+        }
         Ok(())
     }
 
@@ -190,6 +229,10 @@ pub(super) struct Encoders {
     running: VecDeque<Running>,
     /// Per (channel position, episode id) written: whether its file was copied.
     copied: BTreeMap<(usize, u64), bool>,
+    /// Why copies were refused, with the episodes.
+    refusals: BTreeMap<(usize, String), Vec<u64>>,
+    /// Per channel position, the codec of the streams copied.
+    codecs: BTreeMap<usize, String>,
 }
 
 impl Encoders {
@@ -199,6 +242,8 @@ impl Encoders {
             limit: rayon::current_num_threads().max(1),
             running: VecDeque::new(),
             copied: BTreeMap::new(),
+            refusals: BTreeMap::new(),
+            codecs: BTreeMap::new(),
         }
     }
 
@@ -215,18 +260,32 @@ impl Encoders {
         }
         let path = self.dir.join(episode_path(&channel.name, id));
         let (shape, settings) = (channel.shape, channel.settings);
-        let to_copy = channel.to_copy(frames);
+        // A copy reads packets, not pixels: it runs here, and only a refused one keeps a copy
+        // of the episode's frames for its encoder (an episode of 640x480 frames is 400 MB).
+        if let Some(span) = channel.to_copy(frames) {
+            match video_copy::copy(&span, &path, shape.fps, channel.copy_gop())? {
+                CopyOutcome::Copied(n) => {
+                    self.copied.insert((at, id), true);
+                    self.codecs.insert(at, span.probe.codec.clone());
+                    if n != frames.len() as u64 {
+                        return Err(Error::Internal(format!(
+                            "{}: {n} frames copied, {} expected",
+                            path.display(),
+                            frames.len()
+                        )));
+                    }
+                    return Ok(());
+                }
+                CopyOutcome::Refused(why) => {
+                    self.refusals.entry((at, why)).or_default().push(id);
+                }
+            }
+        }
         let pixels = frames.bytes().to_vec();
         let file = path.clone();
         let thread = std::thread::Builder::new()
             .name("chunkc-video".into())
             .spawn(move || {
-                if let Some(span) = to_copy {
-                    let outcome = video_copy::copy(&span, &file, shape.fps, settings.gop)?;
-                    if let CopyOutcome::Copied(n) = outcome {
-                        return Ok((n, true));
-                    }
-                }
                 let mut stream = VideoStream::create(&file, shape, settings)?;
                 stream.push_all(&pixels)?;
                 Ok((stream.finish()?, false))
@@ -270,6 +329,24 @@ impl Encoders {
             self.wait_oldest()?;
         }
         Ok(())
+    }
+
+    /// The codec of the streams copied for the channel at position `at`, if any was.
+    pub(super) fn copied_codec(&self, at: usize) -> Option<&str> {
+        self.codecs.get(&at).map(String::as_str)
+    }
+
+    /// Why copies of the channel at position `at` were refused: one line per reason, with its
+    /// episodes.
+    pub(super) fn refusals(&self, at: usize) -> Vec<String> {
+        self.refusals
+            .iter()
+            .filter(|((a, _), _)| *a == at)
+            .map(|((_, why), ids)| {
+                let ids: Vec<String> = ids.iter().map(u64::to_string).collect();
+                format!("{why}: episodes {}", ids.join(", "))
+            })
+            .collect()
     }
 
     /// Whether episode `id`'s file of the channel at position `at` was copied.

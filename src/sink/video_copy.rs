@@ -86,7 +86,7 @@ pub fn refusal(packets: &[(i64, bool)], ticks_per_frame: f64, gop: u32) -> Optio
         .max()
         .unwrap_or(0);
     (longest > gop as usize)
-        .then(|| format!("keyframes {longest} frames apart, more than `video_gop` = {gop}"))
+        .then(|| format!("keyframes {longest} frames apart, more than `video_gop` = {gop} (set `video_gop = {longest}`, or leave it unset to keep the source's keyframes)"))
 }
 
 #[cfg(feature = "video")]

@@ -460,6 +460,7 @@ mod tests {
             crf: 30,
             gop: 2,
             copy: crate::spec::StreamCopy::Never,
+            copy_gop: None,
             closed_gop: false,
         }
     }

@@ -85,9 +85,13 @@ pub struct Profile {
 pub struct VideoSettings {
     pub codec: VideoCodec,
     pub crf: u32,
-    /// The keyframe interval: what the encoder writes, and the longest a copied stream may have.
+    /// The keyframe interval the encoder writes.
     pub gop: u32,
     pub copy: StreamCopy,
+    /// The longest keyframe interval a copied stream may have: `video_gop` when the spec sets
+    /// it, else none (a copy keeps the source's keyframes: refusing a source whose keyframes
+    /// are 12 apart because the encoder would write 8 re-encoded every episode of a real set).
+    pub copy_gop: Option<u32>,
     /// Every `gop`-th frame a keyframe (closed GOPs), as in LeRobot's own files: libavcodec's
     /// SVT-AV1 wrapper otherwise asks for open GOPs, whose intra frames are not keyframes, and
     /// a LeRobot reader seeking to a frame of a file shared by every episode would decode from
@@ -123,6 +127,7 @@ pub const STORAGE_VIDEO: VideoSettings = VideoSettings {
     crf: 23,
     gop: 8,
     copy: StreamCopy::AnyCodec,
+    copy_gop: None,
     closed_gop: true,
 };
 
@@ -138,6 +143,7 @@ impl Profile {
                     crf: DEFAULT_VIDEO_CRF,
                     gop: DEFAULT_VIDEO_GOP,
                     copy: StreamCopy::Never,
+                    copy_gop: None,
                     closed_gop: true,
                 }
             }
@@ -155,6 +161,7 @@ impl Profile {
                 (_, _, Some(_)) => StreamCopy::SameCodec,
                 (copy, ..) => copy,
             },
+            copy_gop: self.video_gop,
             closed_gop: defaults.closed_gop,
         })
     }

@@ -48,6 +48,7 @@ const VIDEO: VideoSettings = VideoSettings {
     gop: DEFAULT_VIDEO_GOP,
     copy: StreamCopy::Never,
     // LeRobot's own files have a keyframe every `g` frames (what its decoders seek to).
+    copy_gop: None,
     closed_gop: true,
 };
 

@@ -244,3 +244,35 @@ def test_a_synthesized_lerobot_set_seeks_like_lerobots_and_is_copied(tmp_path):
     build(path)
     # 21-frame episodes start on frames 0, 21 and 42: only 0 and 42 are keyframes.
     assert stored(tmp_path / "out" / "video", cam)[1] == [1, 0, 1]
+
+
+def test_the_default_copies_a_source_with_longer_gops(tmp_path):
+    """A real LeRobot set's MPEG-4 files put keyframes 12 apart where chunkc's encoder writes
+    8: the default `video_gop` (unset) follows the source's when it copies, so every episode is
+    copied (issue 37: none was, and the build re-encoded 43 episodes in 254 s). The attributes
+    then describe the stored streams, not the encoder; a `video_gop` the spec sets below the
+    source's refuses the copy and records why."""
+    source = reencode_with_gop(V3, tmp_path / "src", gop=20)  # keyframes on every episode start
+    build(spec(tmp_path, source, video_profile()))
+    root = tmp_path / "out" / "video"
+    paths, copied = stored(root)
+    assert copied == [1, 1, 1]
+    with h5py.File(root / "data.h5", "r") as f:
+        attrs = dict(f[f"videos/{TOP}"].attrs)
+    assert attrs["stored"] == "copied"
+    assert attrs["codec"] == "h264" and attrs["crf"] == -1 and attrs["gop"] == -1
+    assert "copy_refused" not in attrs
+    # The stored stream is what the attribute says (PyAV, the real reader).
+    with av.open(str(root / paths[0])) as c:
+        assert c.streams.video[0].codec_context.name == "h264"
+    shutil.rmtree(tmp_path / "out")
+    (tmp_path / "chunkc.lock").unlink()
+    build(spec(tmp_path, source, video_profile(extra="video_gop = 8")))
+    _, copied = stored(tmp_path / "out" / "video")
+    assert copied == [0, 0, 0]
+    with h5py.File(tmp_path / "out" / "video" / "data.h5", "r") as f:
+        attrs = dict(f[f"videos/{TOP}"].attrs)
+    assert attrs["stored"] == "encoded" and attrs["codec"] == "libx264" and attrs["crf"] == 23
+    refused = attrs["copy_refused"]
+    assert "keyframes 20 frames apart, more than `video_gop` = 8" in refused, refused
+    assert "set `video_gop = 20`" in refused and "episodes 0, 1, 2" in refused, refused
