@@ -12,9 +12,9 @@
 //! A buffer from [`take`] holds whatever its last user left in it: the caller must overwrite
 //! every byte before anything reads it (the video decoder does: every row gets its frame, or the
 //! episode fails and the buffer comes back unread), so the output bytes never depend on which
-//! buffer was reused. A pool keeps at most [`MAX_BUFFERS_PER_THREAD`] buffers per thread, only those of at least
-//! [`MIN_BYTES`], and [`clear`] frees them when a pass ends, so memory stays bounded by what a
-//! batch of episodes held at once.
+//! buffer was reused. A pool keeps at most [`MAX_BUFFERS_PER_THREAD`] buffers per thread, only
+//! those of at least [`MIN_BYTES`], and [`clear`] frees them when a pass ends, so memory stays
+//! bounded by what a batch of episodes held at once.
 
 use std::sync::Mutex;
 

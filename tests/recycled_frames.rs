@@ -56,7 +56,8 @@ fn recycled_buffers_leave_no_byte_in_the_output() {
     let tmp = tempfile::tempdir().unwrap();
     recycle::clear();
     let clean = build(tmp.path(), "clean");
-    for _ in 0..recycle::MAX_BUFFERS {
+    // Fill the pool (it keeps one buffer per thread of rayon's pool).
+    for _ in 0..recycle::MAX_BUFFERS_PER_THREAD * rayon::current_num_threads() {
         recycle::give(vec![0xA5; recycle::MIN_BYTES]);
     }
     let poisoned = build(tmp.path(), "poisoned");
