@@ -121,8 +121,9 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let mut doctor_seconds = doctor.as_ref().and_then(exec::Doctor::seconds);
     drop(doctor);
     let committed = match outcome {
-        Outcome::Built(staging, hashes) => {
+        Outcome::Built(staging, mut hashes) => {
             let block_decodes = source.decode_counts();
+            super::card::write_cards(spec, &plan, &names, &staging, &mut hashes, &judged)?;
             build_lock.keep();
             let _commit = timings::phase("commit (fsync)");
             staging.commit(&names)?;
@@ -135,13 +136,15 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         }
         Outcome::Exclude(excluded) => {
             // The doctor has not judged when the pass stopped at a non-finite value.
-            let pending = match (&probe, doctor_seconds) {
-                (Some(p), None) => Some((p, &mut judged)),
-                _ => None,
-            };
+            let pending = probe.as_ref().filter(|_| doctor_seconds.is_none());
             let again = (spec, &plan, names, opts);
-            let (committed, seconds) =
-                rebuild_without(again, source, excluded, &mut build_lock, pending)?;
+            let (committed, seconds) = rebuild_without(
+                again,
+                source,
+                excluded,
+                &mut build_lock,
+                (pending, &mut judged),
+            )?;
             doctor_seconds = doctor_seconds.or(seconds);
             committed
         }
@@ -194,15 +197,15 @@ fn doctor_for<'a>(
 }
 
 /// Plans again without the `excluded` episodes and builds the profiles `names` from that plan
-/// (see the module docs); commits the result. `doctor`: the doctor still to judge (the first
-/// pass stopped at a non-finite value), in this pass; its exclusions make one more. Returns the
-/// doctor's seconds when it ran here.
+/// (see the module docs); commits the result, with the cards of `judged`. `doctor`: the doctor
+/// still to judge (the first pass stopped at a non-finite value), in this pass, into `judged`;
+/// its exclusions make one more. Returns the doctor's seconds when it ran here.
 fn rebuild_without(
     (spec, plan, names, opts): (&LoadedSpec, &Plan, Vec<String>, &BuildOptions),
     source: Box<dyn Source>,
     excluded: Excluded,
     build_lock: &mut BuildLock,
-    mut doctor: Option<(&Probe, &mut AuditReport)>,
+    (mut doctor, judged): (Option<&Probe>, &mut AuditReport),
 ) -> Result<(Committed, Option<f64>)> {
     let mut kept = source;
     let mut before = plan.clone();
@@ -221,7 +224,7 @@ fn rebuild_without(
             .map(|_| AtomicUsize::new(0))
             .collect();
         let judging = doctor.take();
-        let mut pass_doctor = judging.map(|(p, r)| doctor_for(spec, p, kept.manifest(), r));
+        let mut pass_doctor = judging.map(|p| doctor_for(spec, p, kept.manifest(), &mut *judged));
         let outcome = exec::execute(
             spec,
             &replan,
@@ -235,8 +238,9 @@ fn rebuild_without(
         drop(pass_doctor);
         seconds = seconds.or(judged_here);
         match outcome {
-            Outcome::Built(staging, hashes) => {
+            Outcome::Built(staging, mut hashes) => {
                 let block_decodes = kept.decode_counts();
+                super::card::write_cards(spec, &replan, &names, &staging, &mut hashes, judged)?;
                 build_lock.keep();
                 staging.commit(&names)?;
                 let committed = Committed {

@@ -6,17 +6,21 @@
 //!
 //! - `audit`: open the source and audit it; `chunkc audit` writes the report.
 //! - `plan`: the audited source and the plan against the lock (`chunkc plan`).
+//! - `measure`: what `plan` measures of lossily stored frames for its size estimates.
 //! - `check`: the plan, for `chunkc check`'s one line.
 //! - `analyze`: the chunk-length analysis and its report.
 //! - `build`: the stale profiles built, committed and locked.
+//! - `card`: each built profile's dataset card, once the build's audit is final.
 //! - `shard`: a sharded build: one shard's partial (`build --shard`), and the merge of all.
 //! - `init`: a dataset inspected and a first spec written from it, once it checks.
 
 mod analyze;
 mod audit;
 mod build;
+mod card;
 mod check;
 mod init;
+mod measure;
 mod plan;
 mod shard;
 

@@ -10,10 +10,20 @@ use crate::source::Source;
 use crate::spec::{self, LoadedSpec, SplitFrom};
 
 /// Opens the source, audits it (the dataset doctor included), and resolves the plan against the
-/// lock (what `chunkc plan` shows). The source returned is the audited one: exclusions gone,
+/// lock (what `chunkc plan` shows), with the sizes of lossily stored frames measured
+/// ([`super::measure`]). The source returned is the audited one: exclusions gone,
 /// repairs applied on read.
 pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
-    plan_audited(spec, true).map(|(source, plan, _)| (source, plan))
+    plan_reported(spec).map(|(source, plan, _)| (source, plan))
+}
+
+/// [`plan`], and the audit's report.
+pub fn plan_reported(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan, AuditReport)> {
+    let (source, mut plan, report) = plan_audited(spec, true)?;
+    // Lossily stored frames: sizes from what is measured here (`build` does not need them).
+    let measured = super::measure::frames(spec, source.as_ref(), &plan, &report);
+    plan::estimate::fill(&mut plan, &measured);
+    Ok((source, plan, report))
 }
 
 /// [`plan`], with the dataset doctor only when `doctor` is set (`build` folds it into its

@@ -85,7 +85,7 @@ pub fn merge(spec: &LoadedSpec, partials: &Path, opts: &BuildOptions) -> Result<
     let (count, paths) = find_partials(partials)?;
     let mut build_lock = BuildLock::acquire(&out_dir)?;
     Staging::recover(&out_dir)?;
-    let (source, plan) = super::plan(spec)?;
+    let (source, plan, report) = super::plan::plan_reported(spec)?;
     let id = shards::plan_id(&plan);
     let lens: Vec<usize> = source.manifest().episodes.iter().map(|e| e.len).collect();
     let assignment = shards::assign(&lens, count);
@@ -133,7 +133,8 @@ pub fn merge(spec: &LoadedSpec, partials: &Path, opts: &BuildOptions) -> Result<
         Input::Partials(&paths),
     )?;
     let hashes = match outcome {
-        Outcome::Built(staging, hashes) => {
+        Outcome::Built(staging, mut hashes) => {
+            super::card::write_cards(spec, &plan, &names, &staging, &mut hashes, &report)?;
             build_lock.keep();
             staging.commit(&names)?;
             hashes

@@ -16,7 +16,6 @@ use crate::plan::{Plan, ProfilePlan, META_FILE, STATS_FILE};
 use crate::render;
 use crate::sink::{self, documents, Sink};
 use crate::source::{self, ChannelKind, Manifest};
-use crate::spec::LoadedSpec;
 use crate::stats::{normalize::Normalizer, ChannelStats};
 use crate::timings;
 use crate::window::Sampling;
@@ -26,7 +25,6 @@ const SYNC_THREADS: usize = 4;
 
 /// What every profile of a build shares.
 pub(super) struct Shared<'a> {
-    pub spec: &'a LoadedSpec,
     pub plan: &'a Plan,
     pub manifest: &'a Manifest,
     pub renderer: &'a render::Renderer,
@@ -179,7 +177,7 @@ fn write_documents(
     data: &Written,
     dir: &Path,
 ) -> Result<()> {
-    let (plan, spec, renderer) = (shared.plan, shared.spec, shared.renderer);
+    let (plan, renderer) = (shared.plan, shared.renderer);
     let write = |name: &str, text: String| -> Result<()> {
         let path = dir.join(name);
         std::fs::write(&path, text).at("write", &path)
@@ -205,21 +203,9 @@ fn write_documents(
         let path = dir.join(sink::lerobot::STATS_PATH);
         std::fs::write(&path, render::codebase::lerobot(p, stats)).at("write", &path)?;
     }
-    let stats_files = codebase_files(shared, p, rate, stats, &data.normalizers, dir)?;
-    let hint = Path::new(&spec.spec.output.dir).join(&p.name);
-    let generated = render::profile_files(
-        renderer,
-        &render::ProfileContext {
-            plan,
-            profile: p,
-            spec_file: &spec.file.file_name().unwrap_or_default().to_string_lossy(),
-            output_hint: &hint.to_string_lossy(),
-            data_file: &data.data_file,
-            num_samples: data.counts,
-            stats_files: &stats_files,
-        },
-    )?;
-    for (name, text) in generated {
+    codebase_files(shared, p, rate, stats, &data.normalizers, dir)?;
+    // The dataset card is written by `commands` once the dataset doctor has judged.
+    for (name, text) in render::profile_files(renderer, p)? {
         write(name, text)?;
     }
     Ok(())

@@ -200,7 +200,6 @@ pub fn execute(
         }
     }
     let shared = finish::Shared {
-        spec,
         plan,
         manifest,
         renderer: &renderer,

@@ -10,7 +10,7 @@
 //! - `conversion`: decimation or resampling from the source rate to a profile's.
 //! - `cameras`: the cameras a profile resizes, checked against the source's frames.
 //! - `sampling`: windows, segments or hierarchical chunks, checked against the channels.
-//! - `estimate`: the files a profile writes and their estimated sizes.
+//! - `estimate`: the files a profile writes, with an upper bound or an estimate of their sizes.
 //! - `freshness`: whether a profile is up to date, and the typed reason when it is not.
 //! - `split`: the deterministic train/validation split.
 //! - `export`: where each channel's array lives in the profile's container (native exports
@@ -20,7 +20,7 @@
 
 mod cameras;
 mod conversion;
-mod estimate;
+pub mod estimate;
 pub mod export;
 pub mod freshness;
 mod resolve;

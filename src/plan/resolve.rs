@@ -36,7 +36,7 @@ pub fn resolve(
         )?);
     }
     let (rates, statistics) = shared_jobs(&profiles);
-    Ok(Plan {
+    let mut plan = Plan {
         version: PLAN_VERSION,
         tool_version: TOOL_VERSION,
         spec_hash: spec.hash.clone(),
@@ -56,7 +56,10 @@ pub fn resolve(
         statistics,
         audit: AuditSummary::default(),
         profiles,
-    })
+        scripts: estimate::script_sizes(spec)?,
+    };
+    estimate::fill(&mut plan, &estimate::FrameMeasures::new());
+    Ok(plan)
 }
 
 /// The train/validation split: the source's own (`[split] from = "source"`), else the seeded one.
@@ -158,7 +161,7 @@ pub fn apply_audit(plan: &mut Plan, report: &AuditReport, applied: bool) {
                 Verdict::Ok => {}
                 Verdict::Exclude => p.excluded.push(Excluded {
                     id: e.id,
-                    reason: format!("audit: {}", e.detail),
+                    reason: e.exclusion_reason(),
                 }),
                 Verdict::Interpolate | Verdict::Resample => p.repaired.push(RepairedEpisode {
                     id: e.id,
@@ -170,6 +173,9 @@ pub fn apply_audit(plan: &mut Plan, report: &AuditReport, applied: bool) {
             }
         }
     }
+    // `meta.json` lists the exclusions and repairs.
+    let measured = estimate::FrameMeasures::new();
+    estimate::fill(plan, &measured);
 }
 
 fn resolve_profile(
@@ -197,7 +203,6 @@ fn resolve_profile(
     export::assign(spec, profile, &mut channels)?;
     let sampling = sampling_of(spec, manifest, profile, fps)?;
     let used = episodes_of(spec, manifest, split, profile, fps, conv, &sampling)?;
-    let files = estimate::planned_files(manifest, &channels, profile, used.steps, used.counts);
 
     let fingerprint = freshness::profile_fingerprint(spec, manifest, profile);
     let inputs = freshness::inputs(spec, profile);
@@ -223,7 +228,7 @@ fn resolve_profile(
         warnings: used.warnings,
         num_samples: used.counts,
         steps: used.steps,
-        files,
+        files: Vec::new(),
         fingerprint,
         inputs,
         status,

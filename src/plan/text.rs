@@ -175,10 +175,12 @@ pub fn render_text(plan: &Plan) -> String {
         for f in &p.files {
             let _ = writeln!(
                 s,
-                "  write  {}/{}  <= {}",
+                "  write  {}/{}  {} {}{}",
                 p.name,
                 f.path,
-                human_bytes(f.estimated_bytes)
+                if f.bound { "<=" } else { "~" },
+                human_bytes(f.estimated_bytes),
+                planned_note(f)
             );
         }
         for w in &p.warnings {
@@ -186,6 +188,21 @@ pub fn render_text(plan: &Plan) -> String {
         }
     }
     s
+}
+
+/// What `chunkc plan` says after an estimate: its files and how it was made.
+fn planned_note(f: &super::PlannedFile) -> String {
+    let parts: Vec<String> = f
+        .files
+        .map(|n| format!("{n} file{}", if n == 1 { "" } else { "s" }))
+        .into_iter()
+        .chain(f.basis.clone())
+        .collect();
+    if parts.is_empty() {
+        String::new()
+    } else {
+        format!("  ({})", parts.join("; "))
+    }
 }
 
 #[cfg(test)]

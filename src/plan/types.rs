@@ -26,6 +26,9 @@ pub struct Plan {
     /// The temporal audit, summed up (`chunkc audit` writes the whole of it).
     pub audit: AuditSummary,
     pub profiles: Vec<ProfilePlan>,
+    /// The size of each generated script, from its template (the embedded one or the user's).
+    #[serde(skip)]
+    pub scripts: BTreeMap<String, super::estimate::ScriptSize>,
 }
 
 /// What the temporal audit found and what `build` does about it.
@@ -178,11 +181,21 @@ pub struct SplitCounts {
     pub val: Option<usize>,
 }
 
+/// A file the profile writes (a path ending in `/` is a directory, one with `*` a set of files),
+/// with its size as known before the build.
 #[derive(Debug, Clone, Serialize)]
 pub struct PlannedFile {
     pub path: String,
-    /// An upper bound: image frames are counted before compression.
     pub estimated_bytes: u64,
+    /// Whether `estimated_bytes` is an upper bound of what the build writes (`<=`); otherwise an
+    /// estimate (`~`): frames stored lossily, a template of the user's.
+    pub bound: bool,
+    /// How many files a directory holds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub files: Option<usize>,
+    /// How an estimate was made (the source's video files, sample frames encoded, a guess).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub basis: Option<String>,
 }
 
 /// One resolved profile value and where it came from.

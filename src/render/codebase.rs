@@ -43,7 +43,59 @@ pub struct File {
     pub what: String,
 }
 
-fn file(name: &str, bytes: Vec<u8>, what: &str) -> File {
+/// Every statistics file of each format, with what it is (as the dataset card lists them).
+const DESCRIBED: &[(StatsFormat, &str, &str)] = &[
+    (
+        StatsFormat::Act,
+        "dataset_stats.pkl",
+        "ACT `dataset_stats.pkl` (pickle of numpy arrays)",
+    ),
+    (
+        StatsFormat::Act,
+        "dataset_stats.json",
+        "the same numbers as JSON",
+    ),
+    (
+        StatsFormat::DiffusionPolicy,
+        "dp_normalizer.json",
+        "Diffusion Policy LinearNormalizer parameters",
+    ),
+    (
+        StatsFormat::DiffusionPolicy,
+        "dp_normalizer.py",
+        "builds the LinearNormalizer state dict",
+    ),
+    (
+        StatsFormat::Lerobot,
+        "lerobot_stats.json",
+        "LeRobot `meta/stats.json` layout",
+    ),
+    (
+        StatsFormat::Openpi,
+        "norm_stats.json",
+        "openpi `norm_stats.json`",
+    ),
+    (
+        StatsFormat::Robomimic,
+        "robomimic_stats.json",
+        "robomimic normalization stats (v0.5 and v0.4)",
+    ),
+];
+
+/// (name, what it is) of every file [`files`] writes for `formats`, in its order.
+pub fn described(formats: &[StatsFormat]) -> Vec<(String, String)> {
+    formats
+        .iter()
+        .flat_map(|f| DESCRIBED.iter().filter(move |(of, ..)| of == f))
+        .map(|(_, name, what)| (name.to_string(), what.to_string()))
+        .collect()
+}
+
+fn file(name: &str, bytes: Vec<u8>) -> File {
+    let what = DESCRIBED
+        .iter()
+        .find(|(_, n, _)| *n == name)
+        .map_or("", |(.., what)| what);
     File {
         name: name.into(),
         bytes,
@@ -61,18 +113,9 @@ pub fn files(formats: &[StatsFormat], inputs: &Inputs) -> crate::Result<Vec<File
             StatsFormat::Lerobot => out.push(file(
                 "lerobot_stats.json",
                 lerobot(inputs.profile, inputs.stats),
-                "LeRobot `meta/stats.json` layout",
             )),
-            StatsFormat::Openpi => out.push(file(
-                "norm_stats.json",
-                openpi(inputs),
-                "openpi `norm_stats.json`",
-            )),
-            StatsFormat::Robomimic => out.push(file(
-                "robomimic_stats.json",
-                robomimic(inputs),
-                "robomimic normalization stats (v0.5 and v0.4)",
-            )),
+            StatsFormat::Openpi => out.push(file("norm_stats.json", openpi(inputs))),
+            StatsFormat::Robomimic => out.push(file("robomimic_stats.json", robomimic(inputs))),
         }
     }
     Ok(out)
@@ -128,16 +171,8 @@ fn act(inputs: &Inputs) -> Vec<File> {
         })
         .collect();
     vec![
-        file(
-            "dataset_stats.pkl",
-            pickle::dict_of_arrays(&items),
-            "ACT `dataset_stats.pkl` (pickle of numpy arrays)",
-        ),
-        file(
-            "dataset_stats.json",
-            pretty(&Value::Object(json)),
-            "the same numbers as JSON",
-        ),
+        file("dataset_stats.pkl", pickle::dict_of_arrays(&items)),
+        file("dataset_stats.json", pretty(&Value::Object(json))),
     ]
 }
 
@@ -172,16 +207,8 @@ fn diffusion_policy(inputs: &Inputs) -> crate::Result<Vec<File>> {
     }
     let helper = super::shared_script(inputs.renderer, "dp_normalizer.py")?;
     Ok(vec![
-        file(
-            "dp_normalizer.json",
-            pretty(&Value::Object(params)),
-            "Diffusion Policy LinearNormalizer parameters",
-        ),
-        file(
-            "dp_normalizer.py",
-            helper.into_bytes(),
-            "builds the LinearNormalizer state dict",
-        ),
+        file("dp_normalizer.json", pretty(&Value::Object(params))),
+        file("dp_normalizer.py", helper.into_bytes()),
     ])
 }
 

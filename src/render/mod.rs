@@ -8,19 +8,20 @@
 //! the profile from `meta.json` at run time ([`SHARED_SCRIPTS`]). What differs per profile is in
 //! `meta.json`, the statistics files and the dataset card.
 //!
+//! - `card`: the dataset card, written once the build's audit has judged.
 //! - `codebase`: statistics files in each target codebase's own format.
 //! - `pickle`: the minimal pickle writer behind ACT's `dataset_stats.pkl`.
 
+pub mod card;
 pub mod codebase;
 pub mod pickle;
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
 use minijinja::{context, Environment, Value};
 
 use crate::error::{Error, IoContext, Result};
-use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
+use crate::plan::{ProfilePlan, TOOL_VERSION};
 
 /// Every embedded template, by the name of the file it renders.
 pub const TEMPLATES: &[(&str, &str)] = &[
@@ -113,110 +114,42 @@ pub fn shared_script(r: &Renderer, name: &str) -> Result<String> {
     r.render(name, context! { version => TOOL_VERSION })
 }
 
-/// What the generated files of one profile are rendered from.
-pub struct ProfileContext<'a> {
-    pub plan: &'a Plan,
-    pub profile: &'a ProfilePlan,
-    pub spec_file: &'a str,
-    pub output_hint: &'a str,
-    pub data_file: &'a str,
-    pub num_samples: [usize; 2],
-    /// (file name, what it is) of the codebase statistics files written.
-    pub stats_files: &'a [(String, String)],
-}
-
-/// `loader.py`, `policy.py`, `validate.py`, `smoke_train.py`, `rollout.py` when the profile names
-/// an `env` (the same for every profile) and the dataset
-/// card `README.md`.
-// Long function: one entry per generated file, rendered in the order the card lists them.
-pub fn profile_files(r: &Renderer, c: &ProfileContext) -> Result<Vec<(&'static str, String)>> {
-    let p = c.profile;
-    let v = &p.values;
-    let values: Vec<Value> = p
-        .resolved_values()
-        .into_iter()
-        .map(|r| context! { key => r.key, value => r.value, origin => r.origin })
-        .collect();
-    let channels: Vec<Value> = p
-        .channels
-        .iter()
-        .map(|ch| {
-            context! {
-                name => ch.name,
-                kind => format!("{:?}", ch.kind).to_lowercase(),
-                shape => format!("{:?}", ch.shape),
-                normalize => ch.normalize.name(),
-            }
-        })
-        .collect();
-    let stats_files: Vec<Value> = c
-        .stats_files
-        .iter()
-        .map(|(name, what)| context! { name, what })
-        .collect();
-    let stats_hints: Vec<&str> = v
-        .stats_formats
-        .iter()
-        .map(|f| match f {
-            crate::spec::StatsFormat::Act => {
-                "ACT: copy `dataset_stats.pkl` into the checkpoint directory; `imitate_episodes.py` reads it"
-            }
-            crate::spec::StatsFormat::DiffusionPolicy => {
-                "Diffusion Policy: `dp_normalizer.load_state_dict()` gives the policy's LinearNormalizer state"
-            }
-            crate::spec::StatsFormat::Lerobot => {
-                "LeRobot: `lerobot_stats.json` has the layout of `meta/stats.json`"
-            }
-            crate::spec::StatsFormat::Openpi => {
-                "openpi: `norm_stats.json` goes in the assets directory of the training config"
-            }
-            crate::spec::StatsFormat::Robomimic => {
-                "robomimic: `robomimic_stats.json` holds `obs_normalization_stats` (v0.5 and v0.4 forms)"
-            }
-        })
-        .collect();
-    // The profile's tasks (RLDS language instructions), each with its number of episodes.
-    let mut task_counts: BTreeMap<&str, usize> = BTreeMap::new();
-    for e in &p.episodes {
-        if let Some(t) = c.plan.source.tasks.get(&e.id) {
-            *task_counts.entry(t.as_str()).or_default() += 1;
-        }
-    }
-    let tasks: Vec<Value> = task_counts
-        .iter()
-        .map(|(task, episodes)| context! { task, episodes })
-        .collect();
-    let card = context! {
-        profile => p.name,
-        tasks,
-        version => TOOL_VERSION,
-        spec_file => c.spec_file,
-        spec_hash => c.plan.spec_hash,
-        source => c.plan.source,
-        values,
-        rate => p.rate,
-        sampling => p.sampling.name(),
-        train_episodes => p.episodes.iter().filter(|e| e.split == "train").count(),
-        val_episodes => p.episodes.iter().filter(|e| e.split == "val").count(),
-        num_samples => context! { train => c.num_samples[0], val => c.num_samples[1] },
-        warnings => p.warnings,
-        channels,
-        audit => "no timing audit was run for this build.",
-        data_file => c.data_file,
-        stats_files,
-        stats_hints,
-        output_hint => c.output_hint,
-        chunk => p.window().chunk,
-    };
+/// `loader.py`, `policy.py`, `validate.py`, `smoke_train.py`, and `rollout.py` when the profile
+/// names an `env` (the same for every profile). The dataset card comes later ([`card::card`]):
+/// it says what the build's audit judged.
+pub fn profile_files(r: &Renderer, profile: &ProfilePlan) -> Result<Vec<(&'static str, String)>> {
     let mut files = vec![
         ("loader.py", shared_script(r, "loader.py")?),
         ("policy.py", shared_script(r, "policy.py")?),
         ("validate.py", shared_script(r, "validate.py")?),
         ("smoke_train.py", shared_script(r, "smoke_train.py")?),
     ];
-    if v.env.is_some() {
+    if profile.values.env.is_some() {
         files.push(("rollout.py", shared_script(r, "rollout.py")?));
     }
-    files.push(("README.md", r.render("README.md", card)?));
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `plan` bounds the scripts' sizes from the same templates.
+    #[test]
+    fn the_plan_bounds_every_shared_script() {
+        let r = Renderer::new(None).unwrap();
+        for name in SHARED_SCRIPTS {
+            let (_, template) = crate::plan::estimate::SCRIPTS
+                .iter()
+                .find(|(n, _)| n == name)
+                .unwrap_or_else(|| panic!("plan::estimate::SCRIPTS lacks {name}"));
+            let text = shared_script(&r, name).unwrap();
+            assert!(
+                text.len() as u64 <= crate::plan::estimate::script_bound(template),
+                "{name}"
+            );
+            let embedded = TEMPLATES.iter().find(|(n, _)| n == name).unwrap().1;
+            assert_eq!(*template, embedded, "{name}");
+        }
+    }
 }
