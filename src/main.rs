@@ -398,6 +398,9 @@ fn print_build(report: &commands::BuildReport) {
             eprintln!("up to date: {}", report.up_to_date.join(", "));
         }
     }
+    for note in &report.video_notes {
+        eprintln!("{note}");
+    }
     for warning in &report.doctor_warnings {
         eprintln!("warning: {warning}");
     }

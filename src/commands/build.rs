@@ -50,6 +50,9 @@ pub struct BuildReport {
     /// The doctor's dataset-wide warnings (flag counts, constant, stuck, shift, lag), when it
     /// ran: `build` prints them; `chunkc audit` writes which episodes and why.
     pub doctor_warnings: Vec<String>,
+    /// Per built profile with video storage, per camera: episodes copied, and why copies were
+    /// refused.
+    pub video_notes: Vec<String>,
     /// Wall seconds of the whole command.
     pub seconds: f64,
 }
@@ -87,6 +90,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
             block_decodes: Default::default(),
             doctor_seconds: None,
             doctor_warnings: Vec::new(),
+            video_notes: Vec::new(),
             seconds: started.elapsed().as_secs_f64(),
         });
     }
@@ -152,6 +156,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     update_lock(spec, &committed.plan, &committed.hashes)?;
     drop(whole);
     timings::report();
+    let video_notes = video_notes(&out_dir, &committed.plan, &committed.built)?;
     Ok(BuildReport {
         out_dir,
         built: committed.built,
@@ -160,8 +165,30 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         block_decodes: committed.block_decodes,
         doctor_seconds,
         doctor_warnings: doctor_warnings(&report, &judged, doctor_seconds.is_some()),
+        video_notes,
         seconds: started.elapsed().as_secs_f64(),
     })
+}
+
+/// What the built profiles' video storage did: copied or encoded, and why.
+pub(super) fn video_notes(
+    out_dir: &std::path::Path,
+    plan: &Plan,
+    built: &[String],
+) -> Result<Vec<String>> {
+    let mut notes = Vec::new();
+    for p in plan.profiles.iter().filter(|p| built.contains(&p.name)) {
+        if p.values.format != crate::spec::OutputFormat::Hdf5
+            || p.values.image_compression != crate::spec::ImageCompression::Video
+        {
+            continue;
+        }
+        let data = out_dir.join(&p.name).join(p.values.format.files().data);
+        for line in crate::sink::hdf5_video::copy_summary(&data)? {
+            notes.push(format!("{}: {line}", p.name));
+        }
+    }
+    Ok(notes)
 }
 
 /// The warnings the doctor added to the timing audit's.

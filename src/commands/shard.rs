@@ -151,6 +151,7 @@ pub fn merge(spec: &LoadedSpec, partials: &Path, opts: &BuildOptions) -> Result<
         }
     };
     update_lock(spec, &plan, &hashes)?;
+    let video_notes = super::build::video_notes(&out_dir, &plan, &names)?;
     Ok(BuildReport {
         out_dir,
         built: names,
@@ -159,6 +160,7 @@ pub fn merge(spec: &LoadedSpec, partials: &Path, opts: &BuildOptions) -> Result<
         block_decodes: Default::default(),
         doctor_seconds: plan.audit.doctor_seconds,
         doctor_warnings: Vec::new(),
+        video_notes,
         seconds: started.elapsed().as_secs_f64(),
     })
 }

@@ -37,6 +37,32 @@ pub fn episode_path(camera: &str, id: u64) -> String {
     format!("videos/{camera}/episode_{id:06}.mp4")
 }
 
+/// What a built `data.h5` says of its video cameras, one line each: how many episodes were
+/// copied from the source and, for those encoded, why a copy was refused (with the key that
+/// changes it). Empty for a file without video storage.
+pub fn copy_summary(data_file: &Path) -> Result<Vec<String>> {
+    let file = hdf5::File::open(data_file)?;
+    let Ok(videos) = file.group("videos") else {
+        return Ok(Vec::new());
+    };
+    let mut lines = Vec::new();
+    for camera in videos.member_names()? {
+        let group = videos.group(&camera)?;
+        let copied: Vec<u8> = group.dataset("copied")?.read_raw()?;
+        let n = copied.iter().filter(|&&c| c == 1).count();
+        let mut line = format!(
+            "videos `{camera}`: {n} of {} episodes copied from the source's stream",
+            copied.len()
+        );
+        if let Ok(why) = group.attr("copy_refused") {
+            let why: VarLenUnicode = why.read_scalar()?;
+            line.push_str(&format!("; encoded where the copy was refused: {why}"));
+        }
+        lines.push(line);
+    }
+    Ok(lines)
+}
+
 /// One camera's per-episode videos.
 pub(super) struct VideoChannel {
     name: String,

@@ -31,7 +31,7 @@ mod hdf5_chunks;
 mod hdf5_jpeg;
 mod hdf5_lossy;
 mod hdf5_native;
-mod hdf5_video;
+pub mod hdf5_video;
 pub mod jpeg;
 pub mod lerobot;
 pub mod png;

@@ -253,7 +253,8 @@ def test_the_default_copies_a_source_with_longer_gops(tmp_path):
     then describe the stored streams, not the encoder; a `video_gop` the spec sets below the
     source's refuses the copy and records why."""
     source = reencode_with_gop(V3, tmp_path / "src", gop=20)  # keyframes on every episode start
-    build(spec(tmp_path, source, video_profile()))
+    said = build(spec(tmp_path, source, video_profile())).stderr
+    assert f"video: videos `{TOP}`: 3 of 3 episodes copied from the source's stream" in said, said
     root = tmp_path / "out" / "video"
     paths, copied = stored(root)
     assert copied == [1, 1, 1]
@@ -267,9 +268,12 @@ def test_the_default_copies_a_source_with_longer_gops(tmp_path):
         assert c.streams.video[0].codec_context.name == "h264"
     shutil.rmtree(tmp_path / "out")
     (tmp_path / "chunkc.lock").unlink()
-    build(spec(tmp_path, source, video_profile(extra="video_gop = 8")))
+    said = build(spec(tmp_path, source, video_profile(extra="video_gop = 8"))).stderr
     _, copied = stored(tmp_path / "out" / "video")
     assert copied == [0, 0, 0]
+    # The build says why, and which key changes it.
+    assert f"video: videos `{TOP}`: 0 of 3 episodes copied" in said, said
+    assert "set `video_gop = 20`" in said, said
     with h5py.File(tmp_path / "out" / "video" / "data.h5", "r") as f:
         attrs = dict(f[f"videos/{TOP}"].attrs)
     assert attrs["stored"] == "encoded" and attrs["codec"] == "libx264" and attrs["crf"] == 23
