@@ -82,7 +82,7 @@ impl DimSignal {
 const CLIP_ENTRY: f64 = 0.15;
 
 /// The fewest moving steps an episode's motion scale is taken from.
-pub const MOTION_STEPS: usize = 10;
+pub const MOTION_STEPS: usize = 4;
 
 /// The share of an episode's `n` steps equal to the step before, from their count.
 pub fn unchanged_share(unchanged: u32, n: usize) -> f64 {

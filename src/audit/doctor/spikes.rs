@@ -35,7 +35,8 @@ fn interior_sizes(x: &[f32], r: &[f64], sizes: &mut [f64]) {
         let size = rt.abs();
         let (xt, xb, xa) = (f64::from(xt[i]), f64::from(xb[i]), f64::from(xa[i]));
         let (before, after) = (xt - xb, xt - xa);
-        let echo = |ru: f64| (ru * rt < 0.0) & (ru.abs() >= 0.25 * size);
+        let echo =
+            |ru: f64| (ru * rt < 0.0) & (ru.abs() >= 0.25 * size) & (ru.abs() <= 0.75 * size);
         let spike = (size > 0.0)
             & (before * after > 0.0)
             & (before.abs().min(after.abs()) >= 0.5 * size)
@@ -54,9 +55,10 @@ fn interior_sizes(x: &[f32], r: &[f64], sizes: &mut [f64]) {
 /// - it goes out and back: above (or below) both neighbours by at least half its size on each
 ///   side (a held sample has one flat flank, an uneven step of a motion lies between its
 ///   neighbours: timing artefacts, not glitches of the value);
-/// - both neighbours' residuals are the glitch's echo, of the other sign and at least a quarter
-///   of it (a single step out and back, not a V: a hand closing and opening has its neighbours
-///   on the line through theirs);
+/// - both neighbours' residuals are the glitch's echo, of the other sign, at least a quarter of
+///   it and at most three quarters (a single step out and back makes them half of it; a V, where
+///   a hand closes and opens, keeps its neighbours on the line through theirs; a zig-zag of
+///   teleoperation noise, each step out and back, makes them as large as it);
 /// - it stands out from the curvature around it: three times the residuals two steps away (the
 ///   turning point of a fast motion bends its surroundings too).
 ///
@@ -83,7 +85,8 @@ pub fn largest(x: &[f32], scratch: &mut Scratch) -> [Spike; 3] {
     let size_at = |t: usize| -> f64 {
         let rt = r[t];
         let size = rt.abs();
-        let echo = |u: usize| r[u] * rt < 0.0 && r[u].abs() >= 0.25 * size;
+        let echo =
+            |u: usize| r[u] * rt < 0.0 && r[u].abs() >= 0.25 * size && r[u].abs() <= 0.75 * size;
         let around = |u: Option<usize>| u.filter(|&u| u < n).map_or(0.0, |u| r[u].abs());
         let (xt, xb, xa) = (f64::from(x[t]), f64::from(x[t - 1]), f64::from(x[t + 1]));
         let (before, after) = (xt - xb, xt - xa);
