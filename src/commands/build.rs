@@ -184,8 +184,15 @@ pub(super) fn video_notes(
             continue;
         }
         let data = out_dir.join(&p.name).join(p.values.format.files().data);
-        for line in crate::sink::hdf5_video::copy_summary(&data)? {
-            notes.push(format!("{}: {line}", p.name));
+        for r in crate::sink::hdf5_video::copy_records(&data)? {
+            let mut line = format!(
+                "{}: videos `{}`: {} of {} episodes copied from the source's stream",
+                p.name, r.camera, r.copied, r.episodes
+            );
+            if let Some(why) = r.refused {
+                line.push_str(&format!("; encoded where the copy was refused: {why}"));
+            }
+            notes.push(line);
         }
     }
     Ok(notes)

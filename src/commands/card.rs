@@ -12,7 +12,6 @@ use crate::exec::{FileHashes, Staging};
 use crate::lock;
 use crate::plan::{Plan, ProfilePlan, META_FILE};
 use crate::render::{self, card::Copies};
-use crate::source::ChannelKind;
 use crate::spec::{ImageCompression, LoadedSpec, OutputFormat};
 
 /// The card's file in a profile's directory.
@@ -82,29 +81,17 @@ fn copies(dir: &Path, p: &ProfilePlan) -> Result<BTreeMap<String, Copies>> {
         return Ok(BTreeMap::new());
     }
     let path = dir.join(v.format.files().data);
-    let file = hdf5::File::open(&path)
-        .map_err(|e| Error::output(format!("cannot open {}: {e}", path.display())))?;
-    let mut out = BTreeMap::new();
-    for ch in p.channels.iter().filter(|c| c.kind == ChannelKind::Image) {
-        let copied: Vec<u8> = file
-            .dataset(&format!("videos/{}/copied", ch.name))
-            .and_then(|d| d.read_raw())
-            .map_err(|e| Error::output(format!("{}: {e}", path.display())))?;
-        // Why the sink encoded instead, when it refused a copy (`copy_refused`, with the key).
-        let refused = file
-            .group(&format!("videos/{}", ch.name))
-            .and_then(|g| g.attr("copy_refused"))
-            .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>())
-            .ok()
-            .map(|t| t.to_string());
-        out.insert(
-            ch.name.clone(),
-            Copies {
-                copied: copied.iter().filter(|&&c| c != 0).count(),
-                episodes: copied.len(),
-                refused,
-            },
-        );
-    }
+    let records = crate::sink::hdf5_video::copy_records(&path)?;
+    let out = records
+        .into_iter()
+        .map(|r| {
+            let copies = Copies {
+                copied: r.copied,
+                episodes: r.episodes,
+                refused: r.refused,
+            };
+            (r.camera, copies)
+        })
+        .collect();
     Ok(out)
 }

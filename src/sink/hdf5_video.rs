@@ -37,30 +37,39 @@ pub fn episode_path(camera: &str, id: u64) -> String {
     format!("videos/{camera}/episode_{id:06}.mp4")
 }
 
-/// What a built `data.h5` says of its video cameras, one line each: how many episodes were
-/// copied from the source and, for those encoded, why a copy was refused (with the key that
-/// changes it). Empty for a file without video storage.
-pub fn copy_summary(data_file: &Path) -> Result<Vec<String>> {
-    let file = hdf5::File::open(data_file)?;
+/// What a built `data.h5` records of one video camera's files: how many episodes were copied
+/// from the source's stream, of how many, and why the others were not (`copy_refused`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CopyRecord {
+    pub camera: String,
+    pub copied: usize,
+    pub episodes: usize,
+    pub refused: Option<String>,
+}
+
+/// Every video camera's [`CopyRecord`] in a built `data.h5` (none without video storage).
+pub fn copy_records(data_file: &Path) -> Result<Vec<CopyRecord>> {
+    let file = hdf5::File::open(data_file)
+        .map_err(|e| Error::output(format!("cannot open {}: {e}", data_file.display())))?;
     let Ok(videos) = file.group("videos") else {
         return Ok(Vec::new());
     };
-    let mut lines = Vec::new();
+    let mut records = Vec::new();
     for camera in videos.member_names()? {
         let group = videos.group(&camera)?;
         let copied: Vec<u8> = group.dataset("copied")?.read_raw()?;
-        let n = copied.iter().filter(|&&c| c == 1).count();
-        let mut line = format!(
-            "videos `{camera}`: {n} of {} episodes copied from the source's stream",
-            copied.len()
-        );
-        if let Ok(why) = group.attr("copy_refused") {
-            let why: VarLenUnicode = why.read_scalar()?;
-            line.push_str(&format!("; encoded where the copy was refused: {why}"));
-        }
-        lines.push(line);
+        let refused = match group.attr("copy_refused") {
+            Ok(a) => Some(a.read_scalar::<VarLenUnicode>()?.to_string()),
+            Err(_) => None,
+        };
+        records.push(CopyRecord {
+            camera,
+            copied: copied.iter().filter(|&&c| c != 0).count(),
+            episodes: copied.len(),
+            refused,
+        });
     }
-    Ok(lines)
+    Ok(records)
 }
 
 /// One camera's per-episode videos.

@@ -47,6 +47,8 @@ struct DimRefs {
     motion: f64,
     /// Every episode's share in its longest run of one value, ascending.
     runs: Vec<f64>,
+    /// Their median.
+    run_median: f64,
     /// Episodes whose longest run covers `frozen_fraction`.
     long: usize,
     /// The median episode's clipped share.
@@ -74,6 +76,7 @@ impl DimRefs {
                 r.sort_by(f64::total_cmp);
                 r
             },
+            run_median: stats::median(feats.iter().map(|f| run_share(f, d))),
             long: feats.iter().filter(|f| is_long(cfg, f, d)).count(),
             clip_median: stats::median(feats.iter().map(|f| f.signal[d].clip(f.n).0)),
         }
@@ -122,11 +125,10 @@ fn frozen_or_clipped(
     let at_limit = value / u <= dim.lowest || value / u >= dim.highest;
     let own = run_share(f, d);
     let others = dim.others_p90(own);
-    let median = stats::median(dim.runs.iter().copied());
     let others_long = dim.long.saturating_sub(1) as f64 / (dim.runs.len() - 1).max(1) as f64;
     if long
         && own >= FROZEN_OVER_OTHERS * others
-        && own >= FROZEN_OVER_MEDIAN * median
+        && own >= FROZEN_OVER_MEDIAN * dim.run_median
         && others_long <= FROZEN_OTHERS_LONG
         && !at_limit
     {
