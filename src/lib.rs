@@ -24,6 +24,8 @@
 //!   next episode's decode writes into memory already mapped.
 //! - [`resize`]: camera frames resized as Diffusion Policy resizes them (cover the output keeping
 //!   the aspect ratio with OpenCV's area or bilinear interpolation, then crop the centre).
+//! - [`rotation`]: rotations in the representations datasets store (axis-angle, quaternions,
+//!   Euler angles, matrices, 6D rows or columns) and the conversions between them.
 //!
 //! **The stages**, in order:
 //!
@@ -43,6 +45,8 @@
 //!    fingerprint, every output's hash), read by the plan and written after a build.
 //! 5. **Windows** ([`window`]): which rows every window reads; the invariants "never across an
 //!    episode" and "the observation belongs to the chunk's first step" live there.
+//!    Beside it, [`transform`]: a profile's action representations (`rotation`, `delta`,
+//!    `relative_pose`) bound to the channels, and their math on one row.
 //! 6. **Resolve** ([`plan`]): spec + audited manifest + audit + lock → [`plan::Plan`]: per
 //!    profile the episodes and split, repairs and exclusions, rate conversion, window count,
 //!    files, the state channel, fingerprint and whether it must run. Shared work (the source
@@ -109,6 +113,7 @@ pub mod recycle;
 pub mod render;
 pub mod report;
 pub mod resize;
+pub mod rotation;
 pub mod sink;
 pub mod source;
 pub mod spec;
@@ -116,6 +121,7 @@ pub mod stats;
 pub mod store;
 pub mod synth;
 pub mod timings;
+pub mod transform;
 pub mod window;
 
 pub use error::{Error, Result};

@@ -64,7 +64,19 @@ pub(super) fn all(
             };
             Ok(profiles
                 .into_par_iter()
-                .map(|(i, sink, dir)| (i, profile(shared, stale[i], rate, &stats, sink, &dir)))
+                .map(|(i, sink, dir)| {
+                    let p = stale[i];
+                    let own =
+                        super::window_stats::profile_stats(p, rate, manifest, &stats, &train_mask);
+                    let stats = Stats {
+                        own: &match own {
+                            Ok(own) => own,
+                            Err(e) => return (i, Err(e)),
+                        },
+                        stored: &stats,
+                    };
+                    (i, profile(shared, p, rate, &stats, sink, &dir))
+                })
                 .collect())
         },
     ))?;
@@ -79,17 +91,25 @@ pub(super) fn all(
     Ok(hashes)
 }
 
+/// A profile's statistics: its own (after its transforms, over its population), which it
+/// normalizes with, and the per-frame ones of the stored values (a LeRobot export's
+/// `meta/stats.json` describes the stored features).
+pub(super) struct Stats<'a> {
+    pub own: &'a BTreeMap<String, ChannelStats>,
+    pub stored: &'a BTreeMap<String, ChannelStats>,
+}
+
 /// A profile's last writes, in order: the container (normalized low-dim values, window index),
 /// its documents and generated files; returns each file's BLAKE3.
 pub(super) fn profile(
     shared: &Shared,
     p: &ProfilePlan,
     rate: &RateState,
-    stats: &BTreeMap<String, ChannelStats>,
+    stats: &Stats,
     sink: Box<dyn Sink>,
     dir: &Path,
 ) -> Result<BTreeMap<String, String>> {
-    let data = write_data(shared, p, rate, stats, sink)?;
+    let data = write_data(shared, p, rate, stats.own, sink)?;
     let documents = timings::phase("documents");
     write_documents(shared, p, rate, stats, &data, dir)?;
     drop(documents);
@@ -118,10 +138,18 @@ fn write_data(
 ) -> Result<Written> {
     let lowdim = timings::phase("write low-dim");
     let mut normalizers = BTreeMap::new();
+    // With transforms the loader transforms raw values on read and normalizes after: every
+    // low-dim channel is stored raw (a reference is read raw too).
+    let raw = !p.transforms.is_empty();
     for (c, ch) in p.channels.iter().enumerate() {
         let n = Normalizer::fit(ch.normalize, &stats[&ch.name]);
         if ch.kind == ChannelKind::Lowdim {
-            sink.write_lowdim(c, &rate.lowdim[c], &n)?;
+            let stored = if raw {
+                Normalizer::identity(rate.lowdim[c].width())
+            } else {
+                n.clone()
+            };
+            sink.write_lowdim(c, &rate.lowdim[c], &stored)?;
         }
         normalizers.insert(ch.name.clone(), n);
     }
@@ -157,7 +185,7 @@ fn write_data(
     }
     sink.write_index(&index)?;
     let data_file = sink.data_file().to_string();
-    let normalized = sink.stores_normalized();
+    let normalized = sink.stores_normalized() && !raw;
     sink.finish()?;
     Ok(Written {
         normalizers,
@@ -173,10 +201,11 @@ fn write_documents(
     shared: &Shared,
     p: &ProfilePlan,
     rate: &RateState,
-    stats: &BTreeMap<String, ChannelStats>,
+    all_stats: &Stats,
     data: &Written,
     dir: &Path,
 ) -> Result<()> {
+    let stats = all_stats.own;
     let (plan, renderer) = (shared.plan, shared.renderer);
     let write = |name: &str, text: String| -> Result<()> {
         let path = dir.join(name);
@@ -201,7 +230,7 @@ fn write_documents(
     if p.values.format == crate::spec::OutputFormat::Parquet {
         // LeRobot v3.0 reads its statistics from `meta/stats.json`.
         let path = dir.join(sink::lerobot::STATS_PATH);
-        std::fs::write(&path, render::codebase::lerobot(p, stats)).at("write", &path)?;
+        std::fs::write(&path, render::codebase::lerobot(p, all_stats.stored)).at("write", &path)?;
     }
     codebase_files(shared, p, rate, stats, &data.normalizers, dir)?;
     // The dataset card is written by `commands` once the dataset doctor has judged.

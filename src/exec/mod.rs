@@ -29,6 +29,7 @@ mod rate;
 mod read;
 mod shard;
 pub mod staging;
+mod window_stats;
 
 use std::collections::BTreeMap;
 use std::sync::atomic::AtomicUsize;

@@ -16,6 +16,8 @@
 //! - `export`: where each channel's array lives in the profile's container (native exports
 //!   name them as their codebase's configuration does).
 //! - `shards`: which episodes each shard of a sharded build reads, and the plan's identity.
+//! - `transforms`: a profile's action representations checked against the channels and bound
+//!   to them (`abs_action` expanded).
 //! - `text`: the human-readable rendering of `chunkc plan`.
 
 mod cameras;
@@ -28,6 +30,7 @@ mod sampling;
 pub mod shards;
 pub mod split;
 mod text;
+mod transforms;
 mod types;
 
 pub use cameras::CameraResize;

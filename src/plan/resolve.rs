@@ -202,6 +202,12 @@ fn resolve_profile(
     cameras::apply(spec, manifest, profile, &mut channels)?;
     export::assign(spec, profile, &mut channels)?;
     let sampling = sampling_of(spec, manifest, profile, fps)?;
+    let transforms = super::transforms::resolve(spec, manifest, profile, &sampling)?;
+    if profile.abs_action && !profile.normalize.contains_key("action") {
+        if let Some(action) = channels.iter_mut().find(|c| c.name == "action") {
+            action.normalize = NormalizeMode::DpAbsAction;
+        }
+    }
     let used = episodes_of(spec, manifest, split, profile, fps, conv, &sampling)?;
 
     let fingerprint = freshness::profile_fingerprint(spec, manifest, profile);
@@ -222,6 +228,7 @@ fn resolve_profile(
         rate: rate_text(manifest.fps, fps, conv),
         sampling,
         channels,
+        transforms,
         episodes: used.episodes,
         excluded: Vec::new(),
         repaired: Vec::new(),

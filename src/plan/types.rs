@@ -117,6 +117,9 @@ pub struct ProfilePlan {
     /// How episodes become samples (window parameters included).
     pub sampling: Sampling,
     pub channels: Vec<ProfileChannel>,
+    /// The action representations, bound to the channels (`abs_action`'s first), in order.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub transforms: Vec<crate::transform::Transform>,
     pub episodes: Vec<ProfileEpisode>,
     pub excluded: Vec<Excluded>,
     /// Episodes the audit repaired (re-gridded or resampled) before they were used.
@@ -208,6 +211,18 @@ pub struct ResolvedValue {
 }
 
 impl ProfilePlan {
+    /// The transforms of channel `c` (a manifest position), in order.
+    pub fn transforms_of(&self, c: usize) -> impl Iterator<Item = &crate::transform::Transform> {
+        self.transforms.iter().filter(move |t| t.channel_index == c)
+    }
+
+    /// Whether channel `c`'s statistics are not the per-frame ones of its stored values: it is
+    /// transformed, or the statistics cover windows.
+    pub fn windowed_stats(&self, c: usize) -> bool {
+        self.values.stats_population == crate::spec::StatsPopulation::Windows
+            || self.transforms_of(c).next().is_some()
+    }
+
     pub fn window(&self) -> &Window {
         self.sampling.window()
     }

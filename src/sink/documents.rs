@@ -84,6 +84,14 @@ pub fn meta_json(
             channels[&ch.name]["storage"] = storage;
         }
     }
+    // A transformed channel's width after its transforms (its normalization's).
+    for (c, ch) in profile.channels.iter().enumerate() {
+        if profile.transforms_of(c).next().is_some() {
+            let width =
+                crate::transform::width_after(profile.transforms_of(c), ch.shape.iter().product());
+            channels[&ch.name]["transformed_shape"] = json!([width]);
+        }
+    }
     let mut normalization = serde_json::Map::new();
     for (name, n) in built.normalizers {
         let shape = shape_of(profile, name);
@@ -131,6 +139,7 @@ pub fn meta_json(
         "num_samples": { "train": built.num_samples[0], "val": built.num_samples[1] },
         "channels": channels,
         "normalization": normalization,
+        "stats_population": v.stats_population.name(),
         "excluded": profile.excluded,
         "repaired": profile.repaired,
         "warnings": profile.warnings,
@@ -154,6 +163,11 @@ pub fn meta_json(
         .collect();
     if !tasks.is_empty() {
         doc["tasks"] = serde_json::Value::Object(tasks);
+    }
+    if !profile.transforms.is_empty() {
+        // What the loader applies on read, in order, before normalizing.
+        let list: Vec<Value> = profile.transforms.iter().map(|t| t.describe()).collect();
+        doc["transforms"] = Value::Array(list);
     }
     if let (Some(env), Some(map)) = (&v.env, doc.as_object_mut()) {
         // Only profiles that name a simulator carry it (and get `rollout.py`).
@@ -194,8 +208,13 @@ fn shape_of<'p>(profile: &'p ProfilePlan, name: &str) -> &'p [usize] {
     profile
         .channels
         .iter()
-        .find(|c| c.name == name && c.kind == ChannelKind::Lowdim)
-        .map_or(&[], |c| c.shape.as_slice())
+        .enumerate()
+        .find(|(c, ch)| {
+            ch.name == name
+                && ch.kind == ChannelKind::Lowdim
+                && profile.transforms_of(*c).next().is_none()
+        })
+        .map_or(&[], |(_, c)| c.shape.as_slice())
 }
 
 /// `stats.json`: per channel, per dimension statistics of the training split in raw units, laid

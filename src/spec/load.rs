@@ -114,8 +114,26 @@ impl LoadedSpec {
         let mut item = self.doc.as_item();
         // The root has no span of its own; its "header" is the start of the file.
         let mut ancestor = 0..0;
+        // An element of an array of tables (`[[profiles.x.transforms]]`), named by its index.
+        let mut element: Option<&toml_edit::Table> = None;
         for (depth, segment) in key.iter().enumerate() {
-            let found = item.as_table_like().and_then(|t| t.get_key_value(segment));
+            if let (None, Item::ArrayOfTables(tables), Ok(i)) =
+                (element, item, segment.parse::<usize>())
+            {
+                if let Some(t) = tables.get(i) {
+                    ancestor = t.span().unwrap_or(ancestor);
+                    element = Some(t);
+                    if depth + 1 == key.len() {
+                        return diagnostic.at(ancestor, label);
+                    }
+                    continue;
+                }
+            }
+            let table: Option<&dyn TableLike> = match element.take() {
+                Some(t) => Some(t),
+                None => item.as_table_like(),
+            };
+            let found = table.and_then(|t| t.get_key_value(segment));
             let Some((k, child)) = found else {
                 let missing = dotted(&key[depth..]);
                 let place = if depth == 0 {

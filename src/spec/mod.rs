@@ -10,6 +10,8 @@
 //! - `camera`: `[profiles.<name>.cameras.<channel>]`, a camera's stored size, as written and
 //!   resolved; `validate_camera` checks it (the checks against the source's frames are the
 //!   plan's).
+//! - `transform`: `[[profiles.<name>.transforms]]` and `stats_population` as written (the
+//!   rotation kinds are the `rotation` leaf's).
 //! - `diagnostic`: renders an error with the offending text underlined.
 //! - `observations`: the warning for a profile whose preset needs observations in a spec that
 //!   maps none (`chunkc check`).
@@ -28,6 +30,7 @@ mod observations;
 mod output_location;
 mod preset;
 pub mod reference;
+mod transform;
 mod validate;
 mod validate_camera;
 
@@ -43,6 +46,7 @@ pub use output_location::check_output_location;
 pub use preset::{
     Profile, StreamCopy, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP, STORAGE_VIDEO,
 };
+pub use transform::{DeltaSpec, Layout6d, RelativePoseSpec, RotationKind, RotationSpec};
 
 /// The JSON Schema of the spec, pretty-printed with a trailing newline (`chunkc schema`).
 pub fn json_schema() -> String {

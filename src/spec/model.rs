@@ -12,6 +12,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 pub use super::image_storage::ImageCompression;
+pub use super::transform::{StatsPopulation, TransformSpec};
 
 /// A chunkc build spec (`chunkc.toml`): one source, one split, one output directory, and one
 /// profile per target architecture.
@@ -665,6 +666,23 @@ pub struct ProfileSpec {
     /// Two-level chunks: a coarse chunk of several seconds and fine chunks inside it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hierarchy: Option<HierarchySpec>,
+    /// Action representations: an ordered list of `[[profiles.<name>.transforms]]` tables
+    /// (`op = "rotation" | "delta" | "relative_pose"`), applied before statistics and
+    /// normalization (see the book's "Action representations" page). Not inherited along
+    /// `extends` when the profile gives its own list.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transforms: Option<Vec<TransformSpec>>,
+    /// Which values the statistics cover: `frames` (every training step once; the default) or
+    /// `windows` (every training sample's whole action chunk, as openpi counts them; the `pi0`
+    /// presets' choice, and required with `delta` or `relative_pose`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stats_population: Option<StatsPopulation>,
+    /// Diffusion Policy's robomimic `abs_action: True` (a `diffusion_policy` profile only):
+    /// actions `[pos3, axis_angle3, gripper1]` per arm (7 or 14 wide) become `[pos3,
+    /// rotation_6d, gripper1]` (10 or 20), normalized as its `robomimic_abs_action_only`
+    /// normalizer does (`normalize.action = "dp_abs_action"`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub abs_action: Option<bool>,
     /// Per camera (image channel): the size its frames are stored at,
     /// `[profiles.<name>.cameras."observation.image"] size = [H, W]`. Merged along `extends`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -689,18 +707,29 @@ pub enum Preset {
     /// LeRobot's Diffusion: horizon 64, two observations, MIN_MAX low-dim, every frame a sample
     /// (its `n_action_steps` 32 is an inference setting that does not shape the dataset).
     LerobotDiffusion,
-    /// openpi (pi0): K=50 at the dataset rate, quantile normalization.
+    /// openpi's pi0: action horizon 50 at the dataset rate, z-score `(x - mean) / (std + 1e-6)`,
+    /// statistics over every sample's whole chunk (`stats_population = "windows"`).
+    Pi0,
+    /// openpi's pi0.5: horizon 50, quantile normalization, windows.
+    Pi05,
+    /// openpi's pi0-FAST: horizon 32, quantile normalization, windows.
+    Pi0Fast,
+    /// The name before openpi's models had presets of their own: an alias of `pi05` (quantile
+    /// normalization, as openpi normalizes pi0.5 and pi0-FAST; pi0 z-scores: use `pi0`).
     Openpi,
 }
 
 impl Preset {
-    pub const ALL: [Preset; 7] = [
+    pub const ALL: [Preset; 10] = [
         Preset::Act,
         Preset::DiffusionPolicy,
         Preset::Dp3,
         Preset::DiffusionPolicyHighfreq,
         Preset::LerobotAct,
         Preset::LerobotDiffusion,
+        Preset::Pi0,
+        Preset::Pi05,
+        Preset::Pi0Fast,
         Preset::Openpi,
     ];
 
@@ -712,6 +741,9 @@ impl Preset {
             Preset::DiffusionPolicyHighfreq => "diffusion_policy_highfreq",
             Preset::LerobotAct => "lerobot_act",
             Preset::LerobotDiffusion => "lerobot_diffusion",
+            Preset::Pi0 => "pi0",
+            Preset::Pi05 => "pi05",
+            Preset::Pi0Fast => "pi0_fast",
             Preset::Openpi => "openpi",
         }
     }
@@ -778,6 +810,12 @@ pub enum NormalizeMode {
     Limits,
     /// openpi's quantile normalization: `(x - q01) / (q99 - q01 + 1e-6) * 2 - 1`, not clipped.
     Quantile,
+    /// openpi's z-score (pi0): `(x - mean) / (std + 1e-6)` with the population std.
+    OpenpiZscore,
+    /// Diffusion Policy's `robomimic_abs_action_only` normalizer, per 10-wide arm block of
+    /// `[pos3, rotation_6d, gripper1]`: the position by range to [-1, 1] (a range below 1e-7
+    /// gets scale 1 and offset -min), the rotation and the gripper left as they are.
+    DpAbsAction,
     /// LeRobot's MEAN_STD: `(x - mean) / (std + 1e-8)` with the population std.
     LerobotMeanStd,
     /// LeRobot's MIN_MAX: `(x - min) / (max - min + 1e-8) * 2 - 1`.
@@ -793,6 +831,8 @@ impl NormalizeMode {
             NormalizeMode::Minmax => "minmax",
             NormalizeMode::Limits => "limits",
             NormalizeMode::Quantile => "quantile",
+            NormalizeMode::OpenpiZscore => "openpi_zscore",
+            NormalizeMode::DpAbsAction => "dp_abs_action",
             NormalizeMode::LerobotMeanStd => "lerobot_mean_std",
             NormalizeMode::LerobotMinMax => "lerobot_min_max",
             NormalizeMode::None => "none",

@@ -17,6 +17,9 @@ fn needs_observations(preset: Preset) -> bool {
         | Preset::DiffusionPolicyHighfreq
         | Preset::LerobotAct
         | Preset::LerobotDiffusion
+        | Preset::Pi0
+        | Preset::Pi05
+        | Preset::Pi0Fast
         | Preset::Openpi => true,
     }
 }

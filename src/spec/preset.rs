@@ -13,7 +13,8 @@ use serde::Serialize;
 use super::camera::{self, Camera};
 use super::model::{
     Alignment, Compression, HierarchySpec, ImageCompression, ImageEncoding, Layout, NormalizeMode,
-    OutputFormat, Padding, Preset, ProfileSpec, SegmentSpec, StatsFormat, VideoCodec,
+    OutputFormat, Padding, Preset, ProfileSpec, SegmentSpec, StatsFormat, StatsPopulation,
+    TransformSpec, VideoCodec,
 };
 
 /// A profile with every value decided. Later stages never look at presets again.
@@ -71,6 +72,17 @@ pub struct Profile {
     pub stats_formats: Vec<StatsFormat>,
     pub segment: Option<SegmentSpec>,
     pub hierarchy: Option<HierarchySpec>,
+    /// The action representations, in order (the nearest list along the `extends` chain).
+    /// Empty, and left out of the serialized profile (fingerprints stay), when there are none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub transforms: Vec<TransformSpec>,
+    /// Which values the statistics cover: as set, else the preset's, else `windows` when a
+    /// transform needs the sample's current step, else `frames` (left out when `frames`).
+    #[serde(skip_serializing_if = "is_frames")]
+    pub stats_population: StatsPopulation,
+    /// Diffusion Policy's `abs_action` (expanded by the plan, which knows the action's width).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub abs_action: bool,
     /// The stored size of each resized camera, by channel (merged along the `extends` chain).
     /// Empty (and left out of the serialized profile, so that fingerprints stay) when no camera
     /// is resized.
@@ -78,6 +90,10 @@ pub struct Profile {
     pub cameras: BTreeMap<String, Camera>,
     /// Where each value came from: `profiles.<name>`, `preset <name>` or `default`.
     pub origins: BTreeMap<&'static str, String>,
+}
+
+fn is_frames(p: &StatsPopulation) -> bool {
+    *p == StatsPopulation::Frames
 }
 
 /// The encoder settings of a profile that stores frames as video (`image_encoding = "video"`).
@@ -178,6 +194,7 @@ struct PresetValues {
     normalize_lowdim: NormalizeMode,
     normalize_multidim: NormalizeMode,
     stats_formats: &'static [StatsFormat],
+    stats_population: Option<StatsPopulation>,
 }
 
 fn preset_values(preset: Preset) -> PresetValues {
@@ -192,6 +209,17 @@ fn preset_values(preset: Preset) -> PresetValues {
         normalize_lowdim: N::None,
         normalize_multidim: N::None,
         stats_formats: &[],
+        stats_population: None,
+    };
+    // openpi: the action horizon at the dataset rate, statistics over every sample's chunk
+    // (`compute_norm_stats`), quantiles for every model but pi0 (`use_quantile_norm`).
+    let openpi = PresetValues {
+        chunk: Some(50),
+        normalize_lowdim: N::Quantile,
+        normalize_multidim: N::Quantile,
+        stats_formats: &[StatsFormat::Openpi],
+        stats_population: Some(StatsPopulation::Windows),
+        ..base
     };
     let dp = PresetValues {
         fps: Some(10.0),
@@ -249,13 +277,18 @@ fn preset_values(preset: Preset) -> PresetValues {
             stats_formats: &[StatsFormat::Lerobot],
             ..base
         },
-        // openpi pi0: action horizon 50 at the dataset rate, quantile normalization.
-        Preset::Openpi => PresetValues {
-            chunk: Some(50),
-            normalize_lowdim: N::Quantile,
-            normalize_multidim: N::Quantile,
-            stats_formats: &[StatsFormat::Openpi],
-            ..base
+        // pi0 (Pi0Config: action_horizon 50): z-score with openpi's epsilon.
+        Preset::Pi0 => PresetValues {
+            normalize_lowdim: N::OpenpiZscore,
+            normalize_multidim: N::OpenpiZscore,
+            ..openpi
+        },
+        // pi0.5 (Pi0Config(pi05=True): action_horizon 50), and `openpi`, its alias.
+        Preset::Pi05 | Preset::Openpi => openpi,
+        // pi0-FAST (Pi0FASTConfig: action_horizon 32).
+        Preset::Pi0Fast => PresetValues {
+            chunk: Some(32),
+            ..openpi
         },
     }
 }
@@ -422,6 +455,19 @@ pub fn expand(
         stats_formats.push(StatsFormat::Act);
         stats_formats.sort();
     }
+    let transforms = pick!(transforms).unwrap_or_default();
+    let abs_action = pick!(abs_action).unwrap_or(false);
+    let windowed = transforms.iter().any(TransformSpec::per_window);
+    let stats_population = resolve!(
+        stats_population,
+        |b: &PresetValues| b.stats_population,
+        if windowed {
+            StatsPopulation::Windows
+        } else {
+            StatsPopulation::Frames
+        },
+        std::convert::identity
+    );
     let segment = pick!(segment);
     let hierarchy = pick!(hierarchy);
     let extends = profiles[name].extends.clone();
@@ -481,6 +527,9 @@ pub fn expand(
         stats_formats,
         segment,
         hierarchy,
+        transforms,
+        stats_population,
+        abs_action,
         cameras,
         origins,
     })

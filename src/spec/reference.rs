@@ -348,7 +348,7 @@ mod tests {
         let values: Vec<_> = padding.allowed.iter().map(|(v, _)| v.as_str()).collect();
         assert_eq!(values, ["edge", "zero", "mask", "truncate"]);
         let mode = lookup(&["profiles", "act", "normalize", "action"]).unwrap();
-        assert_eq!(mode.allowed.len(), 7);
+        assert_eq!(mode.allowed.len(), 9);
         let path = lookup(&["source", "path"]).unwrap();
         assert!(path.required);
         assert_eq!(path.ty, "string");

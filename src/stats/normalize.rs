@@ -13,8 +13,13 @@ pub const ZSCORE_STD_FLOOR: f64 = 1e-2;
 pub const MINMAX_RANGE_EPS: f64 = 1e-4;
 /// LeRobot adds this to `std` (MEAN_STD) and to `max - min` (MIN_MAX).
 pub const LEROBOT_EPS: f64 = 1e-8;
-/// openpi adds this to `q99 - q01`.
+/// openpi adds this to `q99 - q01` (quantile) and to `std` (z-score).
 pub const OPENPI_EPS: f64 = 1e-6;
+/// Diffusion Policy's `get_range_normalizer_attrs` default `range_eps`, which its abs-action
+/// normalizer uses.
+pub const DP_ABS_RANGE_EPS: f64 = 1e-7;
+/// One arm's block of Diffusion Policy's abs-action layout: `[pos3, rotation_6d, gripper1]`.
+pub const DP_ABS_ARM: usize = 10;
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Normalizer {
@@ -33,6 +38,11 @@ impl Normalizer {
             scale,
             clip,
         }
+    }
+
+    /// Values stored as they are (`dims` per step).
+    pub fn identity(dims: usize) -> Self {
+        Normalizer::new(NormalizeMode::None, vec![0.0; dims], vec![1.0; dims], false)
     }
 
     /// Maps `[lo, hi]` per dimension onto [-1, 1] (center and half-width).
@@ -65,6 +75,26 @@ impl Normalizer {
             }
             NormalizeMode::LerobotMinMax => {
                 Normalizer::range(mode, &stats.min, &stats.max, LEROBOT_EPS, false)
+            }
+            NormalizeMode::OpenpiZscore => {
+                let scale = stats.std.iter().map(|s| s + OPENPI_EPS).collect();
+                Normalizer::new(mode, stats.mean.clone(), scale, false)
+            }
+            NormalizeMode::DpAbsAction => {
+                // Per arm: the position by range (a constant one shifted to 0); the rotation
+                // and the gripper as they are.
+                let mut center = vec![0.0; dims];
+                let mut scale = vec![1.0; dims];
+                for d in (0..dims).filter(|d| d % DP_ABS_ARM < 3) {
+                    let (lo, hi) = (stats.min[d], stats.max[d]);
+                    if hi - lo < DP_ABS_RANGE_EPS {
+                        center[d] = lo;
+                    } else {
+                        center[d] = 0.5 * (lo + hi);
+                        scale[d] = 0.5 * (hi - lo);
+                    }
+                }
+                Normalizer::new(mode, center, scale, false)
             }
             NormalizeMode::Quantile => {
                 Normalizer::range(mode, &stats.q01, &stats.q99, OPENPI_EPS, false)

@@ -1,0 +1,380 @@
+//! A profile's action representations checked against the source's channels and bound to them
+//! (`[[profiles.<name>.transforms]]`, `abs_action`, `stats_population`): every bad value is a
+//! spec error naming its key, at `chunkc check`.
+
+use crate::error::{Error, Result};
+use crate::rotation::{Euler, Layout6d, RotationKind};
+use crate::source::{ChannelKind, Manifest};
+use crate::spec::{LoadedSpec, OutputFormat, Preset, Profile, StatsPopulation, TransformSpec};
+use crate::transform::{expand_mask, Op, Transform};
+use crate::window::Sampling;
+
+/// Where the errors of one profile's transforms point.
+struct At<'a> {
+    spec: &'a LoadedSpec,
+    profile: &'a str,
+}
+
+impl At<'_> {
+    fn key(&self, path: &[&str], message: String, help: Option<String>) -> Error {
+        let mut key = vec!["profiles", self.profile];
+        key.extend_from_slice(path);
+        self.spec.error_at(&key, message, help)
+    }
+
+    /// An error at `transforms[i].<field>`, whose message starts with the dotted key.
+    fn field(&self, i: usize, field: &str, message: String) -> Error {
+        let index = i.to_string();
+        self.key(
+            &["transforms", &index, field],
+            format!(
+                "profiles.{}.transforms[{i}].{field}: {message}",
+                self.profile
+            ),
+            None,
+        )
+    }
+}
+
+/// The profile's transforms (those of `abs_action` first), bound to the manifest's channels.
+pub(super) fn resolve(
+    spec: &LoadedSpec,
+    manifest: &Manifest,
+    profile: &Profile,
+    sampling: &Sampling,
+) -> Result<Vec<Transform>> {
+    let at = At {
+        spec,
+        profile: &profile.name,
+    };
+    let mut out = abs_action(&at, manifest, profile)?;
+    // Each channel's width as the transforms so far leave it.
+    let mut widths: Vec<usize> = manifest.channels.iter().map(|c| c.width()).collect();
+    for t in &out {
+        widths[t.channel_index] = t.width_after(widths[t.channel_index]);
+    }
+    for (i, t) in profile.transforms.iter().enumerate() {
+        let c = channel(&at, manifest, i, "channel", t.channel())?;
+        let op = match t {
+            TransformSpec::Rotation(r) => {
+                let layout = r.layout.unwrap_or_default();
+                slice(
+                    &at,
+                    i,
+                    "dims",
+                    r.dims,
+                    widths[c],
+                    &manifest.channels[c].name,
+                )?;
+                kind_width(&at, i, "from", r.from, r.dims, "")?;
+                target(&at, i, "to", r.to)?;
+                let euler = convention(&at, i, r.convention.as_deref(), &[r.from])?;
+                Op::Rotation {
+                    dims: r.dims,
+                    from: r.from,
+                    to: r.to,
+                    euler,
+                    convention: r.convention.clone(),
+                    layout,
+                }
+            }
+            TransformSpec::Delta(d) => {
+                let reference = channel(&at, manifest, i, "reference", &d.reference)?;
+                let mask = mask(&at, i, &d.mask)?;
+                let name = &manifest.channels[c].name;
+                if mask.len() > widths[c] {
+                    return Err(at.field(
+                        i,
+                        "mask",
+                        format!(
+                            "the mask covers {} dimensions, but `{name}` has {} values per step",
+                            mask.len(),
+                            widths[c]
+                        ),
+                    ));
+                }
+                let ref_width = manifest.channels[reference].width();
+                if mask.len() > ref_width {
+                    return Err(at.field(i, "mask", format!(
+                        "the mask covers {} dimensions, but the reference `{}` has only {ref_width} values per step",
+                        mask.len(), d.reference
+                    )));
+                }
+                Op::Delta {
+                    reference: d.reference.clone(),
+                    reference_index: reference,
+                    mask,
+                }
+            }
+            TransformSpec::RelativePose(r) => {
+                let reference = channel(&at, manifest, i, "reference", &r.reference)?;
+                let layout = r.layout.unwrap_or_default();
+                let ref_rotation = r.reference_rotation.unwrap_or(r.rotation);
+                let to = r.to.unwrap_or(r.rotation);
+                slice(
+                    &at,
+                    i,
+                    "dims",
+                    r.dims,
+                    widths[c],
+                    &manifest.channels[c].name,
+                )?;
+                kind_width(&at, i, "dims", r.rotation, r.dims, "3 (position) + ")?;
+                let ref_width = manifest.channels[reference].width();
+                slice(
+                    &at,
+                    i,
+                    "reference_dims",
+                    r.reference_dims,
+                    ref_width,
+                    &r.reference,
+                )?;
+                kind_width(
+                    &at,
+                    i,
+                    "reference_dims",
+                    ref_rotation,
+                    r.reference_dims,
+                    "3 (position) + ",
+                )?;
+                target(&at, i, "to", to)?;
+                let euler =
+                    convention(&at, i, r.convention.as_deref(), &[r.rotation, ref_rotation])?;
+                Op::RelativePose {
+                    dims: r.dims,
+                    rotation: r.rotation,
+                    reference: r.reference.clone(),
+                    reference_index: reference,
+                    reference_dims: r.reference_dims,
+                    reference_rotation: ref_rotation,
+                    to,
+                    euler,
+                    convention: r.convention.clone(),
+                    layout,
+                }
+            }
+        };
+        let t = Transform {
+            channel: manifest.channels[c].name.clone(),
+            channel_index: c,
+            op,
+        };
+        widths[c] = t.width_after(widths[c]);
+        out.push(t);
+    }
+    population(&at, profile, sampling, &out)?;
+    if !out.is_empty()
+        && profile.format == OutputFormat::Hdf5
+        && profile.layout != crate::spec::Layout::Index
+    {
+        return Err(at.key(
+            &["layout"],
+            format!(
+                "profiles.{}.layout = \"{}\" stores chunks computed at build time, but the loader applies this profile's transforms on read",
+                profile.name,
+                profile.layout.name()
+            ),
+            Some("leave `layout` out (`index`)".into()),
+        ));
+    }
+    Ok(out)
+}
+
+/// A channel named by a transform: one of the source's low-dimensional channels.
+fn channel(at: &At, manifest: &Manifest, i: usize, field: &str, name: &str) -> Result<usize> {
+    let Some(c) = manifest.channels.iter().position(|c| c.name == name) else {
+        let names: Vec<&str> = manifest.channels.iter().map(|c| c.name.as_str()).collect();
+        return Err(at.field(
+            i,
+            field,
+            format!(
+                "no channel `{name}` in [source.channels] (it maps {})",
+                names.join(", ")
+            ),
+        ));
+    };
+    if manifest.channels[c].kind != ChannelKind::Lowdim {
+        return Err(at.field(
+            i,
+            field,
+            format!("`{name}` is an image; transforms apply to low-dimensional channels"),
+        ));
+    }
+    Ok(c)
+}
+
+/// `[start, end)` within a channel of `width` values per step.
+fn slice(at: &At, i: usize, field: &str, dims: [usize; 2], width: usize, name: &str) -> Result<()> {
+    if dims[0] >= dims[1] || dims[1] > width {
+        return Err(at.field(
+            i,
+            field,
+            format!(
+                "[{}, {}) is out of range: `{name}` has {width} values per step here (a half-open [start, end) with start < end <= {width})",
+                dims[0], dims[1]
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The slice holds `prefix` + one rotation of `kind`.
+fn kind_width(
+    at: &At,
+    i: usize,
+    field: &str,
+    kind: RotationKind,
+    dims: [usize; 2],
+    prefix: &str,
+) -> Result<()> {
+    let offset = if prefix.is_empty() { 0 } else { 3 };
+    let want = offset + kind.width();
+    if dims[1] - dims[0] != want {
+        return Err(at.field(
+            i,
+            field,
+            format!(
+                "[{}, {}) holds {} values, but {prefix}{} is {} wide ({want} in all)",
+                dims[0],
+                dims[1],
+                dims[1] - dims[0],
+                kind.name(),
+                kind.width()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn target(at: &At, i: usize, field: &str, kind: RotationKind) -> Result<()> {
+    if kind == RotationKind::Euler {
+        return Err(at.field(
+            i,
+            field,
+            "Euler angles are not a conversion target (a discontinuous representation to train on); use rotation_6d, a quaternion, axis_angle or matrix".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The Euler sequence, required (and only allowed) when a rotation is `euler`.
+fn convention(
+    at: &At,
+    i: usize,
+    seq: Option<&str>,
+    kinds: &[RotationKind],
+) -> Result<Option<Euler>> {
+    let euler = kinds.contains(&RotationKind::Euler);
+    match (seq, euler) {
+        (None, true) => Err(at.field(i, "convention", "Euler angles need their axis sequence, e.g. `convention = \"xyz\"` (scipy's `seq`: lowercase extrinsic, uppercase intrinsic)".into())),
+        (Some(_), false) => Err(at.field(i, "convention", "only Euler angles take a convention".into())),
+        (Some(s), true) => Euler::parse(s).map(Some).map_err(|m| at.field(i, "convention", m)),
+        (None, false) => Ok(None),
+    }
+}
+
+/// openpi's `make_bool_mask` notation, expanded.
+fn mask(at: &At, i: usize, mask: &[i64]) -> Result<Vec<bool>> {
+    if mask.is_empty() || mask.contains(&0) {
+        return Err(at.field(i, "mask", "a mask is a list of nonzero counts, as openpi's make_bool_mask takes them: `6` for six dimensions made relative, `-1` for one left as it is".into()));
+    }
+    Ok(expand_mask(mask))
+}
+
+/// `abs_action = true`: Diffusion Policy's rotation per arm, axis-angle to rows 6D.
+fn abs_action(at: &At, manifest: &Manifest, profile: &Profile) -> Result<Vec<Transform>> {
+    if !profile.abs_action {
+        return Ok(Vec::new());
+    }
+    let dp = matches!(
+        profile.preset,
+        Some(Preset::DiffusionPolicy | Preset::DiffusionPolicyHighfreq | Preset::Dp3)
+    );
+    if !dp {
+        return Err(at.key(
+            &["abs_action"],
+            format!(
+                "profiles.{}.abs_action is Diffusion Policy's setting: it needs `preset = \"diffusion_policy\"` (or one of its variants)",
+                profile.name
+            ),
+            None,
+        ));
+    }
+    let c = manifest
+        .channels
+        .iter()
+        .position(|c| c.name == "action")
+        .expect("every source maps `action`");
+    let width = manifest.channels[c].width();
+    let arms: &[usize] = match width {
+        7 => &[3],
+        // The second arm first, so that the first arm's dims still hold.
+        14 => &[10, 3],
+        _ => {
+            return Err(at.key(
+                &["abs_action"],
+                format!(
+                    "profiles.{}.abs_action needs actions of [pos3, axis_angle3, gripper1] per arm, 7 or 14 wide; `action` has {width} values per step",
+                    profile.name
+                ),
+                None,
+            ))
+        }
+    };
+    Ok(arms
+        .iter()
+        .map(|&start| Transform {
+            channel: "action".into(),
+            channel_index: c,
+            op: Op::Rotation {
+                dims: [start, start + 3],
+                from: RotationKind::AxisAngle,
+                to: RotationKind::Rotation6d,
+                euler: None,
+                convention: None,
+                layout: Layout6d::Rows,
+            },
+        })
+        .collect())
+}
+
+/// `stats_population`: windows need fixed windows; a per-window transform needs windows.
+fn population(
+    at: &At,
+    profile: &Profile,
+    sampling: &Sampling,
+    transforms: &[Transform],
+) -> Result<()> {
+    let windowed = transforms.iter().any(Transform::per_window);
+    if windowed && !matches!(sampling, Sampling::Window { .. }) {
+        return Err(at.key(
+            &["transforms"],
+            format!(
+                "profiles.{}: delta and relative_pose transforms need fixed windows, not {} sampling",
+                profile.name,
+                sampling.name()
+            ),
+            None,
+        ));
+    }
+    match profile.stats_population {
+        StatsPopulation::Windows if !matches!(sampling, Sampling::Window { .. }) => Err(at.key(
+            &["stats_population"],
+            format!(
+                "profiles.{}.stats_population = \"windows\" needs fixed windows, not {} sampling",
+                profile.name,
+                sampling.name()
+            ),
+            None,
+        )),
+        StatsPopulation::Frames if windowed => Err(at.key(
+            &["stats_population"],
+            format!(
+                "profiles.{}.stats_population = \"frames\": a delta or relative_pose transform depends on the sample's current step, so its statistics are over windows",
+                profile.name
+            ),
+            Some("leave `stats_population` out, or set it to \"windows\"".into()),
+        )),
+        _ => Ok(()),
+    }
+}
