@@ -30,6 +30,7 @@ pub enum RotationKind {
     Matrix,
     /// The first two rows of the matrix (pytorch3d), or its first two columns with
     /// `layout = "columns"` (6 values).
+    #[serde(rename = "rotation_6d")]
     Rotation6d,
 }
 

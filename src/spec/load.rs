@@ -352,8 +352,13 @@ fn describe_found(serde: &str) -> String {
         .map_or_else(|| serde.to_string(), |(_, said)| said.to_string())
 }
 
-/// The first `[[array.of.tables]]`: the spec has none, so one is always a typo for `[table]`.
+/// The first `[[array.of.tables]]` other than `[[profiles.<name>.transforms]]`, the spec's only
+/// one: always a typo for `[table]`.
 fn array_of_tables(item: &Item, path: &mut Vec<String>) -> Option<Diagnostic> {
+    let transforms = path.len() == 3 && path[0] == "profiles" && path[2] == "transforms";
+    if transforms {
+        return None;
+    }
     if let Some(array) = item.as_array_of_tables() {
         let header = dotted(&path.iter().map(String::as_str).collect::<Vec<_>>());
         let span = array.get(0).and_then(|t| t.span()).unwrap_or(0..0);
