@@ -8,7 +8,7 @@ parameters, channels, where their arrays live, normalization, splits) is read fr
     ds = ChunkedDataset("<output dir>/<profile>", split="train")   # root: this file's directory
     sample = ds[0]   # {"action": (K, A) float32 normalized, "action_is_pad": (K,) bool,
                      #  "observation.<name>": (n_obs, ...), "episode_index", "frame_index"}
-    raw = ds.denormalize("action", sample["action"])
+    raw = ds.denormalize("action", sample["action"])   # ds.to_source(...) with transforms (below)
 
 Works with numpy and h5py alone (zarr-python for `format = "zarr"`, pyarrow for
 `format = "parquet"`); when torch is installed,
@@ -33,6 +33,28 @@ segment's end) are marked in `action_is_pad` and filled per the profile's paddin
 repeats the nearest action, `zero` is 0 in raw units, `mask` is 0 in normalized units.
 Hierarchical profiles add `coarse_action`, `coarse_action_is_pad`, `fine_index` and
 `coarse_frame_index`. A window never crosses an episode boundary.
+
+Action transforms (`meta.json` "transforms", the spec's `[[profiles.<name>.transforms]]`; such
+profiles store raw values): applied here on read, in order, to the K action rows as read (an
+edge-padded row like the row it repeats) and to every observation-history row of a transformed
+observation channel, then normalized with `meta.json` "normalization", which describes the values
+after the transforms (per-step shape `channels[<name>]["transformed_shape"]`).
+- `rotation`: dims [a, b) change representation: axis_angle, quaternion_wxyz, quaternion_xyzw,
+  euler (scipy's `seq` in `convention`: lowercase extrinsic, uppercase intrinsic), matrix
+  (row-major 3x3), rotation_6d (layout `rows`: the matrix's first two rows, pytorch3d and
+  Diffusion Policy; `columns`: its first two columns, Zhou et al.).
+- `delta`: x[..., :d] -= where(mask, ref[:d], 0), ref the reference channel's raw stored row at
+  the sample's current step t (`frame_index`), one for the whole chunk (openpi's DeltaActions).
+- `relative_pose`: position + rotation relative to the reference pose at t, inv(T_ref) @ T
+  (UMI's `relative`), written as position + the `to` rotation.
+
+    source = ds.to_source("action", sample["action"], sample)   # (K, A) float64
+
+undoes the normalization and then the transforms (with the sample's reference rows): actions in
+the source's representation and units, as a robot or simulator takes them. Without transforms it
+is `denormalize`. The rotation conversions (`rotation_to_matrix`, `matrix_to_rotation`) and
+`apply_transforms` (the same transforms on rows and reference rows of your own, e.g. live
+observations) are numpy alone.
 """
 
 import json
@@ -107,6 +129,233 @@ def _shaped(values, shape):
     """Per-dimension normalization parameters (flat or nested lists) in the per-step `shape`."""
     array = np.asarray(values, dtype=np.float64)
     return array.reshape(shape) if array.size == int(np.prod(shape)) and len(shape) > 1 else array.reshape(-1)
+
+
+# Action transforms (`meta.json` "transforms"): rotation representations, numpy only. Every
+# function takes and returns arrays with any leading axes; matrices are (..., 3, 3).
+ROTATION_WIDTHS = {"axis_angle": 3, "quaternion_wxyz": 4, "quaternion_xyzw": 4, "euler": 3, "matrix": 9,
+                   "rotation_6d": 6}
+
+
+def _quat_to_matrix(q):
+    """Quaternions (..., 4) scalar first (normalized here) -> rotation matrices."""
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    m = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+                  2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+                  2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1)
+    return m.reshape(q.shape[:-1] + (3, 3))
+
+
+def _matrix_to_quat(m):
+    """Rotation matrices -> unit quaternions (..., 4) scalar first with w >= 0. Shepperd's method:
+    each rotation is read from whichever of w, x, y, z is largest, so no division is ill-conditioned
+    (angles near 0 and near pi alike)."""
+    m00, m01, m02 = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
+    m10, m11, m12 = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
+    m20, m21, m22 = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
+    trace = m00 + m11 + m22
+    # Candidate k is 4 q_k times the quaternion (w, x, y, z), for q_k the component it reads.
+    candidates = np.stack([
+        np.stack([1 + trace, m21 - m12, m02 - m20, m10 - m01], axis=-1),
+        np.stack([m21 - m12, 1 + m00 - m11 - m22, m01 + m10, m02 + m20], axis=-1),
+        np.stack([m02 - m20, m01 + m10, 1 + m11 - m00 - m22, m12 + m21], axis=-1),
+        np.stack([m10 - m01, m02 + m20, m12 + m21, 1 + m22 - m00 - m11], axis=-1),
+    ], axis=-2)
+    best = np.argmax(np.stack([trace, m00, m11, m22], axis=-1), axis=-1)
+    q = np.take_along_axis(candidates, best[..., None, None], axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0, -q, q)
+
+
+def _axis_angle_to_quat(v):
+    angle = np.linalg.norm(v, axis=-1, keepdims=True)
+    # sin(angle / 2) / angle, exact at 0 (np.sinc(x) = sin(pi x) / (pi x)).
+    return np.concatenate([np.cos(angle / 2), v * (0.5 * np.sinc(angle / (2 * np.pi)))], axis=-1)
+
+
+def _quat_to_axis_angle(q):
+    """Unit quaternions with w >= 0 -> rotation vectors (angle in [0, pi])."""
+    xyz = q[..., 1:]
+    n = np.linalg.norm(xyz, axis=-1, keepdims=True)
+    angle = 2 * np.arctan2(n, q[..., :1])
+    # angle / sin(angle / 2), which tends to 2 at 0 (atan2 keeps it accurate for small n).
+    scale = np.where(n > 0, angle / np.where(n > 0, n, 1.0), 2.0)
+    return xyz * scale
+
+
+def _elementary(axis, angle):
+    """Rotations by `angle` (...) about axis 0, 1 or 2: (..., 3, 3)."""
+    c, s = np.cos(angle), np.sin(angle)
+    one, zero = np.ones_like(angle), np.zeros_like(angle)
+    if axis == 0:
+        rows = [one, zero, zero, zero, c, -s, zero, s, c]
+    elif axis == 1:
+        rows = [c, zero, s, zero, one, zero, -s, zero, c]
+    else:
+        rows = [c, -s, zero, s, c, zero, zero, zero, one]
+    return np.stack(rows, axis=-1).reshape(np.shape(angle) + (3, 3))
+
+
+def _euler_axes(seq):
+    if not isinstance(seq, str) or len(seq) != 3 or not (seq.islower() or seq.isupper()) \
+            or any(c not in "xyz" for c in seq.lower()) or seq[0] == seq[1] or seq[1] == seq[2]:
+        raise ValueError(f"euler convention {seq!r}: three axes of xyz (extrinsic) or XYZ (intrinsic), "
+                         "consecutive axes different (scipy's `seq`)")
+    return ["xyz".index(c) for c in seq.lower()], seq.islower()
+
+
+def _euler_to_matrix(angles, seq):
+    """scipy `Rotation.from_euler(seq, angles).as_matrix()`: lowercase `seq` extrinsic (rotations
+    about the fixed axes, applied in order), uppercase intrinsic (about the moving axes)."""
+    axes, extrinsic = _euler_axes(seq)
+    mats = [_elementary(a, angles[..., n]) for n, a in enumerate(axes)]
+    return mats[2] @ mats[1] @ mats[0] if extrinsic else mats[0] @ mats[1] @ mats[2]
+
+
+def _matrix_to_euler(m, seq):
+    """scipy `Rotation.from_matrix(m).as_euler(seq)`, the quaternion method of Bernardes and
+    Viollet (2022): the second angle in [0, pi] (proper sequences) or [-pi/2, pi/2] (Tait-Bryan),
+    the others in [-pi, pi]; at gimbal lock the third angle is 0, as scipy sets it."""
+    axes, extrinsic = _euler_axes(seq)
+    q = _matrix_to_quat(m)
+    w, v = q[..., 0], [q[..., 1], q[..., 2], q[..., 3]]
+    i, j, k = axes if extrinsic else axes[::-1]
+    proper = i == k
+    if proper:
+        k = 3 - i - j
+    sign = (i - j) * (j - k) * (k - i) // 2
+    if proper:
+        a, b, c, d = w, v[i], v[j], v[k] * sign
+    else:
+        a, b, c, d = w - v[j], v[i] + v[k] * sign, v[j] + w, v[k] * sign - v[i]
+    middle = 2 * np.arctan2(np.hypot(c, d), np.hypot(a, b))
+    half_sum, half_diff = np.arctan2(b, a), np.arctan2(-d, c)
+    eps = 1e-7
+    at_zero, at_pi = np.abs(middle) < eps, np.abs(middle - np.pi) < eps
+    locked = at_zero | at_pi
+    first, third = half_sum + half_diff, half_sum - half_diff
+    if extrinsic:
+        first = np.where(at_zero, 2 * half_sum, np.where(at_pi, 2 * half_diff, first))
+        third = np.where(locked, 0.0, third)
+    else:
+        first = np.where(locked, 0.0, first)
+        third = np.where(at_zero, 2 * half_sum, np.where(at_pi, -2 * half_diff, third))
+    first = np.where(first < -np.pi, first + 2 * np.pi, np.where(first > np.pi, first - 2 * np.pi, first))
+    third = np.where(third < -np.pi, third + 2 * np.pi, np.where(third > np.pi, third - 2 * np.pi, third))
+    if not proper:
+        third = third * sign
+        middle = middle - np.pi / 2
+    if not extrinsic:
+        first, third = third, first
+    return np.stack([first, middle, third], axis=-1)
+
+
+def rotation_to_matrix(x, kind, layout="rows", convention=None):
+    """Rotations (..., ROTATION_WIDTHS[kind]) -> matrices (..., 3, 3). Kinds: axis_angle,
+    quaternion_wxyz, quaternion_xyzw (normalized before use), euler (scipy `seq` in
+    `convention`), matrix (row-major 3x3), rotation_6d (`layout` "rows": the first two rows, as
+    pytorch3d's `matrix_to_rotation_6d`; "columns": the first two columns, Zhou et al.; turned
+    back into a matrix by pytorch3d's Gram-Schmidt)."""
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape[-1:] != (ROTATION_WIDTHS.get(kind, -1),):
+        raise ValueError(f"{kind} rotations have {ROTATION_WIDTHS.get(kind, '?')} values, not shape {x.shape}")
+    if kind == "axis_angle":
+        return _quat_to_matrix(_axis_angle_to_quat(x))
+    if kind == "quaternion_wxyz":
+        return _quat_to_matrix(x)
+    if kind == "quaternion_xyzw":
+        return _quat_to_matrix(x[..., [3, 0, 1, 2]])
+    if kind == "euler":
+        return _euler_to_matrix(x, convention)
+    if kind == "matrix":
+        return x.reshape(x.shape[:-1] + (3, 3))
+    a1, a2 = x[..., :3], x[..., 3:]
+    b1 = a1 / np.linalg.norm(a1, axis=-1, keepdims=True)
+    b2 = a2 - np.sum(b1 * a2, axis=-1, keepdims=True) * b1
+    b2 = b2 / np.linalg.norm(b2, axis=-1, keepdims=True)
+    b3 = np.cross(b1, b2)
+    return np.stack([b1, b2, b3], axis=-2 if layout == "rows" else -1)
+
+
+def matrix_to_rotation(m, kind, layout="rows", convention=None):
+    """Matrices (..., 3, 3) -> rotations of `kind` (see rotation_to_matrix). Quaternions come
+    out with w >= 0, rotation vectors with angles in [0, pi]."""
+    m = np.asarray(m, dtype=np.float64)
+    if kind == "axis_angle":
+        return _quat_to_axis_angle(_matrix_to_quat(m))
+    if kind == "quaternion_wxyz":
+        return _matrix_to_quat(m)
+    if kind == "quaternion_xyzw":
+        return _matrix_to_quat(m)[..., [1, 2, 3, 0]]
+    if kind == "euler":
+        return _matrix_to_euler(m, convention)
+    if kind == "matrix":
+        return m.reshape(m.shape[:-2] + (9,))
+    if kind == "rotation_6d":
+        rows = m if layout == "rows" else np.swapaxes(m, -1, -2)
+        return rows[..., :2, :].reshape(m.shape[:-2] + (6,))
+    raise ValueError(f"unknown rotation kind {kind!r}; one of {', '.join(ROTATION_WIDTHS)}")
+
+
+def _convert(x, frm, to, layout, convention):
+    return matrix_to_rotation(rotation_to_matrix(x, frm, layout, convention), to, layout, convention)
+
+
+def apply_transform(op, x, ref=None, inverse=False):
+    """One `meta.json` transform on rows `x` (B, N, D) (raw values, float64), with `ref` (B, R)
+    the raw stored row of its reference channel at each sample's current step; `inverse=True`
+    undoes it (x then holds the values after the transform). Returns a new array."""
+    kind = op["op"]
+    layout, convention = op.get("layout") or "rows", op.get("convention")
+    if kind == "rotation":
+        a = int(op["dims"][0])
+        b = a + ROTATION_WIDTHS[op["to"] if inverse else op["from"]]
+        frm, to = (op["to"], op["from"]) if inverse else (op["from"], op["to"])
+        middle = _convert(x[..., a:b], frm, to, layout, convention)
+    elif kind == "delta":
+        mask = np.asarray(op["mask"], dtype=bool)
+        d = len(mask)
+        shift = np.where(mask, ref[:, :d], 0.0)[:, None, :]
+        x = np.array(x, dtype=np.float64)
+        x[..., :d] += shift if inverse else -shift
+        return x
+    elif kind == "relative_pose":
+        a = int(op["dims"][0])
+        ra, rb = (int(v) for v in op["reference_dims"])
+        ref_p = ref[:, None, ra:ra + 3]
+        ref_r = rotation_to_matrix(ref[:, ra + 3:rb], op.get("reference_rotation") or op["rotation"],
+                                   layout, convention)[:, None]
+        kind_in = op["to"] if inverse else op["rotation"]
+        b = a + 3 + ROTATION_WIDTHS[kind_in]
+        p = x[..., a:a + 3]
+        r = rotation_to_matrix(x[..., a + 3:b], kind_in, layout, convention)
+        if inverse:  # T = T_ref @ T'
+            p = np.einsum("bnij,bnj->bni", ref_r, p) + ref_p
+            r = matrix_to_rotation(ref_r @ r, op["rotation"], layout, convention)
+        else:  # T' = inv(T_ref) @ T
+            ref_t = np.swapaxes(ref_r, -1, -2)
+            p = np.einsum("bnij,bnj->bni", ref_t, p - ref_p)
+            r = matrix_to_rotation(ref_t @ r, op["to"], layout, convention)
+        middle = np.concatenate([p, r], axis=-1)
+    else:
+        raise ValueError(f"unknown transform op {kind!r}")
+    return np.concatenate([x[..., :a], middle, x[..., b:]], axis=-1)
+
+
+def channel_transforms(meta, name):
+    """The transforms of channel `name` in `meta.json`, in order (empty without any)."""
+    return [op for op in meta.get("transforms") or [] if op["channel"] == name]
+
+
+def apply_transforms(meta, name, x, refs, inverse=False):
+    """Every transform of channel `name` on rows `x` (B, N, D) of raw values (inverse=True: in
+    reverse order, undoing them), with `refs` {reference channel: (B, R) raw rows}."""
+    ops = channel_transforms(meta, name)
+    x = np.asarray(x, dtype=np.float64)
+    for op in reversed(ops) if inverse else ops:
+        x = apply_transform(op, x, refs.get(op.get("reference")), inverse)
+    return x
 
 
 # Low-dim channels are read into memory when the dataset is created (normalized, one array per
@@ -292,6 +541,19 @@ class ChunkedDataset(_DatasetBase):
         self.channels = list(self.meta["channels"])
         self._lowdim = {n for n, c in self.meta["channels"].items() if c["kind"] == "lowdim"}
         self._images = {n for n, c in self.meta["channels"].items() if c["kind"] == "image"}
+        # Action transforms (meta.json "transforms"), per channel in order. A channel whose
+        # transforms are all rotations is transformed per stored row (`_normalized`); the others
+        # (`_xform`: delta, relative_pose) per sample, from the raw rows of the channel and of
+        # their reference channels (`_refs`) at the sample's current step.
+        self._transforms = {n: channel_transforms(self.meta, n) for n in self.channels}
+        self._transforms = {n: ops for n, ops in self._transforms.items() if ops}
+        self._xform = {n for n, ops in self._transforms.items() if any(op["op"] != "rotation" for op in ops)}
+        self._refs = sorted({op["reference"] for n in self._xform for op in self._transforms[n] if op.get("reference")})
+        if self._transforms and not self.raw_values:
+            raise ValueError(f"{os.path.join(root, 'meta.json')}: transforms need raw stored values "
+                             "(\"stored_values\": \"raw\"); rebuild with this chunkc")
+        # Per-step shape of each channel as samples hold it (after its transforms).
+        self._shapes = {n: tuple(c.get("transformed_shape", c["shape"])) for n, c in self.meta["channels"].items()}
         # Where each channel's array lives (a native export names it as its codebase does:
         # Push-T's zarr holds `data/img`).
         self._arrays = {n: self._backend.array_path(n) for n in self.channels}
@@ -299,8 +561,8 @@ class ChunkedDataset(_DatasetBase):
         # and (T, N, 3) channels broadcast like (T, D) ones.
         self._norm = {
             name: (
-                _shaped(p["center"], self.meta["channels"][name]["shape"]),
-                _shaped(p["scale"], self.meta["channels"][name]["shape"]),
+                _shaped(p["center"], self._shapes[name]),
+                _shaped(p["scale"], self._shapes[name]),
                 bool(p["clip"]),
             )
             for name, p in self.meta["normalization"].items()
@@ -311,6 +573,9 @@ class ChunkedDataset(_DatasetBase):
         self._pid = None
         # Channel -> every stored row, in normalized units (parquet is read whole anyway).
         self._cache = {}
+        # Channel -> every stored row as stored (raw), for the channels transformed per sample
+        # and their reference channels.
+        self._raw_cache = {}
         f = self._backend.open()
         self.index = np.asarray(f["index"][split][...], dtype=np.int64).reshape(-1, 4)
         # Cameras stored as JPEG or video (`meta.json` channel "storage") are decoded on read.
@@ -326,7 +591,10 @@ class ChunkedDataset(_DatasetBase):
             keep = lowdim if cache_lowdim else []
         for name in keep:
             rows = np.asarray(f[self._arrays[name]][...])
-            self._cache[name] = self._normalized(name, rows)
+            if name in self._xform or name in self._refs:
+                self._raw_cache[name] = rows
+            if name not in self._xform:
+                self._cache[name] = self._normalized(name, rows)
         # Frames read with one pread each, from the byte offsets looked up here (HDF5 only).
         self._frames = self._backend.frame_tables(f, [n for n in self.channels if n not in self._cache])
         self._backend.close(f)
@@ -339,8 +607,17 @@ class ChunkedDataset(_DatasetBase):
         return len(self.index)
 
     def _normalized(self, name, rows):
-        """Stored rows in normalized units (formats storing raw values are normalized here)."""
+        """Stored rows in normalized units (formats storing raw values are normalized here;
+        a channel with rotation transforms alone is transformed first)."""
         if self.raw_values and name in self._lowdim:
+            if name in self._transforms:
+                if name in self._xform:
+                    raise ValueError(f"{name}: its transforms depend on each sample's reference rows; "
+                                     "read it from samples (ds[i]), not per stored row")
+                x = np.asarray(rows, dtype=np.float64).reshape(len(rows), 1, -1)
+                for op in self._transforms[name]:
+                    x = apply_transform(op, x)
+                rows = x.reshape((len(rows),) + self._shapes[name])
             return self.normalize(name, rows).astype(np.float32)
         return rows
 
@@ -375,6 +652,74 @@ class ChunkedDataset(_DatasetBase):
         if cached is not None:
             return np.take(cached, rows, axis=0)
         return self._normalized(name, self._reader(name)(rows))
+
+    def _read_raw(self, name, rows):
+        """Stored rows `rows` of a low-dim channel as stored (raw values): a new array."""
+        cached = self._raw_cache.get(name)
+        if cached is not None:
+            return np.take(cached, rows, axis=0)
+        return np.asarray(self._reader(name)(rows))
+
+    def _references(self, rows):
+        """{reference channel: (B, R) float64}: its raw stored rows `rows` (B,)."""
+        return {r: self._read_raw(r, rows).reshape(len(rows), -1).astype(np.float64) for r in self._refs}
+
+    def _transformed(self, name, rows, refs):
+        """Rows `rows` (B, N) of channel `name` (one of `_xform`) transformed with each
+        sample's references `refs` (`_references`), then normalized: (B, N, ...) float32."""
+        b, n = rows.shape
+        x = self._read_raw(name, rows.reshape(-1)).astype(np.float64).reshape(b, n, -1)
+        for op in self._transforms[name]:
+            x = apply_transform(op, x, refs.get(op.get("reference")))
+        return self.normalize(name, x.reshape((b, n) + self._shapes[name])).astype(np.float32)
+
+    def to_source(self, name, values, sample):
+        """Normalized `values` of channel `name` as `sample[name]` holds them ((K, D') actions or
+        (H, D') observations) -> float64 values in the source's representation and units
+        ((K,) + the channel's stored shape): normalization undone, then the channel's
+        transforms in reverse order, with the references of `sample` (its "episode_index", a
+        source episode id, and "frame_index"). Without transforms this is `denormalize`. A
+        batch (a dict of stacked samples, values (B, K, D')) gives (B, K, ...)."""
+        channel = "action" if name == "coarse_action" else name
+        x = self.denormalize(channel, values)
+        ops = self._transforms.get(channel)
+        if not ops:
+            return x
+        single = np.ndim(sample["episode_index"]) == 0
+        eps = np.asarray(sample["episode_index"], dtype=np.int64).reshape(-1)
+        steps = np.asarray(sample["frame_index"], dtype=np.int64).reshape(-1)
+        positions = {int(e): p for p, e in enumerate(self.episode_ids)}
+        missing = [int(e) for e in eps if int(e) not in positions]
+        if missing:
+            raise KeyError(f"episode {missing[0]} is not in this dataset (episodes {self.meta['episodes']})")
+        rows = self.episode_starts[[positions[int(e)] for e in eps]] + steps
+        refs = self._references(rows) if channel in self._xform else {}
+        x = x.reshape(len(eps), -1, int(np.prod(self._shapes[channel])))
+        for op in reversed(ops):
+            x = apply_transform(op, x, refs.get(op.get("reference")), inverse=True)
+        shape = tuple(self.meta["channels"][channel]["shape"])
+        return x.reshape((-1,) + shape) if single else x.reshape((len(eps), -1) + shape)
+
+    def _population(self, name, batch=1024):
+        """The normalized rows (n, D') of low-dim channel `name` that stats.json describes for
+        this split: with `stats_population` "windows", every sample's K action rows (edge rows
+        repeated, whatever the padding) or its obs_history rows; otherwise every step of the
+        split's episodes once."""
+        if self.meta.get("stats_population", "frames") != "windows":
+            wanted = set(int(e) for e in self.meta["split"][self.split])
+            keep = [p for p, e in enumerate(self.episode_ids) if int(e) in wanted]
+            rows = np.concatenate([np.arange(self.episode_starts[p], self.episode_ends[p]) for p in keep]) \
+                if keep else np.zeros(0, np.int64)
+            return np.asarray(self._read(name, rows)).reshape(len(rows), -1)
+        import copy
+
+        view = copy.copy(self)
+        view.padding = "edge"
+        view.channels = [name] if name != "action" else []
+        parts = [np.stack([s[name] for s in view.__getitems__(np.arange(i, min(i + batch, len(self))))])
+                 for i in range(0, len(self), batch)]
+        width = int(np.prod(self._shapes[name]))
+        return np.concatenate(parts).reshape(-1, width) if parts else np.zeros((0, width), np.float32)
 
     def __getstate__(self):
         state = self.__dict__.copy()
@@ -434,21 +779,23 @@ class ChunkedDataset(_DatasetBase):
         k, h = self.chunk_size, self.obs_history
 
         batch = {}
+        # The current step: the last observation step (a hierarchy's fine chunk start).
+        current = t + sub * k if self.sampling == "hierarchy" else t
+        # Transforms with references (delta, relative_pose): the raw reference rows at it.
+        refs = self._references(start + np.minimum(current, length - 1)) if self._xform else None
         if self.sampling == "hierarchy":
             # `limit` is the coarse chunk; the fine chunk `sub` lies inside it.
-            fine_start = t + sub * k
+            fine_start = current
             coarse_stop = np.minimum(t + limit, length)
-            batch["action"], batch["action_is_pad"] = self._actions(start, fine_start, k, coarse_stop, length)
+            batch["action"], batch["action_is_pad"] = self._actions(start, fine_start, k, coarse_stop, length, refs)
             batch["coarse_action"], batch["coarse_action_is_pad"] = self._actions(
-                start, t, int(limit[0]), coarse_stop, length
+                start, t, int(limit[0]), coarse_stop, length, refs
             )
             batch["fine_index"] = sub.tolist()
             batch["coarse_frame_index"] = t.tolist()
-            current = fine_start
         else:
             first = t - self.action_lead
-            batch["action"], batch["action_is_pad"] = self._actions(start, first, k, first + limit, length)
-            current = t
+            batch["action"], batch["action_is_pad"] = self._actions(start, first, k, first + limit, length, refs)
 
         # Observations current-h+1 .. current, the first frame repeated before the episode start.
         steps = current[:, None] + np.arange(1 - h, 1)
@@ -457,8 +804,11 @@ class ChunkedDataset(_DatasetBase):
         for name in self.channels:
             if name == "action":
                 continue
-            obs = self._read(name, rows)
-            obs = obs.reshape(steps.shape + obs.shape[1:])
+            if refs is not None and name in self._xform:
+                obs = self._transformed(name, rows.reshape(steps.shape), refs)
+            else:
+                obs = self._read(name, rows)
+                obs = obs.reshape(steps.shape + obs.shape[1:])
             if name in self._images and self.image_dtype == "float32":
                 obs = obs.astype(np.float32) / 255.0
             batch[name] = obs
@@ -470,9 +820,10 @@ class ChunkedDataset(_DatasetBase):
         columns = [v if isinstance(v, list) else list(v) for v in batch.values()]
         return [dict(zip(keys, values)) for values in zip(*columns)]
 
-    def _actions(self, start, first, k, stop, length):
+    def _actions(self, start, first, k, stop, length, refs=None):
         """(B, k) action rows of episodes starting at stored row `start` (B,), from episode steps
-        `first` (B,; may be negative), valid below `stop` (B,), with their padding mask."""
+        `first` (B,; may be negative), valid below `stop` (B,), with their padding mask; `refs`:
+        the samples' reference rows when the action has transforms that need them."""
         lo = np.clip(first, 0, length - 1)
         hi = np.maximum(np.minimum(stop, length), lo + 1)
         valid_end = lo + np.minimum(hi - lo, k - (lo - first))
@@ -480,8 +831,11 @@ class ChunkedDataset(_DatasetBase):
         is_pad = (steps < lo[:, None]) | (steps >= valid_end[:, None])
         # Edge padding repeats the nearest valid row; the other modes overwrite the padded rows.
         rows = start[:, None] + np.clip(steps, lo[:, None], valid_end[:, None] - 1)
-        action = self._read("action", rows.reshape(-1))
-        action = action.reshape(rows.shape + action.shape[1:])
+        if refs is not None and "action" in self._xform:
+            action = self._transformed("action", rows, refs)
+        else:
+            action = self._read("action", rows.reshape(-1))
+            action = action.reshape(rows.shape + action.shape[1:])
         if self.padding in ("zero", "mask") and is_pad.any():
             action[is_pad] = self._pad_value("action", action[0, 0])
         return action.astype(np.float32, copy=False), is_pad

@@ -98,16 +98,48 @@ def load_policy(meta, path):
 
 
 class Normalizer:
-    """The profile's normalization (meta.json), as the loader applies it."""
+    """The profile's normalization (meta.json), as the loader applies it, and its transforms
+    (meta.json "transforms", applied with loader.py's functions): a chunk is predicted from one
+    observation, whose raw reference rows (e.g. the state a delta chunk is relative to) turn it
+    back into the source's actions."""
 
     def __init__(self, meta):
+        self.meta = meta
         self.params = {n: (np.asarray(p["center"], np.float64).reshape(-1), np.asarray(p["scale"], np.float64).reshape(-1),
                            bool(p["clip"])) for n, p in meta["normalization"].items()}
+        self.references = sorted({op["reference"] for op in meta.get("transforms") or [] if op.get("reference")})
+
+    def refs(self, obs, mapping):
+        """{reference channel: its raw row (1, R)} from an environment observation."""
+        missing = [r for r in self.references if r not in mapping]
+        if missing:
+            raise SystemExit(f"the profile's transforms are relative to {', '.join(missing)}, which the environment does not give")
+        return {r: np.asarray(obs[mapping[r]], np.float64).reshape(1, -1) for r in self.references}
+
+    def transformed(self, name, x, refs):
+        """An observation (one frame, raw) after its channel's transforms, if it has any."""
+        if not any(op["channel"] == name for op in self.meta.get("transforms") or []):
+            return x
+        import loader
+
+        return loader.apply_transforms(self.meta, name, np.asarray(x, np.float64).reshape(1, 1, -1), refs)[0, 0]
 
     def normalize(self, name, x):
         center, scale, clip = self.params[name]
         y = (np.asarray(x, np.float64).reshape(-1) - center) / scale
         return np.clip(y, -1, 1) if clip else y
+
+    def to_source(self, chunk, refs):
+        """Normalized actions (N, D') predicted from one observation -> the source's actions (N, D)
+        for the environment: normalization undone, then the action's transforms in reverse
+        order, with that observation's reference rows `refs`."""
+        center, scale, _ = self.params["action"]
+        x = np.asarray(chunk, np.float64).reshape(len(chunk), -1) * scale + center
+        if not any(op["channel"] == "action" for op in self.meta.get("transforms") or []):
+            return x
+        import loader
+
+        return loader.apply_transforms(self.meta, "action", x[None], refs, inverse=True)[0]
 
     def denormalize(self, name, x):
         center, scale, _ = self.params[name]
@@ -117,10 +149,11 @@ class Normalizer:
 def policy_input(obs, mapping, meta, norm, policy):
     """One environment observation -> the single-frame batch `select_action` reads."""
     sample = {}
+    refs = norm.refs(obs, mapping)
     for name, key in mapping.items():
         x = np.asarray(obs[key])
         if meta["channels"][name]["kind"] == "lowdim":
-            x = norm.normalize(name, x).astype(np.float32)
+            x = norm.normalize(name, norm.transformed(name, x, refs)).astype(np.float32)
         sample[name] = x[None]  # a history of one frame
     batch = target_policy.to_batch([sample], meta, policy)
     if target_policy.target(meta) == "diffusion":
@@ -138,17 +171,22 @@ def run_episode(env, policy, meta, mapping, norm, seed, max_steps, executes):
     frames = [env.render()]
     rewards, coverage, success = [], [], False
     queue = []
-    for _ in range(max_steps):
+    refs = None
+    for step in range(max_steps):
         with torch.no_grad():
             batch = policy_input(obs, mapping, meta, norm, policy)
             if kind is None:
                 if not queue:
                     chunk = policy.predict(batch)[0].numpy()
-                    queue = list(chunk[int(meta["action_lead"]):][:executes])
+                    # In source units, relative to the observation the chunk was predicted from.
+                    queue = list(norm.to_source(chunk[int(meta["action_lead"]):][:executes], norm.refs(obs, mapping)))
                 action = queue.pop(0)
             else:
-                action = policy.select_action(batch)[0].cpu().numpy()
-        obs, reward, terminated, truncated, info = env.step(norm.denormalize("action", action).astype(np.float32))
+                # LeRobot's policies predict a chunk every `executes` steps (n_action_steps).
+                if step % executes == 0:
+                    refs = norm.refs(obs, mapping)
+                action = norm.to_source(policy.select_action(batch)[0].cpu().numpy()[None], refs)[0]
+        obs, reward, terminated, truncated, info = env.step(np.asarray(action).astype(np.float32))
         frames.append(env.render())
         rewards.append(float(reward))
         coverage.append(float(info.get("coverage", reward)))

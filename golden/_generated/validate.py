@@ -56,6 +56,14 @@ TINY_GIF_FRAMES = 12
 PUSHT_WORKSPACE = 512.0
 
 
+def source_chunk(ds, s):
+    """A sample's action chunk in raw units: `to_source` (normalization and the profile's
+    transforms undone: the source's representation) when meta.json has transforms."""
+    if ds.meta.get("transforms"):
+        return ds.to_source("action", s["action"], s)
+    return ds.denormalize("action", s["action"])
+
+
 def collate(samples):
     return {k: np.stack([np.asarray(s[k]) for s in samples]) for k in samples[0]}
 
@@ -105,13 +113,15 @@ def train_rows(ds, split="train"):
 def histograms(ds, out):
     """hist_<channel>.png per low-dim channel; returns (files, heavy-tailed dimensions)."""
     plt = _plt()
-    rows = train_rows(ds)
     files, strays = [], []
     for name, c in ds.meta["channels"].items():
-        if c["kind"] != "lowdim" or not len(rows):
+        if c["kind"] != "lowdim":
             continue
         mode = ds.meta["normalization"].get(name, {}).get("mode", "none")
-        values = np.asarray(ds._read(name, rows), dtype=np.float64).reshape(len(rows), -1)
+        # The values stats.json describes ("windows": every sample's rows, after the transforms).
+        values = np.asarray(ds._population(name), dtype=np.float64)
+        if not len(values):
+            continue
         dims = values.shape[1]
         cols = min(dims, 4)
         lines = (dims + cols - 1) // cols
@@ -206,22 +216,26 @@ def stats_problems(name, norm, s, raw):
 
 
 def split_checks(ds):
-    """The normalization of every low-dim channel over the whole training split, and stats.json
-    against the values it describes; returns the problems (at most 5 per channel shown)."""
-    rows = train_rows(ds)
+    """The normalization of every low-dim channel over the whole training split (the rows
+    `stats_population` names: each step once, or every sample's window after the transforms),
+    and stats.json against the values it describes; returns the problems (at most 5 per channel
+    shown)."""
     with open(os.path.join(ds.root, "stats.json")) as f:
         stats = json.load(f)
     problems = []
     for name, c in ds.meta["channels"].items():
         norm = ds.meta["normalization"].get(name)
-        if c["kind"] != "lowdim" or norm is None or not len(rows):
+        if c["kind"] != "lowdim" or norm is None:
             continue
-        y = _flat(ds._read(name, rows), len(rows))
+        y = np.asarray(ds._population(name), dtype=np.float64)
+        if not len(y):
+            continue
         found = mode_problems(name, norm["mode"], y)
         if name in stats:
-            found += stats_problems(name, norm, stats[name], _flat(ds.denormalize(name, y), len(rows)))
+            found += stats_problems(name, norm, stats[name], _flat(ds.denormalize(name, y), len(y)))
         verdict = "ok" if not found else f"{len(found)} problem(s)"
-        print(f"  {name:<30} {norm['mode']:<18} {y.shape[1]} dims over {len(rows)} training steps: {verdict}")
+        what = "window rows" if ds.meta.get("stats_population") == "windows" else "steps"
+        print(f"  {name:<30} {norm['mode']:<18} {y.shape[1]} dims over {len(y)} training {what}: {verdict}")
         problems += found[:5] + ([f"{name}: {len(found) - 5} more"] if len(found) > 5 else [])
     return problems
 
@@ -231,7 +245,8 @@ def image_workspace(ds, rows):
     whose raw training values all lie in [0, 512] is read as Push-T's pixel targets."""
     if "action" not in ds.meta["channels"] or int(np.prod(ds.meta["channels"]["action"]["shape"])) != 2:
         return None
-    raw = ds.denormalize("action", ds._read("action", rows))
+    # Transformed actions: the stored rows are raw, in the source's representation.
+    raw = ds._read_raw("action", rows) if ds.meta.get("transforms") else ds.denormalize("action", ds._read("action", rows))
     return PUSHT_WORKSPACE if len(raw) and raw.min() >= -1 and raw.max() <= PUSHT_WORKSPACE + 1 else None
 
 
@@ -247,7 +262,7 @@ def plot_episode(ds, episode_id, indices, out):
     samples = lowdim_view(ds).__getitems__(indices)
     steps = np.array([s["frame_index"] for s in samples])
     # The first action of each chunk at its own step traces the trajectory (denormalized).
-    first = np.array([ds.denormalize("action", s["action"][ds.action_lead]) for s in samples]).reshape(len(samples), -1)
+    first = np.array([source_chunk(ds, s)[ds.action_lead] for s in samples]).reshape(len(samples), -1)
     dims = first.shape[1]
     fig, axes = plt.subplots(dims, 1, figsize=(8, 1.8 * dims), sharex=True, squeeze=False)
     every = max(1, len(samples) // 12)
@@ -255,7 +270,7 @@ def plot_episode(ds, episode_id, indices, out):
         ax = axes[d, 0]
         ax.plot(steps, first[:, d], color="black", lw=1.5, label="action at t")
         for s in samples[::every]:
-            chunk = ds.denormalize("action", s["action"]).reshape(len(s["action"]), -1)[:, d]
+            chunk = source_chunk(ds, s).reshape(len(s["action"]), -1)[:, d]
             valid = ~s["action_is_pad"]
             t = s["frame_index"] - ds.action_lead + np.arange(len(chunk))
             ax.plot(t[valid], chunk[valid], lw=0.8, alpha=0.7)
@@ -285,7 +300,7 @@ def animate_episode(ds, indices, name, out, workspace, frames_at_most):
     view.channels = [n for n in ds.channels if n == name or n not in ds._images]
     samples = view.__getitems__(indices[::every])
     frames = []
-    chunks = [ds.denormalize("action", s["action"]).reshape(len(s["action"]), -1) for s in samples]
+    chunks = [source_chunk(ds, s).reshape(len(s["action"]), -1) for s in samples]
     lo = np.min([c.min(axis=0) for c in chunks], axis=0)
     hi = np.max([c.max(axis=0) for c in chunks], axis=0)
     for s, chunk in zip(samples, chunks):
