@@ -492,7 +492,10 @@ def test_abs_action_is_diffusion_policys_rotation_6d_and_normalizer(tmp_path, ar
     assert meta["normalization"]["action"]["mode"] == "dp_abs_action"
 
     train = meta["split"]["train"]
-    converted = {e: dp_convert_actions(episodes[e]["actions"].astype(np.float64)) for e in range(len(episodes))}
+    # Converted in float64, then held as float32 like the actions they come from (Diffusion
+    # Policy converts float32 actions in float32 torch): chunkc's statistics are over those values.
+    converted = {e: dp_convert_actions(episodes[e]["actions"].astype(np.float64)).astype(np.float32).astype(np.float64)
+                 for e in range(len(episodes))}
     rows = np.concatenate([converted[e] for e in train])
     # Diffusion Policy's array_to_stats: numpy's min, max, mean and (population) std.
     stat = {"min": rows.min(0), "max": rows.max(0), "mean": rows.mean(0), "std": rows.std(0)}
@@ -504,8 +507,14 @@ def test_abs_action_is_diffusion_policys_rotation_6d_and_normalizer(tmp_path, ar
     params = json.loads((root / "dp_normalizer.json").read_text())["action"]
     close(params["scale"], scale, "dp_normalizer.json action.scale", rtol=1e-9, atol=1e-12)
     close(params["offset"], offset, "dp_normalizer.json action.offset", rtol=1e-9, atol=1e-12)
-    for k in ("min", "max", "mean", "std"):
+    for k in ("min", "max", "mean"):
         close(params["input_stats"][k], stat[k], f"dp_normalizer.json action.input_stats.{k}", rtol=1e-9, atol=1e-12)
+    unbiased = np.allclose(params["input_stats"]["std"], rows.std(0, ddof=1), rtol=1e-9, atol=1e-12)
+    assert not unbiased, (
+        "dp_normalizer.json action.input_stats.std is the unbiased std (ddof=1, what LinearNormalizer.fit "
+        "stores); robomimic_abs_action_only_normalizer_from_stat's input_stats are array_to_stats', numpy's "
+        f"population std (ddof=0): off by sqrt(n/(n-1)) = {np.sqrt(len(rows) / (len(rows) - 1)):.6f} with n = {len(rows)}")
+    close(params["input_stats"]["std"], stat["std"], "dp_normalizer.json action.input_stats.std", rtol=1e-9, atol=1e-12)
     # meta's center/scale are the same map: y = x * scale + offset = (x - center) / s.
     center, s, _ = normalization(meta, "action")
     close(1 / s, scale, "meta normalization action: 1/scale", rtol=1e-12)
@@ -723,7 +732,8 @@ def test_rotation_kinds_equal_scipy(tmp_path, case):
             values = values * np.where(np.arange(n) % 5 == 0, 1.005, 1.0)[:, None]  # off by 5e-3: accepted
             values[1::2] *= -1  # q and -q are one rotation
         if kind_from == "rotation_6d":
-            values = np.concatenate([1.3 * values[:, :3], values[:, 3:] + 0.1 * values[:, :3]], axis=1)
+            # Off unit length and orthogonality by less than the build's 1e-2: Gram-Schmidt matters.
+            values = np.concatenate([1.004 * values[:, :3], values[:, 3:] + 0.004 * values[:, :3]], axis=1)
         pos = rng.normal(size=(n, 2))
         episodes.append({"action": np.concatenate([pos, values], axis=1).astype(np.float32)})
         rots.append(values)
@@ -759,6 +769,14 @@ def test_rotation_kinds_equal_scipy(tmp_path, case):
         back = ds.to_source("action", s["action"], s)
         assert back.shape == raw.shape
         close(to_matrix(src_kind, back[:, 2:], convention), want_matrix, f"{what} to_source", rtol=0, atol=2e-6)
+        if kind_to == "rotation_6d":
+            # A network's 6D output is not orthonormal: to_source reads it with Gram-Schmidt.
+            out = np.array(s["action"], np.float64)
+            a1, a2 = out[:, 2:5].copy(), out[:, 5:8].copy()
+            out[:, 2:5], out[:, 5:8] = 1.3 * a1, a2 + 0.2 * a1
+            back = ds.to_source("action", out, s)
+            close(to_matrix(src_kind, back[:, 2:], convention), want_matrix, f"{what} to_source of a skewed 6D",
+                  rtol=0, atol=2e-6)
 
 
 # --- bad specs ----------------------------------------------------------------------------------
@@ -846,21 +864,34 @@ def test_the_good_spec_of_the_bad_cases_is_accepted(tmp_path):
     run_chunkc("check", write_spec(tmp_path, "diffusion_policy_zarr", src, channels, profile, fps=10))
 
 
-def test_quaternion_far_from_unit_norm_fails_the_build_naming_episode_and_step(tmp_path):
+BAD_ROTATIONS = {
+    # kind: (width, a good rotation's values, how the bad step is spoiled)
+    "quaternion_xyzw": (4, lambda r: r.as_quat(), lambda v: v * 1.5),
+    "matrix": (9, lambda r: r.as_matrix().reshape(-1, 9), lambda v: v * 1.2),
+    "rotation_6d": (6, lambda r: rot6d_rows(r.as_matrix()), lambda v: np.concatenate([v[:3], v[3:] + 0.3 * v[:3]])),
+}
+
+
+@pytest.mark.parametrize("kind", list(BAD_ROTATIONS))
+def test_a_rotation_far_from_valid_fails_the_build_naming_episode_and_step(tmp_path, kind):
+    """A quaternion off unit norm by 0.5, a matrix scaled by 1.2, a 6D rotation whose vectors are
+    far from orthogonal: the build stops, names episode 2 and step 17, and writes nothing."""
+    width, good, spoil = BAD_ROTATIONS[kind]
     rng = np.random.default_rng(3)
     episodes = []
     for n in (20, 24, 30):
-        quat = Rotation.from_rotvec(rng.normal(0, 1, (n, 3))).as_quat()
-        episodes.append({"action": np.concatenate([rng.normal(size=(n, 3)), quat, np.ones((n, 1))], axis=1)
+        values = good(Rotation.from_rotvec(rng.normal(0, 1, (n, 3))))
+        episodes.append({"action": np.concatenate([rng.normal(size=(n, 3)), values, np.ones((n, 1))], axis=1)
                         .astype(np.float32)})
-    episodes[2]["action"][17, 3:7] *= 1.5
+    episodes[2]["action"][17, 3 : 3 + width] = spoil(episodes[2]["action"][17, 3 : 3 + width])
     src = make_replay_buffer(tmp_path / "q.zarr", episodes)
+    to = "axis_angle" if kind == "rotation_6d" else "rotation_6d"
     profile = ("[profiles.x]\nchunk = 4\n"
-               + transform(op="rotation", channel="action", dims=[3, 7], to="rotation_6d", **{"from": "quaternion_xyzw"}))
+               + transform(op="rotation", channel="action", dims=[3, 3 + width], to=to, **{"from": kind}))
     spec = write_spec(tmp_path, "diffusion_policy_zarr", src, {"action": "action"}, profile, fps=10,
                       split="val_fraction = 0.0")
     proc = run_chunkc("build", "-q", spec, check=False)
-    assert proc.returncode != 0, "a quaternion of norm 1.5 was accepted"
+    assert proc.returncode != 0, f"a spoiled {kind} was accepted"
     assert re.search(r"episode\D{0,12}\b2\b", proc.stderr), proc.stderr
     assert re.search(r"step\D{0,12}\b17\b", proc.stderr), proc.stderr
     assert "panicked" not in proc.stderr
