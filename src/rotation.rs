@@ -1,3 +1,4 @@
+// Long file: each representation's conversion to and from the matrix, and their tests, side by side.
 //! Rotations in the representations robot datasets store (axis-angle, quaternions in either
 //! order, Euler angles, matrices, the continuous 6D representation) and the conversions between
 //! them, through the 3x3 rotation matrix.

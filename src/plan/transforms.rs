@@ -5,7 +5,10 @@
 use crate::error::{Error, Result};
 use crate::rotation::{Euler, Layout6d, RotationKind};
 use crate::source::{ChannelKind, Manifest};
-use crate::spec::{LoadedSpec, OutputFormat, Preset, Profile, StatsPopulation, TransformSpec};
+use crate::spec::{
+    DeltaSpec, LoadedSpec, OutputFormat, Preset, Profile, RelativePoseSpec, RotationSpec,
+    StatsPopulation, TransformSpec,
+};
 use crate::transform::{expand_mask, Op, Transform};
 use crate::window::Sampling;
 
@@ -57,101 +60,13 @@ pub(super) fn resolve(
         let c = channel(&at, manifest, i, "channel", t.channel())?;
         let op = match t {
             TransformSpec::Rotation(r) => {
-                let layout = r.layout.unwrap_or_default();
-                slice(
-                    &at,
-                    i,
-                    "dims",
-                    r.dims,
-                    widths[c],
-                    &manifest.channels[c].name,
-                )?;
-                kind_width(&at, i, "from", r.from, r.dims, "")?;
-                target(&at, i, "to", r.to)?;
-                let euler = convention(&at, i, r.convention.as_deref(), &[r.from])?;
-                Op::Rotation {
-                    dims: r.dims,
-                    from: r.from,
-                    to: r.to,
-                    euler,
-                    convention: r.convention.clone(),
-                    layout,
-                }
+                rotation_op(&at, i, r, widths[c], &manifest.channels[c].name)?
             }
             TransformSpec::Delta(d) => {
-                let reference = channel(&at, manifest, i, "reference", &d.reference)?;
-                let mask = mask(&at, i, &d.mask)?;
-                let name = &manifest.channels[c].name;
-                if mask.len() > widths[c] {
-                    return Err(at.field(
-                        i,
-                        "mask",
-                        format!(
-                            "the mask covers {} dimensions, but `{name}` has {} values per step",
-                            mask.len(),
-                            widths[c]
-                        ),
-                    ));
-                }
-                let ref_width = manifest.channels[reference].width();
-                if mask.len() > ref_width {
-                    return Err(at.field(i, "mask", format!(
-                        "the mask covers {} dimensions, but the reference `{}` has only {ref_width} values per step",
-                        mask.len(), d.reference
-                    )));
-                }
-                Op::Delta {
-                    reference: d.reference.clone(),
-                    reference_index: reference,
-                    mask,
-                }
+                delta_op(&at, manifest, i, d, widths[c], &manifest.channels[c].name)?
             }
             TransformSpec::RelativePose(r) => {
-                let reference = channel(&at, manifest, i, "reference", &r.reference)?;
-                let layout = r.layout.unwrap_or_default();
-                let ref_rotation = r.reference_rotation.unwrap_or(r.rotation);
-                let to = r.to.unwrap_or(r.rotation);
-                slice(
-                    &at,
-                    i,
-                    "dims",
-                    r.dims,
-                    widths[c],
-                    &manifest.channels[c].name,
-                )?;
-                kind_width(&at, i, "dims", r.rotation, r.dims, "3 (position) + ")?;
-                let ref_width = manifest.channels[reference].width();
-                slice(
-                    &at,
-                    i,
-                    "reference_dims",
-                    r.reference_dims,
-                    ref_width,
-                    &r.reference,
-                )?;
-                kind_width(
-                    &at,
-                    i,
-                    "reference_dims",
-                    ref_rotation,
-                    r.reference_dims,
-                    "3 (position) + ",
-                )?;
-                target(&at, i, "to", to)?;
-                let euler =
-                    convention(&at, i, r.convention.as_deref(), &[r.rotation, ref_rotation])?;
-                Op::RelativePose {
-                    dims: r.dims,
-                    rotation: r.rotation,
-                    reference: r.reference.clone(),
-                    reference_index: reference,
-                    reference_dims: r.reference_dims,
-                    reference_rotation: ref_rotation,
-                    to,
-                    euler,
-                    convention: r.convention.clone(),
-                    layout,
-                }
+                relative_pose_op(&at, manifest, i, r, widths[c], &manifest.channels[c].name)?
             }
         };
         let t = Transform {
@@ -178,6 +93,104 @@ pub(super) fn resolve(
         ));
     }
     Ok(out)
+}
+
+/// `op = "rotation"` on a channel `width` wide (as the transforms before leave it).
+fn rotation_op(at: &At, i: usize, r: &RotationSpec, width: usize, name: &str) -> Result<Op> {
+    slice(at, i, "dims", r.dims, width, name)?;
+    kind_width(at, i, "from", r.from, r.dims, "")?;
+    target(at, i, "to", r.to)?;
+    let euler = convention(at, i, r.convention.as_deref(), &[r.from])?;
+    Ok(Op::Rotation {
+        dims: r.dims,
+        from: r.from,
+        to: r.to,
+        euler,
+        convention: r.convention.clone(),
+        layout: r.layout.unwrap_or_default(),
+    })
+}
+
+/// `op = "delta"`: the mask fits the channel and the reference.
+fn delta_op(
+    at: &At,
+    manifest: &Manifest,
+    i: usize,
+    d: &DeltaSpec,
+    width: usize,
+    name: &str,
+) -> Result<Op> {
+    let reference = channel(at, manifest, i, "reference", &d.reference)?;
+    let mask = mask(at, i, &d.mask)?;
+    if mask.len() > width {
+        return Err(at.field(
+            i,
+            "mask",
+            format!(
+                "the mask covers {} dimensions, but `{name}` has {width} values per step",
+                mask.len()
+            ),
+        ));
+    }
+    let ref_width = manifest.channels[reference].width();
+    if mask.len() > ref_width {
+        return Err(at.field(i, "mask", format!(
+            "the mask covers {} dimensions, but the reference `{}` has only {ref_width} values per step",
+            mask.len(), d.reference
+        )));
+    }
+    Ok(Op::Delta {
+        reference: d.reference.clone(),
+        reference_index: reference,
+        mask,
+    })
+}
+
+/// `op = "relative_pose"`: both slices hold a position and a rotation of their kind.
+fn relative_pose_op(
+    at: &At,
+    manifest: &Manifest,
+    i: usize,
+    r: &RelativePoseSpec,
+    width: usize,
+    name: &str,
+) -> Result<Op> {
+    let reference = channel(at, manifest, i, "reference", &r.reference)?;
+    let ref_rotation = r.reference_rotation.unwrap_or(r.rotation);
+    let to = r.to.unwrap_or(r.rotation);
+    slice(at, i, "dims", r.dims, width, name)?;
+    kind_width(at, i, "dims", r.rotation, r.dims, "3 (position) + ")?;
+    let ref_width = manifest.channels[reference].width();
+    slice(
+        at,
+        i,
+        "reference_dims",
+        r.reference_dims,
+        ref_width,
+        &r.reference,
+    )?;
+    kind_width(
+        at,
+        i,
+        "reference_dims",
+        ref_rotation,
+        r.reference_dims,
+        "3 (position) + ",
+    )?;
+    target(at, i, "to", to)?;
+    let euler = convention(at, i, r.convention.as_deref(), &[r.rotation, ref_rotation])?;
+    Ok(Op::RelativePose {
+        dims: r.dims,
+        rotation: r.rotation,
+        reference: r.reference.clone(),
+        reference_index: reference,
+        reference_dims: r.reference_dims,
+        reference_rotation: ref_rotation,
+        to,
+        euler,
+        convention: r.convention.clone(),
+        layout: r.layout.unwrap_or_default(),
+    })
 }
 
 /// A channel named by a transform: one of the source's low-dimensional channels.

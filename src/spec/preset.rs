@@ -197,6 +197,7 @@ struct PresetValues {
     stats_population: Option<StatsPopulation>,
 }
 
+// Long function: one table of values per preset, each with where it comes from.
 fn preset_values(preset: Preset) -> PresetValues {
     use NormalizeMode as N;
     let base = PresetValues {
