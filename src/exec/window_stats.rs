@@ -54,7 +54,14 @@ pub(super) fn profile_stats(
         };
         let mut m = Moments::new(rows.width);
         rows.each_block(&mut |block| m.merge(&Moments::of_rows(block, rows.width)))?;
-        let s = stats::lowdim_from_rows(m, rows.width, None, |f| rows.each_block(f))?;
+        // Over windows, openpi's population, the percentiles are the data values openpi's
+        // histogram quantiles approximate (within one of its bins).
+        let definition = match p.values.stats_population {
+            StatsPopulation::Windows => stats::Definition::InvertedCdf,
+            StatsPopulation::Frames => stats::Definition::Linear,
+        };
+        let s =
+            stats::lowdim_from_rows_as(m, rows.width, None, definition, |f| rows.each_block(f))?;
         out.insert(ch.name.clone(), s);
     }
     Ok(out)

@@ -197,10 +197,16 @@ fn diffusion_policy(inputs: &Inputs) -> crate::Result<Vec<File>> {
             let s = &inputs.stats[&ch.name];
             let scale: Vec<f64> = n.scale.iter().map(|s| 1.0 / s).collect();
             let offset: Vec<f64> = n.center.iter().zip(&n.scale).map(|(c, s)| -c / s).collect();
-            // `LinearNormalizer.fit` stores torch's `std`, which is unbiased (ddof = 1).
+            // `LinearNormalizer.fit` stores torch's `std`, which is unbiased (ddof = 1); the
+            // abs-action normalizer takes numpy's (`array_to_stats`: ddof = 0).
+            let std = if n.mode == crate::spec::NormalizeMode::DpAbsAction {
+                s.std.clone()
+            } else {
+                s.moments.std(1)
+            };
             json!({
                 "scale": scale, "offset": offset,
-                "input_stats": { "min": s.min, "max": s.max, "mean": s.mean, "std": s.moments.std(1) },
+                "input_stats": { "min": s.min, "max": s.max, "mean": s.mean, "std": std },
             })
         };
         params.insert(dp_key(&ch.name).to_string(), entry);

@@ -18,7 +18,7 @@ pub mod shaped;
 pub use moments::Moments;
 pub use percentile::{
     percentile, percentile_of_histogram, percentiles, percentiles_counted, percentiles_streamed,
-    HighCounts, SecondPass,
+    Definition, HighCounts, SecondPass,
 };
 
 use rayon::prelude::*;
@@ -114,6 +114,17 @@ pub fn lowdim_from_rows<E>(
     m: Moments,
     dims: usize,
     high: Option<&[HighCounts]>,
+    pass: impl FnMut(&mut dyn FnMut(&[f32])) -> Result<(), E>,
+) -> Result<ChannelStats, E> {
+    lowdim_from_rows_as(m, dims, high, Definition::Linear, pass)
+}
+
+/// [`lowdim_from_rows`] with percentiles of another [`Definition`].
+pub fn lowdim_from_rows_as<E>(
+    m: Moments,
+    dims: usize,
+    high: Option<&[HighCounts]>,
+    definition: Definition,
     mut pass: impl FnMut(&mut dyn FnMut(&[f32])) -> Result<(), E>,
 ) -> Result<ChannelStats, E> {
     let rows = m.count;
@@ -157,7 +168,7 @@ pub fn lowdim_from_rows<E>(
         };
         let mut second: Vec<SecondPass> = high
             .iter()
-            .map(|h| SecondPass::new(h, rows, &PERCENTILES))
+            .map(|h| SecondPass::with(h, rows, &PERCENTILES, definition))
             .collect();
         feed(
             &mut pass,

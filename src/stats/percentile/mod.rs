@@ -12,10 +12,23 @@ mod radix;
 
 pub use radix::{percentiles_counted, percentiles_streamed, HighCounts, SecondPass};
 
+/// Which value of the sorted data a percentile is.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Definition {
+    /// numpy's default: interpolated at `q/100 * (n-1)`.
+    #[default]
+    Linear,
+    /// The smallest value with at least `q/100 * n` values at or below it (numpy's
+    /// `inverted_cdf`): a value of the data, the one openpi's histogram quantiles approximate by
+    /// the left edge of its bin (`RunningStats`: the first bin whose cumulative count reaches
+    /// `q * n`).
+    InvertedCdf,
+}
+
 /// `numpy.percentile(values, q)` for an unsorted slice (reorders it).
 pub fn percentile(values: &mut [f32], q: f64) -> f64 {
     assert!(!values.is_empty(), "percentile of no values");
-    let (lo, frac) = position(values.len() as u64, q);
+    let (lo, frac) = position(values.len() as u64, q, Definition::Linear);
     let cmp = |a: &f32, b: &f32| a.total_cmp(b);
     let (_, &mut a, upper) = values.select_nth_unstable_by(lo as usize, cmp);
     if frac == 0.0 || upper.is_empty() {
@@ -35,7 +48,7 @@ pub fn percentiles(values: &mut [f32], qs: &[f64]) -> Vec<f64> {
     // Every rank any percentile reads: floor(p), and floor(p) + 1 when it interpolates.
     let mut ranks: Vec<usize> = Vec::with_capacity(2 * qs.len());
     for &q in qs {
-        let (lo, frac) = position(n, q);
+        let (lo, frac) = position(n, q, Definition::Linear);
         ranks.push(lo as usize);
         if frac != 0.0 && lo + 1 < n {
             ranks.push(lo as usize + 1);
@@ -46,7 +59,7 @@ pub fn percentiles(values: &mut [f32], qs: &[f64]) -> Vec<f64> {
     select_ranks(values, 0, &ranks);
     qs.iter()
         .map(|&q| {
-            let (lo, frac) = position(n, q);
+            let (lo, frac) = position(n, q, Definition::Linear);
             let a = f64::from(values[lo as usize]);
             if frac == 0.0 || lo + 1 >= n {
                 a
@@ -73,7 +86,7 @@ fn select_ranks(values: &mut [f32], offset: usize, ranks: &[usize]) {
 pub fn percentile_of_histogram(hist: &[u64; 256], q: f64) -> f64 {
     let n: u64 = hist.iter().sum();
     assert!(n > 0, "percentile of no values");
-    let (lo, frac) = position(n, q);
+    let (lo, frac) = position(n, q, Definition::Linear);
     let a = nth_in_histogram(hist, lo);
     if frac == 0.0 || lo + 1 >= n {
         return a;
@@ -92,7 +105,11 @@ fn nth_in_histogram(hist: &[u64; 256], k: u64) -> f64 {
     unreachable!("k < total count")
 }
 
-fn position(n: u64, q: f64) -> (u64, f64) {
+fn position(n: u64, q: f64, definition: Definition) -> (u64, f64) {
+    if definition == Definition::InvertedCdf {
+        let rank = (q / 100.0 * n as f64).ceil().max(1.0) as u64 - 1;
+        return (rank.min(n - 1), 0.0);
+    }
     let p = q / 100.0 * (n - 1) as f64;
     let lo = p.floor();
     (lo as u64, p - lo)

@@ -3,7 +3,7 @@
 //! the first pass counts values by the high 16 bits of an order-preserving key, the second the
 //! low 16 bits within the buckets the needed ranks fall in.
 
-use super::{lerp, position};
+use super::{lerp, position, Definition};
 
 /// `numpy.percentile` of a column too large to hold, read twice: `pass` must call its argument
 /// with every value of the column, in blocks, each time it is called (the order does not
@@ -156,6 +156,7 @@ pub fn percentiles_counted<E>(
 pub struct SecondPass {
     n: u64,
     qs: Vec<f64>,
+    definition: Definition,
     /// Each needed rank: (rank, its bucket, its rank within the bucket).
     located: Vec<(u64, usize, u64)>,
     /// The needed buckets, in order.
@@ -168,12 +169,17 @@ pub struct SecondPass {
 impl SecondPass {
     /// `high` counted the `n` values the pass will be fed.
     pub fn new(high: &HighCounts, n: u64, qs: &[f64]) -> Self {
+        SecondPass::with(high, n, qs, Definition::Linear)
+    }
+
+    /// [`SecondPass::new`] with another definition of the percentile.
+    pub fn with(high: &HighCounts, n: u64, qs: &[f64], definition: Definition) -> Self {
         assert!(n > 0, "percentile of no values");
         assert_eq!(high.total, n, "the first pass counted every value");
         // Each rank's bucket and its rank among the bucket's values.
         let mut ranks: Vec<u64> = Vec::with_capacity(2 * qs.len());
         for &q in qs {
-            let (lo, frac) = position(n, q);
+            let (lo, frac) = position(n, q, definition);
             ranks.push(lo);
             if frac != 0.0 && lo + 1 < n {
                 ranks.push(lo + 1);
@@ -208,6 +214,7 @@ impl SecondPass {
         SecondPass {
             n,
             qs: qs.to_vec(),
+            definition,
             located,
             buckets,
             slot,
@@ -272,7 +279,7 @@ impl SecondPass {
         self.qs
             .iter()
             .map(|&q| {
-                let (lo, frac) = position(n, q);
+                let (lo, frac) = position(n, q, self.definition);
                 let a = value_at(lo);
                 if frac == 0.0 || lo + 1 >= n {
                     a
@@ -402,5 +409,22 @@ mod tests {
                 );
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod inverted_cdf {
+    use super::*;
+
+    /// numpy's `inverted_cdf`: the smallest value with at least `q n / 100` values at or below.
+    #[test]
+    fn is_the_order_statistic_numpy_names() {
+        let values: Vec<f32> = (1..=10).rev().map(|v| v as f32).collect();
+        let mut high = HighCounts::new();
+        high.add(&values);
+        let mut second =
+            SecondPass::with(&high, 10, &[1.0, 50.0, 55.0, 99.0], Definition::InvertedCdf);
+        second.add(&values);
+        assert_eq!(second.finish(), [1.0, 5.0, 6.0, 10.0]);
     }
 }
