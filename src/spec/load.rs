@@ -228,6 +228,9 @@ fn serde_error(err: &toml::de::Error, doc: &Document<String>) -> Diagnostic {
     let path: Vec<&str> = path.iter().map(String::as_str).collect();
     let key = dotted(&path);
 
+    if let Some(d) = transform_error(message, &names, &span, doc) {
+        return d;
+    }
     if message.starts_with("unknown field") {
         let (given, valid) = names.split_first().unwrap_or((&"", &[]));
         let table = &path[..path.len().saturating_sub(1)];
@@ -333,6 +336,71 @@ fn describe_expected(serde: &str) -> String {
         s if s.starts_with("struct ") => "a table".into(),
         s => s.into(),
     }
+}
+
+/// An unknown key or value inside a `[[profiles.<name>.transforms]]` table: serde reads the
+/// table whole (its `op` picks the type) and points at the array's header, so the key is found
+/// here and named with the table's index (`profiles.x.transforms[1].from`). `span` is kept for
+/// a table that holds no such key (the diagnostic then underlines what serde did).
+fn transform_error(
+    message: &str,
+    names: &[&str],
+    span: &Range<usize>,
+    doc: &Document<String>,
+) -> Option<Diagnostic> {
+    let field = message.starts_with("unknown field");
+    if !field && !message.starts_with("unknown variant") {
+        return None;
+    }
+    let (given, valid) = names.split_first()?;
+    let profiles = doc.as_table().get("profiles")?.as_table_like()?;
+    for (profile, item) in profiles.iter() {
+        let Some(tables) = item
+            .as_table_like()
+            .and_then(|t| t.get("transforms"))
+            .and_then(Item::as_array_of_tables)
+        else {
+            continue;
+        };
+        // serde points at the array's first header or at the value: the table is the one
+        // holding the key (or the value) it names.
+        for (i, table) in tables.iter().enumerate() {
+            let Some((key, value)) = table.iter().find(|(k, v)| {
+                if field {
+                    k == given
+                } else {
+                    v.as_str() == Some(given)
+                }
+            }) else {
+                continue;
+            };
+            let at = if field {
+                table.key(key).and_then(|k| k.span())
+            } else {
+                value.span()
+            };
+            let place = format!("profiles.{profile}.transforms[{i}]");
+            let (text, label, kind) = if field {
+                (
+                    format!("{place}: unknown key `{given}`"),
+                    "unknown key",
+                    "key",
+                )
+            } else {
+                (
+                    format!("{place}.{key}: unknown value `{given}`"),
+                    "unknown value",
+                    "value",
+                )
+            };
+            return Some(
+                Diagnostic::new(text)
+                    .at(at.unwrap_or(span.clone()), label)
+                    .with_help(did_you_mean(given, valid, kind)),
+            );
+        }
+    }
+    None
 }
 
 /// serde's `Unexpected` as a TOML user would say it.
