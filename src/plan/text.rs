@@ -127,6 +127,16 @@ pub fn render_text(plan: &Plan) -> String {
         if let Some(e) = &v.extends {
             let _ = writeln!(s, "  extends {e}");
         }
+        for t in &p.transforms {
+            let _ = writeln!(s, "  transform {}", t.summary());
+        }
+        if v.stats_population == crate::spec::StatsPopulation::Windows {
+            let _ = writeln!(
+                s,
+                "  statistics over windows: every training sample's {} action rows",
+                p.window().chunk
+            );
+        }
         for ch in &p.channels {
             let _ = writeln!(s, "  normalize {:<24} {}", ch.name, ch.normalize.name());
         }

@@ -298,6 +298,8 @@ pub fn card(r: &Renderer, c: &CardContext) -> Result<String> {
         val_episodes => p.episodes.iter().filter(|e| e.split == "val").count(),
         num_samples => context! { train => c.num_samples[0], val => c.num_samples[1] },
         warnings => p.warnings,
+        transforms => p.transforms.iter().map(|t| t.summary()).collect::<Vec<_>>(),
+        windows => p.values.stats_population == crate::spec::StatsPopulation::Windows,
         channels,
         audit => audit(c),
         storage => storage(c),

@@ -95,6 +95,52 @@ impl Transform {
         v
     }
 
+    /// One line for `chunkc plan` and the dataset card.
+    pub fn summary(&self) -> String {
+        let c = &self.channel;
+        match &self.op {
+            Op::Rotation {
+                dims,
+                from,
+                to,
+                layout,
+                ..
+            } => format!(
+                "{c}[{}:{}] {} -> {}{}",
+                dims[0],
+                dims[1],
+                from.name(),
+                to.name(),
+                six_d(*from, *to, *layout)
+            ),
+            Op::Delta {
+                reference, mask, ..
+            } => {
+                let d = mask.len();
+                let on = mask.iter().filter(|&&b| b).count();
+                format!("{c}[:{d}] minus {reference}[:{d}] at the current step ({on} of {d} dims, the rest as they are)")
+            }
+            Op::RelativePose {
+                dims,
+                rotation,
+                reference,
+                reference_dims,
+                to,
+                layout,
+                ..
+            } => format!(
+                "{c}[{}:{}] relative to {reference}[{}:{}] at the current step ({} -> {}{})",
+                dims[0],
+                dims[1],
+                reference_dims[0],
+                reference_dims[1],
+                rotation.name(),
+                to.name(),
+                six_d(*rotation, *to, *layout)
+            ),
+        }
+    }
+
     /// Applies the transform to one row of the channel (`row` is replaced by the transformed
     /// values); `reference` is the reference channel's raw row at the sample's current step
     /// (empty for a rotation). The error says what is not a rotation.
@@ -151,6 +197,15 @@ impl Transform {
             }
         }
         Ok(())
+    }
+}
+
+/// `, rows` or `, columns` when a side is the 6D representation.
+fn six_d(from: RotationKind, to: RotationKind, layout: Layout6d) -> String {
+    if from == RotationKind::Rotation6d || to == RotationKind::Rotation6d {
+        format!(", {}", layout.name())
+    } else {
+        String::new()
     }
 }
 
