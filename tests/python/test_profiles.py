@@ -123,6 +123,23 @@ preset = "lerobot_diffusion"
         train = np.concatenate([raw.episode("action", e) for e in ds.meta["split"]["train"]])
         assert ds.meta["normalization"]["action"]["mode"] == mode
         x = raw.array("action")[:500]
+        if profile == "openpi":
+            # openpi's population: every training sample's 50-step chunk, indices clamped at the
+            # episode end; its quantiles are the data values of rank q*n (openpi's histogram
+            # picks the bin holding them).
+            assert ds.meta["stats_population"] == "windows"
+            chunks = []
+            for e in ds.meta["split"]["train"]:
+                a = raw.episode("action", e)
+                rows = np.clip(np.arange(len(a))[:, None] + np.arange(50), 0, len(a) - 1)
+                chunks.append(a[rows].reshape(-1, a.shape[1]))
+            windows = np.concatenate(chunks).astype(np.float32)  # the build stores float32
+            q01 = np.percentile(windows, 1, axis=0, method="inverted_cdf").astype(np.float64)
+            q99 = np.percentile(windows, 99, axis=0, method="inverted_cdf").astype(np.float64)
+            r = q99 - q01 + 1e-6  # (x - q01) / r * 2 - 1, as center and half-range
+            want = normalize(x, (q01 + r / 2, r / 2, False))
+            np.testing.assert_allclose(ds.normalize("action", x), want, rtol=1e-9, atol=1e-9)
+            continue
         np.testing.assert_allclose(
             ds.normalize("action", x), normalize(x, norm_params(mode, train)), rtol=1e-9, atol=1e-9
         )
