@@ -68,11 +68,12 @@ pub(super) fn all(
                     let p = stale[i];
                     let own =
                         super::window_stats::profile_stats(p, rate, manifest, &stats, &train_mask);
+                    let own = match own {
+                        Ok(own) => own,
+                        Err(e) => return (i, Err(e)),
+                    };
                     let stats = Stats {
-                        own: &match own {
-                            Ok(own) => own,
-                            Err(e) => return (i, Err(e)),
-                        },
+                        own: own.as_ref().unwrap_or(&stats),
                         stored: &stats,
                     };
                     (i, profile(shared, p, rate, &stats, sink, &dir))

@@ -26,18 +26,19 @@ use crate::window::{Sampling, Step};
 const EPISODES_PER_THREAD: usize = 2;
 
 /// `shared` with the profile's own statistics in place of the channels it transforms or counts
-/// by windows. Every episode's rows (training or not) are checked to hold rotations first.
+/// by windows, or `None` when it has none of its own (the default: nothing is copied). Every
+/// episode's rows (training or not) are checked to hold rotations first.
 pub(super) fn profile_stats(
     p: &ProfilePlan,
     rate: &RateState,
     manifest: &Manifest,
     shared: &BTreeMap<String, ChannelStats>,
     train_mask: &[bool],
-) -> Result<BTreeMap<String, ChannelStats>> {
-    let mut out = shared.clone();
+) -> Result<Option<BTreeMap<String, ChannelStats>>> {
     if p.transforms.is_empty() && p.values.stats_population == StatsPopulation::Frames {
-        return Ok(out);
+        return Ok(None);
     }
+    let mut out = shared.clone();
     check_rotations(p, rate, manifest)?;
     for (c, ch) in manifest.channels.iter().enumerate() {
         if ch.kind != ChannelKind::Lowdim || !p.windowed_stats(c) {
@@ -64,7 +65,7 @@ pub(super) fn profile_stats(
             stats::lowdim_from_rows_as(m, rows.width, None, definition, |f| rows.each_block(f))?;
         out.insert(ch.name.clone(), s);
     }
-    Ok(out)
+    Ok(Some(out))
 }
 
 /// The rows one channel's statistics cover.
@@ -143,15 +144,11 @@ impl Rows<'_> {
             for tr in &self.transforms {
                 let reference = reference_row(&references, tr, t);
                 tr.apply(&mut row, reference)
-                    .map_err(|why| self.not_rotation(e, r, tr, &why))?;
+                    .map_err(|why| not_rotation(self.p, e, r, tr, &why))?;
             }
             out.extend(row.iter().map(|&v| v as f32));
         }
         Ok(out)
-    }
-
-    fn not_rotation(&self, e: usize, step: usize, t: &Transform, why: &str) -> Error {
-        not_rotation(self.p, e, step, t, why)
     }
 }
 
