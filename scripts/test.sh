@@ -6,8 +6,8 @@
 # Runs every check even when an earlier one fails, prints a summary, and exits non-zero if any
 # check failed: cargo fmt --check, cargo clippy (-D warnings), cargo test --release (all with
 # the `video` feature, as setup.sh builds; CHUNKC_VIDEO=0: without), a check that chunkc still
-# builds without the feature, the Python suite in tests/python against
-# target/release/chunkc, and a 10 s run of each fuzz target when
+# builds without the feature, the wheel (scripts/wheel.sh), the Python suite in tests/python
+# against target/release/chunkc and the installed wheel, and a 10 s run of each fuzz target when
 # cargo-fuzz is installed (CHUNKC_FUZZ=1: install it if needed; CHUNKC_FUZZ=0: skip;
 # CHUNKC_FUZZ_SECONDS: another length).
 #
@@ -80,6 +80,23 @@ if [ -n "$CHUNKC_FEATURES" ]; then
 fi
 if [ -n "${CHUNKC_FULL_PUSHT:-}" ]; then
     echo "test: CHUNKC_FULL_PUSHT=$CHUNKC_FULL_PUSHT (full Push-T tests enabled)"
+fi
+# The wheel (scripts/wheel.sh: static LGPL FFmpeg, cached under ~/.cache/chunkc, and a build of its
+# own in target/wheel), which tests/python/test_wheel.py installs into a fresh venv and checks
+# against target/release/chunkc. CHUNKC_WHEEL_BUILD=0 skips building it (test_wheel.py then
+# tests dist/'s newest wheel, if any).
+wheel_run() {
+    echo "scripts/wheel.sh"
+    local built
+    built=$(scripts/wheel.sh) || return
+    CHUNKC_WHEEL=$PWD/$built
+    export CHUNKC_WHEEL
+}
+if [ "${CHUNKC_WHEEL_BUILD:-1}" = 1 ]; then
+    check wheel wheel_run
+else
+    echo
+    echo "test: wheel build skipped (CHUNKC_WHEEL_BUILD=0)"
 fi
 check pytest pytest_run
 

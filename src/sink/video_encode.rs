@@ -363,9 +363,13 @@ mod imp {
                 let small =
                     s.codec == VideoCodec::Libsvtav1 && (shape.height < 64 || shape.width < 64);
                 let hint = if small {
+                    let instead = if crate::spec::HAS_X264 {
+                        "`video_codec = \"libx264\"` takes them"
+                    } else {
+                        "resize them with `cameras`, or store them as `jpeg` or `png`"
+                    };
                     format!(
-                        " ({}x{} frames: this SVT-AV1 may need at least 64x64; \
-                             `video_codec = \"libx264\"` takes them)",
+                        " ({}x{} frames: this SVT-AV1 may need at least 64x64; {instead})",
                         shape.height, shape.width
                     )
                 } else {

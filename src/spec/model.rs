@@ -634,6 +634,8 @@ pub struct ProfileSpec {
     pub image_encoding: Option<ImageEncoding>,
     /// Encoder of `image_encoding = "video"`: `libsvtav1` (default; AV1, LeRobot's default) or
     /// `libx264` (H.264; the default of hdf5's `image_compression = "video"`: faster to decode).
+    /// The wheel's FFmpeg (LGPL) has no x264: there hdf5's default is `libsvtav1` too, and
+    /// `libx264` is refused.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub video_codec: Option<VideoCodec>,
     /// Constant rate factor of the video encoder (lower is better quality and larger): default

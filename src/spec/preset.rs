@@ -134,13 +134,24 @@ pub enum StreamCopy {
 pub const DEFAULT_VIDEO_CRF: u32 = 30;
 pub const DEFAULT_VIDEO_GOP: u32 = 2;
 
+/// Whether this chunkc's FFmpeg has x264. The wheel's does not (`static-ffmpeg`: an LGPL FFmpeg
+/// linked into the binary, with SVT-AV1 as its only encoder; x264 is GPL); a developer build links
+/// the system FFmpeg, which has it (Debian's). A spec that names `libx264` in a build without it
+/// is refused at `video_codec`.
+pub const HAS_X264: bool = !cfg!(feature = "static-ffmpeg");
+
 /// The encoder of hdf5's `image_compression = "video"` when the spec names none: H.264 (about
 /// twice as fast to decode on a data-loader CPU as AV1) at x264's own default quality, with a
 /// keyframe every 8 frames (closed GOPs, each a random-access point): a random frame decodes at
-/// most 8 (4.5 on average).
+/// most 8 (4.5 on average). Without x264 ([`HAS_X264`]), SVT-AV1 at LeRobot's quality, with the
+/// same keyframes.
 pub const STORAGE_VIDEO: VideoSettings = VideoSettings {
-    codec: VideoCodec::Libx264,
-    crf: 23,
+    codec: if HAS_X264 {
+        VideoCodec::Libx264
+    } else {
+        VideoCodec::Libsvtav1
+    },
+    crf: if HAS_X264 { 23 } else { DEFAULT_VIDEO_CRF },
     gop: 8,
     copy: StreamCopy::AnyCodec,
     copy_gop: None,

@@ -101,15 +101,27 @@ def test_format_table_is_the_schema():
     assert "rejected with a clear error until" not in README
 
 
+def test_quick_start_installs_the_wheel_first():
+    """The quick start begins with the wheel, then runs the installed `chunkc` (no target/ path)."""
+    first = README.split("## Quick start")[1].split("Working on chunkc itself")[0]
+    install, use = [b for b in blocks("sh") if b in first][:2]
+    assert install.splitlines()[0].startswith("pip install dist/chunkc-*.whl")
+    assert 'pip install "chunkc[loader]"' in install
+    assert all(line.startswith("chunkc ") for line in use.splitlines() if line.strip())
+    assert "target/release" not in first.split("Working on")[0]
+
+
 def test_quick_start_runs():
     (quick,) = [b for b in blocks("sh") if "scripts/demo.sh" in b]
     commands = [line.split("#")[0].split() for line in quick.splitlines() if line.strip()]
     scripts = {c[0] for c in commands}
-    assert scripts == {"scripts/demo.sh", "scripts/test.sh", "scripts/fuzz.sh"}
+    assert scripts == {"scripts/demo.sh", "scripts/test.sh", "scripts/fuzz.sh", "scripts/wheel.sh"}
     # scripts/test.sh is the suite this test runs in (CI calls it through .ci/run); fuzz.sh runs
-    # the fuzzers for minutes and is run by test.sh itself when cargo-fuzz is there. Both are
-    # checked to be what the README says; demo.sh is run.
+    # the fuzzers for minutes and is run by test.sh itself when cargo-fuzz is there; wheel.sh is
+    # run by test.sh too, and its wheel tested by test_wheel.py. All are checked to be what the
+    # README says; demo.sh is run.
     assert "scripts/test.sh" in (REPO / ".ci" / "run").read_text()
+    assert "scripts/wheel.sh" in (REPO / "scripts" / "test.sh").read_text()
     for script in scripts:
         assert subprocess.run(["bash", "-n", str(REPO / script)]).returncode == 0
     proc = subprocess.run([str(REPO / "scripts" / "demo.sh")], cwd="/", capture_output=True, text=True, timeout=900)

@@ -3,8 +3,8 @@
 //! keys of either video storage, with a chunkc that can encode video.
 
 use super::Checker;
-use crate::spec::model::{ImageCompression, OutputFormat};
-use crate::spec::preset::Profile;
+use crate::spec::model::{ImageCompression, OutputFormat, VideoCodec};
+use crate::spec::preset::{Profile, HAS_X264};
 
 /// The encoder keys of `image_encoding = "video"` and `image_compression = "video"`.
 const ENCODER_KEYS: [&str; 4] = ["video_codec", "video_crf", "video_gop", "video_copy"];
@@ -119,6 +119,18 @@ impl Checker<'_> {
                     .to_string();
             let help = Some("or keep `image_encoding = \"png\"`".into());
             self.value(&key("image_encoding"), message, "not in this build", help);
+        }
+        if video.codec == VideoCodec::Libx264 && !HAS_X264 {
+            let message = format!(
+                "`profiles.{name}.video_codec = \"libx264\"`: this chunkc (the wheel) links an \
+                 LGPL FFmpeg without x264, which is GPL; its encoder is `libsvtav1`"
+            );
+            let help = Some(
+                "use `video_codec = \"libsvtav1\"` (or leave it out), or a chunkc built from \
+                 source against a system FFmpeg with x264 (book: Install)"
+                    .into(),
+            );
+            self.value(&key("video_codec"), message, "not in this build", help);
         }
         if video.crf > video.codec.max_crf() {
             let message = format!(
