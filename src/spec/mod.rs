@@ -44,7 +44,8 @@ pub use model::*;
 pub use observations::missing_observations;
 pub use output_location::check_output_location;
 pub use preset::{
-    Profile, StreamCopy, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP, HAS_X264, STORAGE_VIDEO,
+    Profile, StreamCopy, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP, HAS_X264,
+    STORAGE_VIDEO,
 };
 pub use transform::{DeltaSpec, Layout6d, RelativePoseSpec, RotationKind, RotationSpec};
 
