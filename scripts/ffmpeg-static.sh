@@ -14,17 +14,21 @@
 #   - dav1d 1.0 (BSD 2-Clause): the AV1 decoder.
 # The sources are Debian 12's source packages (`apt-get source`, with the Debian patches); a
 # `deb-src` entry is added for the download when the system has none (root), and removed after.
+# They are compiled with `zig cc` against glibc $CHUNKC_GLIBC (default 2.28, the manylinux_2_28
+# baseline; zig from the `ziglang` package in .venv) rather than the system's glibc, so that the
+# binary linked with them runs on older systems than this one (scripts/wheel.sh links with zig too).
 #
 # The result is cached in ${CHUNKC_CACHE:-~/.cache/chunkc}/ffmpeg-static/<key>, where the key
-# is this script's hash: a second run, or a fresh clone on the same machine, prints the prefix
-# at once. Needs gcc, nasm, pkg-config, dpkg-source (dpkg-dev) and, from .venv, cmake, meson
-# and ninja; as root, the missing Debian packages are installed.
+# is this script's hash, the architecture and the glibc: a second run, or a fresh clone on the same machine, prints the prefix
+# at once. Needs nasm, pkg-config, dpkg-source (dpkg-dev) and, from .venv, cmake, meson, ninja and
+# ziglang; as root, the missing Debian packages are installed.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 say() { printf 'ffmpeg-static: %s\n' "$*" >&2; }
 die() { printf 'ffmpeg-static: error: %s\n' "$*" >&2; exit 1; }
 
-key=$(sha256sum "${BASH_SOURCE[0]}" | cut -c1-16)
+glibc=${CHUNKC_GLIBC:-2.28}
+key=$(sha256sum "${BASH_SOURCE[0]}" | cut -c1-16)-$(uname -m)-glibc$glibc
 cache=${CHUNKC_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/chunkc}/ffmpeg-static
 prefix=$cache/$key
 if [ -e "$prefix/.complete" ]; then
@@ -38,10 +42,11 @@ venv=$root/.venv
 export PATH="$venv/bin:$PATH"
 quiet=(--quiet)
 [ "${CHUNKC_VERBOSE:-0}" = 1 ] && quiet=()
-for tool in meson ninja cmake; do
-    if ! command -v "$tool" >/dev/null; then
-        say "installing $tool into .venv"
-        "$venv/bin/python" -m pip install "${quiet[@]}" "$tool"
+for tool in meson ninja cmake ziglang; do
+    if ! "$venv/bin/python" -c "import importlib.metadata as m, sys; m.version(sys.argv[1])" "$tool" 2>/dev/null; then
+        pin=$(grep -E "^$tool==" "$root/tests/python/requirements.txt" || echo "$tool")
+        say "installing $pin into .venv"
+        "$venv/bin/python" -m pip install "${quiet[@]}" --disable-pip-version-check "$pin"
     fi
 done
 debian=()
@@ -60,6 +65,18 @@ work=$(mktemp -d "${TMPDIR:-/tmp}/chunkc-ffmpeg.XXXXXX")
 trap 'rm -rf "$work"' EXIT
 stage=$work/prefix
 jobs=$(nproc)
+
+# The compilers: zig's clang, for this machine's architecture and an old glibc.
+arch=$(uname -m)
+mkdir -p "$work/bin"
+for tool in cc c++; do
+    # zig's clang makes __DATE__ an error (-Wdate-time); SVT-AV1 logs its build date.
+    printf '#!/bin/sh\nexec "%s" -m ziglang %s -target %s-linux-gnu.%s -Wno-error=date-time "$@"\n' \
+        "$venv/bin/python" "$tool" "$arch" "$glibc" >"$work/bin/zig-$tool"
+    chmod +x "$work/bin/zig-$tool"
+done
+zcc=$work/bin/zig-cc
+zcxx=$work/bin/zig-c++
 
 # 1. The sources, with Debian's patches applied.
 say "fetching the sources (apt-get source ffmpeg svt-av1 dav1d)"
@@ -94,14 +111,16 @@ run() { "$@" >>"$log" 2>&1 || { tail -n 40 "$log" >&2; die "failed: $*"; }; }
 # 2. SVT-AV1 (the encoder library only).
 say "building $(basename "$svt_src") (static)"
 run cmake -S "$svt_src" -B "$work/svt-build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+    -DCMAKE_C_COMPILER="$zcc" -DCMAKE_CXX_COMPILER="$zcxx" \
     -DCMAKE_INSTALL_PREFIX="$stage" -DCMAKE_INSTALL_LIBDIR=lib -DBUILD_SHARED_LIBS=OFF \
-    -DBUILD_APPS=OFF -DBUILD_DEC=OFF -DBUILD_TESTING=OFF -DCMAKE_POSITION_INDEPENDENT_CODE=ON
+    -DBUILD_APPS=OFF -DBUILD_DEC=OFF -DBUILD_TESTING=OFF -DCMAKE_POSITION_INDEPENDENT_CODE=ON \
+    -DREPRODUCIBLE_BUILDS=ON
 run cmake --build "$work/svt-build" -j "$jobs"
 run cmake --install "$work/svt-build"
 
 # 3. dav1d.
 say "building $(basename "$dav1d_src") (static)"
-run meson setup "$work/dav1d-build" "$dav1d_src" --prefix="$stage" --libdir=lib \
+CC=$zcc run meson setup "$work/dav1d-build" "$dav1d_src" --prefix="$stage" --libdir=lib \
     --buildtype=release --default-library=static -Denable_tools=false -Denable_tests=false \
     -Db_pie=true
 run ninja -C "$work/dav1d-build" -j "$jobs"
@@ -112,7 +131,7 @@ say "building $(basename "$ffmpeg_src") (static, LGPL)"
 (
     cd "$ffmpeg_src"
     export PKG_CONFIG_PATH=$stage/lib/pkgconfig
-    run ./configure --prefix="$stage" --enable-static --disable-shared --enable-pic \
+    run ./configure --prefix="$stage" --cc="$zcc" --cxx="$zcxx" --enable-static --disable-shared --enable-pic \
         --pkg-config-flags=--static --extra-libs="-lpthread -lm" \
         --disable-programs --disable-doc --disable-debug --disable-network --disable-autodetect \
         --disable-everything --disable-avdevice --disable-avfilter --disable-postproc \
@@ -139,6 +158,7 @@ cp "$dav1d_src/COPYING" "$stage/licenses/dav1d-COPYING"
     echo "FFmpeg $(basename "$ffmpeg_src" | sed 's/^ffmpeg-//'), Debian's source package, LGPL 2.1 or later"
     echo "SVT-AV1 $(basename "$svt_src" | sed 's/^svt-av1-//'), Debian's source package, BSD 3-Clause Clear"
     echo "dav1d $(basename "$dav1d_src" | sed 's/^dav1d-//'), Debian's source package, BSD 2-Clause"
+    echo "compiled with zig $("$venv/bin/python" -m ziglang version) for $arch-linux-gnu.$glibc"
 } >"$stage/licenses/VERSIONS"
 grep -rq "x264\|postproc" "$stage/lib/pkgconfig" && die "a GPL library slipped into the pkg-config files"
 

@@ -35,8 +35,10 @@ C_LIBRARIES = [
     ("Snappy", "the snappy_src crate", "BSD-3-Clause", "snappy-COPYING"),
     ("liblzf", "the lzf-sys crate", "BSD-2-Clause", "liblzf-LICENSE"),
     ("zlib", "the libz-sys crate (or the system's static libz.a)", "Zlib", "zlib-LICENSE"),
-    ("libstdc++ (for Snappy)", "GCC, linked statically", "GPL-3.0 with the GCC Runtime Library Exception",
-     "(the exception allows linking into any program)"),
+    ("libc++, libc++abi, libunwind (for Snappy)", "LLVM's, bundled with zig, linked statically",
+     "Apache-2.0 WITH LLVM-exception", "libc++-LICENSE.TXT, libc++abi-LICENSE.TXT, libunwind-LICENSE.TXT"),
+    ("compiler_rt and the glibc 2.28 start files", "zig (the linker), linked statically",
+     "MIT (zig); glibc's start files are LGPL-2.1 with its linking exception", "zig-LICENSE"),
 ]
 
 

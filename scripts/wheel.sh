@@ -5,14 +5,15 @@
 #
 # The wheel holds the chunkc binary alone (maturin, `bindings = "bin"`, as ruff and uv ship
 # theirs) and a small `chunkc` package for `python -m chunkc`. The binary links everything it
-# uses statically but the C library: HDF5, libjpeg-turbo, the compressors, libstdc++, and an LGPL
+# uses statically but the C library: HDF5, libjpeg-turbo, the compressors, libc++, and an LGPL
 # FFmpeg with SVT-AV1 and dav1d (scripts/ffmpeg-static.sh builds it once per machine, under
-# ~/.cache/chunkc). So it runs on any Linux with glibc at least as new as the wheel's tag says,
-# with no FFmpeg, Rust or cmake there. The licences of everything linked are in the wheel's
+# ~/.cache/chunkc). Everything is compiled and linked by zig against glibc 2.28's symbols
+# (CHUNKC_GLIBC), so it runs on any Linux with glibc 2.28 or newer (manylinux_2_28: RHEL 8,
+# Debian 10, Ubuntu 18.10 and later), with no FFmpeg, Rust or cmake there. The licences of everything linked are in the wheel's
 # .dist-info/licenses (licenses/ here); book/src/install.md says what is inside.
 #
 # Needs a Rust toolchain, gcc, clang (bindgen), nasm and pkg-config; as root, the missing Debian
-# packages are installed. The Python build tools (maturin, cmake, meson, ninja, auditwheel) go
+# packages are installed. The Python build tools (maturin, cmake, meson, ninja, ziglang, auditwheel) go
 # into .venv, pinned as tests/python/requirements.txt pins them. The build is separate from the
 # developer build (target/wheel), so that target/release/chunkc keeps the system FFmpeg.
 # Environment: CHUNKC_VERBOSE=1 (full output), CHUNKC_CACHE (the cache; default ~/.cache/chunkc).
@@ -46,7 +47,7 @@ if [ ! -x .venv/bin/python ]; then
 fi
 export PATH="$root/.venv/bin:$PATH"
 pins=()
-for tool in maturin cmake meson ninja auditwheel; do
+for tool in maturin cmake meson ninja ziglang auditwheel; do
     .venv/bin/python -c "import importlib.metadata as m, sys; m.version(sys.argv[1])" "$tool" 2>/dev/null && continue
     pins+=("$(grep -E "^$tool==" tests/python/requirements.txt || echo "$tool")")
 done
@@ -64,10 +65,12 @@ for f in "$prefix"/licenses/*; do
         || die "licenses/$name differs from the one of the FFmpeg build ($f): update licenses/ (book/src/install.md)"
 done
 export PKG_CONFIG_PATH="$prefix/lib/pkgconfig" PKG_CONFIG_ALL_STATIC=1
-# libstdc++ (snappy, inside blosc, is C++) linked statically too: cc-rs is told to name no C++
-# library, and the link takes the static one.
-export CXXSTDLIB=""
-export RUSTFLAGS="${RUSTFLAGS:-} -C link-arg=-l:libstdc++.a"
+# zig compiles the C and C++ dependencies (HDF5, libjpeg-turbo, the compressors) and links the
+# binary against glibc $glibc's symbols, as it compiled FFmpeg: a manylinux_2_28 wheel from this
+# Debian 12 machine. Snappy (inside blosc) is C++: cc-rs names zig's own libc++, which zig links
+# statically.
+glibc=${CHUNKC_GLIBC:-2.28}
+export CXXSTDLIB=c++
 export CARGO_TARGET_DIR="$root/target/wheel"
 
 # The licences of every crate compiled in, from Cargo.lock (licenses/THIRD-PARTY.md).
@@ -75,7 +78,8 @@ export CARGO_TARGET_DIR="$root/target/wheel"
 
 say "maturin build (features static-ffmpeg; first build: HDF5 and ~220 crates, several minutes)"
 rm -rf dist/chunkc-*.whl
-maturin build --release --locked --out dist --auditwheel check "${quiet[@]}" >&2
+maturin build --release --locked --out dist --zig --compatibility "manylinux_${glibc/./_}" \
+    --auditwheel check "${quiet[@]}" >&2
 wheel=$(ls dist/chunkc-*.whl)
 say "checking $(basename "$wheel")"
 .venv/bin/python scripts/wheel_check.py "$wheel" >&2

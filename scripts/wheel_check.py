@@ -29,7 +29,10 @@ LICENCES = [
     "SVT-AV1-LICENSE.md",
     "SVT-AV1-PATENTS.md",
     "dav1d-COPYING",
+    "HDF5-LICENSE",
+    "libc++-LICENSE.TXT",
     "THIRD-PARTY.md",
+    "rust-crates.txt",
 ]
 # Strings that only a GPL FFmpeg or a GPL library would put into the binary.
 # (Not "x264 - core": FFmpeg's own H.264 decoder holds it, to recognise x264's SEI banner.)

@@ -137,6 +137,18 @@ def test_wheel_check_passes():
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
+def test_platform_tag_is_what_auditwheel_finds():
+    """The wheel's name claims a manylinux tag; auditwheel, reading the binary's versioned glibc
+    symbols, must find the same one (no symbol newer than the tag's glibc)."""
+    claimed = WHEEL.name.rsplit("-", 1)[1].removesuffix(".whl")
+    show = subprocess.run([sys.executable, "-m", "auditwheel", "show", str(WHEEL)], capture_output=True, text=True)
+    assert show.returncode == 0, show.stderr
+    found = re.search(r'platform tag:\s*"([^"]+)"', show.stdout)
+    assert found, show.stdout
+    assert found.group(1) == claimed, show.stdout
+    assert re.fullmatch(r"manylinux_2_(\d+)_\w+", claimed), claimed
+
+
 def test_gpl_marks_are_found_in_a_gpl_build():
     """The oracle of the check above: each GPL mark it looks for is found in the GPL libraries the
     developer build loads (Debian's FFmpeg, built with --enable-gpl, and libx264), and the
