@@ -141,6 +141,9 @@ say "building $(basename "$ffmpeg_src") (static, LGPL)"
         --enable-bsf=h264_mp4toannexb,hevc_mp4toannexb,extract_extradata,av1_frame_split,vp9_superframe_split \
         --enable-libdav1d --enable-libsvtav1 --enable-encoder=libsvtav1 \
         --enable-swscale --enable-swresample
+    # zig's glibc headers are the newest glibc's, which dropped sys/sysctl.h (2.32), while its
+    # 2.28 link stubs still have sysctl(): configure finds the function, cpu.c the header missing.
+    sed -i 's/^#define HAVE_SYSCTL 1$/#define HAVE_SYSCTL 0/' config.h
     grep -q "License: LGPL" ffbuild/config.log 2>/dev/null || grep -q 'FFMPEG_LICENSE "LGPL' config.h \
         || die "FFmpeg's configure did not settle on an LGPL licence"
     run make -j "$jobs"
