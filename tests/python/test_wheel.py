@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import PUSHT, REPO, RawSource, chunkc_bin
+from conftest import PUSHT, REPO, RawSource, chunkc_bin, write_spec
 
 DATA = REPO / "tests" / "data"
 C_LIBRARY = re.compile(r"^(linux-vdso|libc|libm|libgcc_s|libpthread|libdl|librt)\.so\.\d+$|^/?[\w/]*ld-linux[-\w.]*\.so\.\d+$")
@@ -214,28 +214,12 @@ def psnr(a, b):
     return 10 * np.log10(255.0**2 / mse)
 
 
-PUSHT_SPEC = f"""version = 1
-[source]
-format = "diffusion_policy_zarr"
-path = "{PUSHT}"
-fps = 10
-[source.channels]
-action = "action"
-"observation.state" = "state"
-"observation.image" = "img"
-[split]
-val_fraction = 0.1
-seed = 0
-[output]
-dir = "out"
-"""
 
 
 def test_hdf5_video_storage_is_av1_and_read_by_pyav(installed, tmp_path):
     """hdf5 `image_compression = "video"` in the wheel: x264's default becomes SVT-AV1 (no GPL
     encoder inside), every episode's mp4 decodes with PyAV to the source's frames, near-lossless."""
-    spec = PUSHT_SPEC + '[profiles.dp]\npreset = "diffusion_policy"\nformat = "hdf5"\nimage_compression = "video"\n'
-    (tmp_path / "spec.toml").write_text(spec)
+    write_spec(tmp_path, '[profiles.dp]\npreset = "diffusion_policy"\nformat = "hdf5"\nimage_compression = "video"')
     wheel_run(installed, "build", "-q", "spec.toml", cwd=tmp_path)
     videos = sorted((tmp_path / "out" / "dp").rglob("episode_*.mp4"))
     src = RawSource()
@@ -251,8 +235,7 @@ def test_hdf5_video_storage_is_av1_and_read_by_pyav(installed, tmp_path):
 def test_lerobot_video_export_read_by_pyav(installed, tmp_path):
     """The LeRobot export with video from the wheel: one AV1 mp4 per camera, every frame read back
     by PyAV, in order, close to the source."""
-    spec = PUSHT_SPEC + '[profiles.lr]\npreset = "lerobot_diffusion"\nformat = "parquet"\nimage_encoding = "video"\n'
-    (tmp_path / "spec.toml").write_text(spec)
+    write_spec(tmp_path, '[profiles.lr]\npreset = "lerobot_diffusion"\nformat = "parquet"\nimage_encoding = "video"')
     wheel_run(installed, "build", "-q", "spec.toml", cwd=tmp_path)
     videos = sorted((tmp_path / "out" / "lr" / "videos").rglob("*.mp4"))
     assert len(videos) == 1, videos
@@ -278,9 +261,8 @@ def test_malformed_spec_same_message(installed, tmp_path):
 def test_libx264_is_refused_at_its_key(installed, tmp_path):
     """A spec asking for x264 explicitly: the wheel (no GPL encoder) refuses it at `video_codec`,
     before writing anything; the developer build (system FFmpeg, with x264) accepts it."""
-    spec = PUSHT_SPEC + ('[profiles.dp]\npreset = "diffusion_policy"\nformat = "hdf5"\n'
-                         'image_compression = "video"\nvideo_codec = "libx264"\n')
-    (tmp_path / "spec.toml").write_text(spec)
+    write_spec(tmp_path, '[profiles.dp]\npreset = "diffusion_policy"\nformat = "hdf5"\n'
+               'image_compression = "video"\nvideo_codec = "libx264"')
     w = wheel_run(installed, "build", "spec.toml", cwd=tmp_path, check=False)
     assert w.returncode != 0
     assert "profiles.dp.video_codec" in w.stderr and "libx264" in w.stderr, w.stderr
