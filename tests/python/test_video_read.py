@@ -249,3 +249,39 @@ def test_source_episodes_are_applied_before_the_videos_are_checked(tmp_path, sel
     ours = frames_by_episode(tmp_path / "out", "observation.image")
     for e in selected:
         compare(ours[e], v21_reference(root, e), f"episode {e}")
+
+
+@pytest.mark.parametrize("names", [["channel", "height", "width"], None])
+def test_channel_first_video_shapes_read_like_lerobots(tmp_path, names):
+    """Some recorders write a video feature's shape as the frame tensor's, `[C, H, W]` (names
+    `channel, height, width`), where LeRobot writes `[H, W, C]`; the mp4 is the same, LeRobot reads
+    either. Such a copy of the v3.0 fixture maps its cameras in `chunkc init` and builds the same
+    frames as the original."""
+    src = tmp_path / "source"
+    shutil.copytree(V3, src)
+    info_path = src / "meta" / "info.json"
+    info = json.loads(info_path.read_text())
+    for key in (TOP, WRIST):
+        f = info["features"][key]
+        h, w, c = f["shape"]
+        f["shape"] = [c, h, w]
+        if names is None:
+            f.pop("names", None)
+        else:
+            f["names"] = names
+    info_path.write_text(json.dumps(info, indent=4))
+    init = run_chunkc("init", src, "--out", tmp_path / "init.toml")
+    text = (tmp_path / "init.toml").read_text()
+    mapped = [line for line in text.splitlines() if f'"{TOP}"' in line.split("#")[0]]
+    assert mapped, init.stdout + text
+    assert "neither a vector nor" not in text
+    for name, root in (("orig", V3), ("chw", src)):
+        d = tmp_path / name
+        d.mkdir()
+        build(spec(d, root, {"observation.image": TOP, "observation.wrist": WRIST}))
+    for channel in ("observation.image", "observation.wrist"):
+        a = frames_by_episode(tmp_path / "orig" / "out", channel)
+        b = frames_by_episode(tmp_path / "chw" / "out", channel)
+        assert a.keys() == b.keys()
+        for e in a:
+            np.testing.assert_array_equal(a[e], b[e], err_msg=f"{channel} episode {e}")

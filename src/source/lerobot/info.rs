@@ -79,6 +79,31 @@ pub(super) fn feature_shape(feature: &Value) -> Vec<usize> {
     }
 }
 
+/// A video or image feature's frame shape as (height, width, channels). LeRobot writes
+/// `[H, W, C]` with `names: ["height", "width", "channels"]`, but other recorders write the frames'
+/// tensor shape, `[C, H, W]` with `names: ["channel", "height", "width"]` (an SO-101 set of 25
+/// episodes on the Hub does); the pixels in the mp4 are the same, and LeRobot reads either. A
+/// shape is taken as channels-first when its names say so, or, with no names, when only its
+/// first axis can be a channel count.
+pub(super) fn frame_shape(feature: &Value) -> Vec<usize> {
+    let shape = feature_shape(feature);
+    let channels = |d: usize| matches!(d, 1 | 3 | 4);
+    let names: Vec<&str> = feature["names"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|n| n.as_str()).collect())
+        .unwrap_or_default();
+    let first_named_channel = names.len() == 3
+        && names[0].to_ascii_lowercase().starts_with("channel")
+        && names[1].eq_ignore_ascii_case("height")
+        && names[2].eq_ignore_ascii_case("width");
+    let unnamed_channel_first = names.is_empty() && !channels(shape[shape.len() - 1]);
+    if shape.len() == 3 && channels(shape[0]) && (first_named_channel || unnamed_channel_first) {
+        vec![shape[1], shape[2], shape[0]]
+    } else {
+        shape
+    }
+}
+
 /// `"0:100"` → 0..100 (info.json's `splits` values).
 pub(super) fn split_range(text: &str) -> Option<Range<u64>> {
     let (a, b) = text.split_once(':')?;
@@ -128,10 +153,17 @@ impl Info {
             .as_object()
             .ok_or_else(|| at_info("no `features` table"))?
             .iter()
-            .map(|(key, f)| KeyInfo {
-                key: key.clone(),
-                shape: feature_shape(f),
-                dtype: f["dtype"].as_str().unwrap_or("unknown").to_string(),
+            .map(|(key, f)| {
+                let dtype = f["dtype"].as_str().unwrap_or("unknown").to_string();
+                let shape = match dtype.as_str() {
+                    "video" | "image" => frame_shape(f),
+                    _ => feature_shape(f),
+                };
+                KeyInfo {
+                    key: key.clone(),
+                    shape,
+                    dtype,
+                }
             })
             .collect();
         let data_path = info["data_path"].as_str().unwrap_or(match version {
@@ -172,5 +204,28 @@ impl Info {
             splits,
             video_codecs,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::frame_shape;
+    use serde_json::json;
+
+    #[test]
+    fn frame_shapes_come_out_height_width_channels() {
+        let named = |shape: serde_json::Value, names: serde_json::Value| {
+            frame_shape(&json!({"dtype": "video", "shape": shape, "names": names}))
+        };
+        let hwc = json!(["height", "width", "channels"]);
+        let chw = json!(["channel", "height", "width"]);
+        assert_eq!(named(json!([480, 640, 3]), hwc.clone()), [480, 640, 3]);
+        assert_eq!(named(json!([3, 224, 224]), chw.clone()), [224, 224, 3]);
+        assert_eq!(named(json!([3, 480, 640]), json!(null)), [480, 640, 3]);
+        // Ambiguous without names (a 3x4 frame of 3 channels?): left as written.
+        assert_eq!(named(json!([3, 4, 3]), json!(null)), [3, 4, 3]);
+        // Names that do not say channels-first: left as written, for the shape check to judge.
+        assert_eq!(named(json!([3, 224, 224]), hwc), [3, 224, 224]);
+        assert_eq!(named(json!([4, 4, 224]), chw), [4, 224, 4]);
     }
 }
