@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import PUSHT, REPO, RawSource, chunkc_bin, write_spec
+from conftest import PUSHT, REPO, VIDEO_BACKENDS, RawSource, chunkc_bin, lerobot_dataset, write_spec
 
 DATA = REPO / "tests" / "data"
 C_LIBRARY = re.compile(r"^(linux-vdso|libc|libm|libgcc_s|libpthread|libdl|librt)\.so\.\d+$|^/?[\w/]*ld-linux[-\w.]*\.so\.\d+$")
@@ -232,18 +232,41 @@ def test_hdf5_video_storage_is_av1_and_read_by_pyav(installed, tmp_path):
         assert psnr(frames, raw) > 30, f"{path.name}: PSNR {psnr(frames, raw):.1f} dB"
 
 
-def test_lerobot_video_export_read_by_pyav(installed, tmp_path):
+@pytest.fixture(scope="module")
+def lerobot_export(installed, tmp_path_factory):
+    """The wheel's LeRobot export of Push-T with video (SVT-AV1, the wheel's only encoder)."""
+    d = tmp_path_factory.mktemp("wheel_lerobot")
+    write_spec(d, '[profiles.lr]\npreset = "lerobot_diffusion"\nformat = "parquet"\nimage_encoding = "video"')
+    wheel_run(installed, "build", "-q", "spec.toml", cwd=d)
+    return d / "out" / "lr"
+
+
+def test_lerobot_video_export_read_by_pyav(lerobot_export):
     """The LeRobot export with video from the wheel: one AV1 mp4 per camera, every frame read back
     by PyAV, in order, close to the source."""
-    write_spec(tmp_path, '[profiles.lr]\npreset = "lerobot_diffusion"\nformat = "parquet"\nimage_encoding = "video"')
-    wheel_run(installed, "build", "-q", "spec.toml", cwd=tmp_path)
-    videos = sorted((tmp_path / "out" / "lr" / "videos").rglob("*.mp4"))
+    videos = sorted((lerobot_export / "videos").rglob("*.mp4"))
     assert len(videos) == 1, videos
     codec, frames = decode_all(videos[0])
     assert codec in ("av1", "libdav1d", "libaom-av1"), codec
     raw = RawSource().array("img")
     assert frames.shape == raw.shape, (frames.shape, raw.shape)
     assert psnr(frames, raw) > 30, f"PSNR {psnr(frames, raw):.1f} dB"
+
+
+@pytest.mark.parametrize("backend", VIDEO_BACKENDS)
+def test_lerobot_opens_the_wheels_export(lerobot_export, backend):
+    """LeRobot's own `LeRobotDataset`, with its default video backend (torchcodec) and with pyav,
+    opens the wheel's export: the source's actions, and each row's frame as PyAV decodes it."""
+    ds = lerobot_dataset("chunkc/wheel", lerobot_export, backend)
+    src = RawSource()
+    action = src.array("action")
+    _, frames = decode_all(next((lerobot_export / "videos").rglob("*.mp4")))
+    assert len(ds) == len(action) == len(frames)
+    for i in sorted({0, 1, len(ds) - 1, *range(0, len(ds), 97)}):
+        item = ds[i]
+        np.testing.assert_array_equal(item["action"].numpy(), action[i].astype(np.float32))
+        hwc = np.round(item["observation.image"].numpy().transpose(1, 2, 0) * 255).astype(np.uint8)
+        np.testing.assert_array_equal(hwc, frames[i], err_msg=f"row {i}")
 
 
 def test_malformed_spec_same_message(installed, tmp_path):
