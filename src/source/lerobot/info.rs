@@ -87,6 +87,9 @@ pub(super) fn feature_shape(feature: &Value) -> Vec<usize> {
 /// first axis can be a channel count.
 pub(super) fn frame_shape(feature: &Value) -> Vec<usize> {
     let shape = feature_shape(feature);
+    if shape.len() != 3 {
+        return shape;
+    }
     let channels = |d: usize| matches!(d, 1 | 3 | 4);
     let names: Vec<&str> = feature["names"]
         .as_array()
@@ -96,8 +99,8 @@ pub(super) fn frame_shape(feature: &Value) -> Vec<usize> {
         && names[0].to_ascii_lowercase().starts_with("channel")
         && names[1].eq_ignore_ascii_case("height")
         && names[2].eq_ignore_ascii_case("width");
-    let unnamed_channel_first = names.is_empty() && !channels(shape[shape.len() - 1]);
-    if shape.len() == 3 && channels(shape[0]) && (first_named_channel || unnamed_channel_first) {
+    let unnamed_channel_first = names.is_empty() && !channels(shape[2]);
+    if channels(shape[0]) && (first_named_channel || unnamed_channel_first) {
         vec![shape[1], shape[2], shape[0]]
     } else {
         shape
