@@ -58,14 +58,15 @@ impl Default for AnalyzeOptions {
 // Long function: the read and the per-dimension autocorrelation share their buffers and progress bar.
 pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeReport> {
     let name = &options.channel;
-    if !spec.spec.source.channels.contains_key(name) {
-        let known: Vec<&str> = spec
-            .spec
-            .source
-            .channels
-            .keys()
-            .map(|k| k.as_str())
-            .collect();
+    if spec.is_mixture() {
+        return Err(spec.error_at(
+            &["sources"],
+            "`chunkc analyze` reads one source; this spec is a mixture".to_string(),
+            Some("analyze each source with a spec of its own `[source]`".into()),
+        ));
+    }
+    if !spec.source().channels.contains_key(name) {
+        let known: Vec<&str> = spec.source().channels.keys().map(|k| k.as_str()).collect();
         return Err(spec.error_at(
             &["source", "channels"],
             format!("`chunkc analyze --channel {name}`: the spec maps no channel `{name}`"),
@@ -78,7 +79,9 @@ pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeRep
     crate::spec::check_output_location(spec, &spec.resolve(&spec.spec.output.dir))?;
     // Only the analyzed channel is opened, so images are never read.
     let mut narrow = spec.clone();
-    narrow.spec.source.channels.retain(|k, _| k == name);
+    if let Some(source) = narrow.spec.source.as_mut() {
+        source.channels.retain(|k, _| k == name);
+    }
     let source = source::open(&narrow)?;
     let manifest = source.manifest();
     let info = manifest
@@ -105,7 +108,7 @@ pub fn analyze(spec: &LoadedSpec, options: &AnalyzeOptions) -> Result<AnalyzeRep
     if longest < 2 {
         return Err(Error::source(format!(
             "{}: no episode has two steps; there is nothing to correlate",
-            spec.spec.source.path
+            spec.source().path
         )));
     }
 

@@ -12,10 +12,16 @@
 //!   jumps, duplicates, misalignment, mixed conventions, units, shift, short episodes).
 //! - `audited`: the source as the audit leaves it ([`Audited`]): exclusions gone, repaired
 //!   lengths, repairs applied as episodes are read.
+//! - `conversion`: from one rate to another (decimation or resampling), for a profile or a
+//!   mixture.
+//! - `mixture`: the audited sources of a training mixture joined into one ([`Mixture`]): ids
+//!   made unique, every source at the mixture's rate, padded channels zero-filled.
 
 mod audited;
+pub mod conversion;
 pub mod doctor;
 pub mod histogram;
+pub mod mixture;
 pub mod repair;
 pub mod report;
 pub mod resample;
@@ -23,6 +29,7 @@ pub mod spline;
 pub mod timing;
 
 pub use audited::Audited;
+pub use mixture::Mixture;
 pub use report::{
     AuditReport, EpisodeAudit, Flag, Histogram, RepairExample, Thresholds, Verdict, VideoAudit,
 };
@@ -51,7 +58,7 @@ pub fn run(
     let manifest = source.manifest();
     let fps = manifest.fps;
     let expected = 1.0 / fps;
-    let shown = &spec.spec.source.path;
+    let shown = &spec.source().path;
     let mut episodes = Vec::with_capacity(manifest.episodes.len());
     let mut repairs = Vec::with_capacity(manifest.episodes.len());
     let mut intervals = histogram::Intervals::default();
@@ -192,7 +199,7 @@ fn video_checks(
         .into_par_iter()
         .map(|i| source.video_checks(i))
         .collect();
-    let shown = &spec.spec.source.path;
+    let shown = &spec.source().path;
     let mut out = Vec::new();
     for ((e, repair), checks) in episodes.iter_mut().zip(repairs.iter_mut()).zip(checks) {
         for check in checks? {

@@ -108,7 +108,11 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         .map(|_| AtomicUsize::new(0))
         .collect();
     let names: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
-    let probe = Probe::of(spec, source.manifest());
+    // A mixture's doctor ran in each source's audit, at its own rate.
+    let probe = match spec.is_mixture() {
+        true => None,
+        false => Probe::of(spec, source.manifest()),
+    };
     let mut judged = report.clone();
     let mut doctor = probe
         .as_ref()

@@ -110,7 +110,7 @@ pub fn frames(
     plan: &Plan,
     report: &AuditReport,
 ) -> FrameMeasures {
-    let videos = source_videos(&spec.resolve(&spec.spec.source.path), report);
+    let videos = source_videos(&spec.resolve(&spec.source().path), report);
     let mut sampler = Sampler {
         source,
         first: None,

@@ -21,6 +21,7 @@ mod card;
 mod check;
 mod init;
 mod measure;
+mod mixture;
 mod plan;
 mod shard;
 

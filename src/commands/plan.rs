@@ -20,9 +20,12 @@ pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
 /// [`plan`], and the audit's report.
 pub fn plan_reported(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan, AuditReport)> {
     let (source, mut plan, report) = plan_audited(spec, true)?;
-    // Lossily stored frames: sizes from what is measured here (`build` does not need them).
-    let measured = super::measure::frames(spec, source.as_ref(), &plan, &report);
-    plan::estimate::fill(&mut plan, &measured);
+    // Lossily stored frames: sizes from what is measured here (`build` does not need them; a
+    // mixture's are estimated).
+    if !spec.is_mixture() {
+        let measured = super::measure::frames(spec, source.as_ref(), &plan, &report);
+        plan::estimate::fill(&mut plan, &measured);
+    }
     Ok((source, plan, report))
 }
 
@@ -32,6 +35,23 @@ pub fn plan_audited(
     spec: &LoadedSpec,
     doctor: bool,
 ) -> Result<(Box<dyn Source>, Plan, AuditReport)> {
+    let (source, report) = match spec.is_mixture() {
+        true => super::mixture::open(spec)?,
+        false => audited_source(spec, doctor)?,
+    };
+    let out_dir = spec.resolve(&spec.spec.output.dir);
+    spec::check_output_location(spec, &out_dir)?;
+    let lock = Lock::read(&lock::path_for(&spec.file))?;
+    let entry = lock
+        .as_ref()
+        .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
+    let mut plan = plan::resolve(spec, source.manifest(), entry, &out_dir)?;
+    plan::apply_audit(&mut plan, &report, spec.spec.audit.repair);
+    Ok((source, plan, report))
+}
+
+/// The one source of `spec`, audited (the doctor too when `doctor` is set), and its report.
+fn audited_source(spec: &LoadedSpec, doctor: bool) -> Result<(Box<dyn Source>, AuditReport)> {
     let audited = audit(spec, doctor)?;
     let report = audited.report;
     let applied = spec.spec.audit.repair;
@@ -45,7 +65,7 @@ pub fn plan_audited(
     if manifest.episodes.is_empty() {
         return Err(Error::source(format!(
             "{}: the audit excluded every episode ({}); see `chunkc audit`, or relax `[audit]`",
-            spec.spec.source.path,
+            spec.source().path,
             report
                 .episodes
                 .first()
@@ -59,16 +79,8 @@ pub fn plan_audited(
     if spec.spec.split.from == SplitFrom::Source && manifest.source_split.is_none() {
         eprintln!(
             "warning: `split.from = \"source\"`, but {} stores no split; using `val_fraction` and `seed`",
-            spec.spec.source.path
+            spec.source().path
         );
     }
-    let out_dir = spec.resolve(&spec.spec.output.dir);
-    spec::check_output_location(spec, &out_dir)?;
-    let lock = Lock::read(&lock::path_for(&spec.file))?;
-    let entry = lock
-        .as_ref()
-        .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
-    let mut plan = plan::resolve(spec, source.manifest(), entry, &out_dir)?;
-    plan::apply_audit(&mut plan, &report, applied);
-    Ok((source, plan, report))
+    Ok((source, report))
 }

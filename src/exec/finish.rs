@@ -16,7 +16,8 @@ use crate::plan::{Plan, ProfilePlan, META_FILE, STATS_FILE};
 use crate::render;
 use crate::sink::{self, documents, Sink};
 use crate::source::{self, ChannelKind, Manifest};
-use crate::stats::{normalize::Normalizer, ChannelStats};
+use crate::stats::normalize::{Normalizer, RowNormalizer};
+use crate::stats::ChannelStats;
 use crate::timings;
 use crate::window::Sampling;
 
@@ -58,9 +59,13 @@ pub(super) fn all(
     type Finished = Vec<(usize, Result<BTreeMap<String, String>>)>;
     let finished: Vec<Finished> = crate::error::in_order(rates.par_iter().zip(by_rate).map(
         |(rate, profiles)| -> Result<Vec<_>> {
-            let stats = {
+            let (stats, sources) = {
                 let _statistics = timings::phase("statistics");
-                rate.stats(manifest, &train_mask)?
+                let sources = match manifest.parts.is_empty() {
+                    true => Vec::new(),
+                    false => super::mixture_stats::per_source(rate, manifest, &train_mask)?,
+                };
+                (rate.stats(manifest, &train_mask)?, sources)
             };
             Ok(profiles
                 .into_par_iter()
@@ -75,6 +80,7 @@ pub(super) fn all(
                     let stats = Stats {
                         own: own.as_ref().unwrap_or(&stats),
                         stored: &stats,
+                        sources: &sources,
                     };
                     (i, profile(shared, p, rate, &stats, sink, &dir))
                 })
@@ -98,6 +104,9 @@ pub(super) fn all(
 pub(super) struct Stats<'a> {
     pub own: &'a BTreeMap<String, ChannelStats>,
     pub stored: &'a BTreeMap<String, ChannelStats>,
+    /// A training mixture's, per source (its own width); empty for one source. `own` and
+    /// `stored` are then the pooled ones.
+    pub sources: &'a [BTreeMap<String, ChannelStats>],
 }
 
 /// A profile's last writes, in order: the container (normalized low-dim values, window index),
@@ -110,7 +119,7 @@ pub(super) fn profile(
     sink: Box<dyn Sink>,
     dir: &Path,
 ) -> Result<BTreeMap<String, String>> {
-    let data = write_data(shared, p, rate, stats.own, sink)?;
+    let data = write_data(shared, p, rate, stats, sink)?;
     let documents = timings::phase("documents");
     write_documents(shared, p, rate, stats, &data, dir)?;
     drop(documents);
@@ -121,6 +130,8 @@ pub(super) fn profile(
 /// What the container's writes leave for the documents.
 struct Written {
     normalizers: BTreeMap<String, Normalizer>,
+    /// A training mixture's, per source: what its rows are normalized with.
+    source_normalizers: Vec<BTreeMap<String, Normalizer>>,
     /// Samples per split (train, val).
     counts: [usize; 2],
     /// Per episode, the `[t, t + limit]` of each sample, when the sampling is by segments.
@@ -134,21 +145,23 @@ fn write_data(
     shared: &Shared,
     p: &ProfilePlan,
     rate: &RateState,
-    stats: &BTreeMap<String, ChannelStats>,
+    all_stats: &Stats,
     mut sink: Box<dyn Sink>,
 ) -> Result<Written> {
     let lowdim = timings::phase("write low-dim");
+    let stats = all_stats.own;
     let mut normalizers = BTreeMap::new();
+    let mixture = super::mixture_stats::Normalizers::new(shared, p, all_stats);
     // With transforms the loader transforms raw values on read and normalizes after: every
     // low-dim channel is stored raw (a reference is read raw too).
     let raw = !p.transforms.is_empty();
     for (c, ch) in p.channels.iter().enumerate() {
         let n = Normalizer::fit(ch.normalize, &stats[&ch.name]);
         if ch.kind == ChannelKind::Lowdim {
-            let stored = if raw {
-                Normalizer::identity(rate.lowdim[c].width())
-            } else {
-                n.clone()
+            let stored = match (raw, &mixture) {
+                (true, _) => RowNormalizer::single(Normalizer::identity(rate.lowdim[c].width())),
+                (false, Some(m)) => m.rows(rate, shared.manifest, c),
+                (false, None) => RowNormalizer::single(n.clone()),
             };
             sink.write_lowdim(c, &rate.lowdim[c], &stored)?;
         }
@@ -190,6 +203,7 @@ fn write_data(
     sink.finish()?;
     Ok(Written {
         normalizers,
+        source_normalizers: mixture.map(|m| m.by_source).unwrap_or_default(),
         counts,
         segments,
         data_file,
@@ -222,12 +236,20 @@ fn write_documents(
                 normalizers: &data.normalizers,
                 num_samples: data.counts,
                 segments: &data.segments,
+                source_normalizers: &data.source_normalizers,
             },
             &data.data_file,
             data.normalized,
         ),
     )?;
     write(STATS_FILE, documents::stats_json(p, stats))?;
+    // A mixture's sources' own statistics, beside the pooled ones.
+    for (part, own) in shared.manifest.parts.iter().zip(all_stats.sources) {
+        let sub = dir.join("sources").join(&part.name);
+        std::fs::create_dir_all(&sub).at("create", &sub)?;
+        let path = sub.join(STATS_FILE);
+        std::fs::write(&path, documents::stats_json(p, own)).at("write", &path)?;
+    }
     if p.values.format == crate::spec::OutputFormat::Parquet {
         // LeRobot v3.0 reads its statistics from `meta/stats.json`.
         let path = dir.join(sink::lerobot::STATS_PATH);

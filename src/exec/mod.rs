@@ -14,6 +14,8 @@
 //! - `read`: the batched pass over the source.
 //! - `guard`: the panic-to-error wrapper of a per-episode job.
 //! - `finish`: a profile's last writes once the statistics are known.
+//! - `mixture_stats`: a training mixture's statistics (per source, and pooled over the union)
+//!   and its per-source normalizers.
 //! - `partial`: a shard's processed episodes on disk, and reading them back for the merge.
 //! - `shard`: one shard's part of the pass (`build --shard I/N`), written as a partial.
 //! - `staging`: the staging directory, the build lock and the final renames.
@@ -22,6 +24,7 @@
 mod doctor;
 mod finish;
 mod guard;
+mod mixture_stats;
 pub mod partial;
 mod process;
 mod progress;
@@ -181,11 +184,12 @@ pub fn execute(
         jobs.iter()
             .position(|j| j.conversion == Conversion::Decimate { factor: 1 })
     });
+    let paths = spec.source_paths().join(", ");
     let pass = read::Pass {
         plan,
         source,
         non_finite: spec.spec.audit.non_finite,
-        source_path: &spec.spec.source.path,
+        source_path: &paths,
         jobs: &jobs,
         reads,
         progress,

@@ -3,7 +3,6 @@
 //! statistics partials. Nothing here writes; the results are consumed in episode order.
 
 use super::rate::Partial;
-use crate::audit;
 use crate::plan::Conversion;
 use crate::recycle;
 use crate::resize::Resize;
@@ -36,17 +35,6 @@ pub(super) struct Processed {
     pub data: Vec<Vec<Prepared>>,
     /// Per rate, per channel: the statistics partial, if this is a training episode.
     pub partials: Vec<Vec<Option<Partial>>>,
-}
-
-fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
-    if factor == 1 || width == 0 {
-        return values.to_vec();
-    }
-    let mut out = Vec::with_capacity((values.len() / width).div_ceil(factor) * width);
-    for row in values.chunks_exact(width).step_by(factor) {
-        out.extend_from_slice(row);
-    }
-    out
 }
 
 /// Decimates an episode to every rate, resizes the cameras a rate stores resized, encodes its
@@ -86,13 +74,7 @@ pub(super) fn process(
                     ChannelData::Lowdim(v) => ChannelData::Lowdim(std::mem::take(v)),
                     ChannelData::Image(v) => ChannelData::Image(std::mem::take(v)),
                 },
-                Conversion::Decimate { factor } => match &*values {
-                    ChannelData::Lowdim(v) => ChannelData::Lowdim(decimate(v, width, factor)),
-                    ChannelData::Image(v) => ChannelData::Image(decimate(v, width, factor)),
-                },
-                Conversion::Resample { method, .. } => {
-                    audit::repair::convert_rate(values, width, conversion.len(episode.len), method)
-                }
+                _ => conversion.apply(values, width, episode.len),
             };
             match converted {
                 ChannelData::Lowdim(v) => {

@@ -33,6 +33,8 @@ pub(super) struct RateState {
     pub high: Vec<Option<Vec<HighCounts>>>,
     /// Per channel: the statistics partials of the training episodes, merged in episode order.
     pub partials: Vec<Partial>,
+    /// A training mixture's, per source, per channel (empty for one source).
+    pub source_partials: Vec<Vec<Partial>>,
 }
 
 impl RateState {
@@ -55,6 +57,20 @@ impl RateState {
             ChannelKind::Image => 0,
         };
         let channels = &manifest.channels;
+        let partials = || -> Vec<Partial> {
+            channels
+                .iter()
+                .map(|c| match c.kind {
+                    ChannelKind::Lowdim => Partial::Lowdim(stats::Moments::new(c.width())),
+                    ChannelKind::Image => {
+                        Partial::Image(ImagePartial::new(*c.shape.last().unwrap_or(&1)))
+                    }
+                })
+                .collect()
+        };
+        // A mixture's padded rows hold zeros that no statistic counts: its percentiles take both
+        // passes over each source's rows (`mixture_stats`).
+        let mixture = !manifest.parts.is_empty();
         RateState {
             ends,
             lowdim: channels
@@ -69,18 +85,12 @@ impl RateState {
                 .iter()
                 .map(|ch| {
                     let w = width(ch);
-                    (w <= COUNT_AHEAD_COLUMNS).then(|| (0..w).map(|_| HighCounts::new()).collect())
+                    (w <= COUNT_AHEAD_COLUMNS && !mixture)
+                        .then(|| (0..w).map(|_| HighCounts::new()).collect())
                 })
                 .collect(),
-            partials: channels
-                .iter()
-                .map(|c| match c.kind {
-                    ChannelKind::Lowdim => Partial::Lowdim(stats::Moments::new(c.width())),
-                    ChannelKind::Image => {
-                        Partial::Image(ImagePartial::new(*c.shape.last().unwrap_or(&1)))
-                    }
-                })
-                .collect(),
+            partials: partials(),
+            source_partials: manifest.parts.iter().map(|_| partials()).collect(),
         }
     }
 
@@ -90,12 +100,16 @@ impl RateState {
     }
 
     /// The statistics of every channel at this rate: low-dim percentiles from the store (moments
-    /// were merged while reading), image statistics from their partials.
+    /// were merged while reading), image statistics from their partials; a mixture's pooled over
+    /// its sources.
     pub fn stats(
         &self,
         manifest: &Manifest,
         train_mask: &[bool],
     ) -> Result<BTreeMap<String, ChannelStats>> {
+        if !manifest.parts.is_empty() {
+            return super::mixture_stats::pooled(self, manifest, train_mask);
+        }
         let mut by_channel = BTreeMap::new();
         for (c, ch) in manifest.channels.iter().enumerate() {
             let s = match (&self.partials[c], ch.kind) {

@@ -197,7 +197,7 @@ pub(super) fn read_batch(
             if panic_on == Some(id) {
                 panic!("CHUNKC_TEST_PANIC_EPISODE={id}");
             }
-            let place = format!("{}: episode {id}", pass.source_path);
+            let place = manifest.place(id, pass.source_path);
             Ok(
                 match source::check::episode(&ep, manifest, pass.non_finite, &place)? {
                     source::check::Verdict::Exclude(reason) => Read::Excluded(reason),
@@ -230,7 +230,9 @@ fn consume(
         .map(|r| vec![Vec::new(); r.lowdim.len()])
         .collect();
     for (i, episode) in batch.zip(processed) {
-        let train = pass.plan.split.is_train(manifest.episodes[i].id);
+        let id = manifest.episodes[i].id;
+        let train = pass.plan.split.is_train(id);
+        let source = manifest.source_of(id);
         for (r, (rate, (data, partials))) in rates
             .iter_mut()
             .zip(episode.data.into_iter().zip(episode.partials))
@@ -240,6 +242,9 @@ fn consume(
             for (c, (values, partial)) in data.into_iter().zip(partials).enumerate() {
                 if let Some(p) = partial {
                     rate.partials[c].merge(&p);
+                    if let Some(own) = rate.source_partials.get_mut(source) {
+                        own[c].merge(&p);
+                    }
                 }
                 match values {
                     Prepared::Lowdim(v) => pending[r][c].push((v, train)),

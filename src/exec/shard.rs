@@ -58,11 +58,12 @@ pub fn shard(
     let reads: Vec<AtomicUsize> = (0..manifest.episodes.len())
         .map(|_| AtomicUsize::new(0))
         .collect();
+    let paths = spec.source_paths().join(", ");
     let pass = read::Pass {
         plan,
         source,
         non_finite: spec.spec.audit.non_finite,
-        source_path: &spec.spec.source.path,
+        source_path: &paths,
         jobs: &setup.jobs,
         reads: &reads,
         progress: show_progress,

@@ -58,10 +58,12 @@ pub fn assign(spec: &LoadedSpec, profile: &Profile, channels: &mut [ProfileChann
         return Ok(());
     }
     let state = state_channel(channels).map(|c| c.name.clone());
-    let mapped = &spec.spec.source.channels;
+    let mapped = spec.channel_map();
     let names = export_keys::export_names(
         format,
-        channels.iter().map(|c| (c.name.as_str(), &mapped[&c.name])),
+        channels
+            .iter()
+            .map(|c| (c.name.as_str(), mapped[c.name.as_str()])),
         &profile.export_keys,
         state.as_deref(),
     );

@@ -129,7 +129,14 @@ pub(super) fn profile_fingerprint(
         spec.spec.output.dir.clone(),
         manifest.fingerprint.clone(),
     ];
-    for p in parts {
+    // A mixture's sources and `[mixture]` (nothing for one source: its fingerprint is as before).
+    let mixture = spec.is_mixture().then(|| {
+        [
+            serde_json::to_string(&spec.spec.sources).unwrap(),
+            serde_json::to_string(&spec.spec.mixture).unwrap(),
+        ]
+    });
+    for p in parts.into_iter().chain(mixture.into_iter().flatten()) {
         h.update(&(p.len() as u64).to_le_bytes());
         h.update(p.as_bytes());
     }
@@ -144,6 +151,8 @@ pub(super) fn inputs(spec: &LoadedSpec, profile: &Profile) -> BTreeMap<String, S
     let tables = [
         (format!("profiles.{}", profile.name), json(profile)),
         ("source".into(), json(&spec.spec.source)),
+        ("sources".into(), json(&spec.spec.sources)),
+        ("mixture".into(), json(&spec.spec.mixture)),
         ("split".into(), json(&spec.spec.split)),
         ("audit".into(), json(&spec.spec.audit)),
         (

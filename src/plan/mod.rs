@@ -7,12 +7,12 @@
 //!
 //! - `types`: the plan's serializable types.
 //! - `resolve`: building the plan from the spec, the manifest and the lock.
-//! - `conversion`: decimation or resampling from the source rate to a profile's.
 //! - `cameras`: the cameras a profile resizes, checked against the source's frames.
 //! - `sampling`: windows, segments or hierarchical chunks, checked against the channels.
 //! - `estimate`: the files a profile writes, with an upper bound or an estimate of their sizes.
 //! - `freshness`: whether a profile is up to date, and the typed reason when it is not.
 //! - `split`: the deterministic train/validation split.
+//! - `mixture`: a training mixture's split (per source) and its sources' sampling weights.
 //! - `export`: where each channel's array lives in the profile's container (native exports
 //!   name them as their codebase's configuration does).
 //! - `shards`: which episodes each shard of a sharded build reads, and the plan's identity.
@@ -21,10 +21,10 @@
 //! - `text`: the human-readable rendering of `chunkc plan`.
 
 mod cameras;
-mod conversion;
 pub mod estimate;
 pub mod export;
 pub mod freshness;
+pub mod mixture;
 mod resolve;
 mod sampling;
 pub mod shards;
@@ -33,9 +33,13 @@ mod text;
 mod transforms;
 mod types;
 
+pub use crate::audit::conversion::{conversion, Conversion};
 pub use cameras::CameraResize;
-use conversion::rate_order;
-pub use conversion::{conversion, Conversion};
+
+/// Orders rates from the fastest: the source rate first, as decimation factors 1, 2, … did.
+fn rate_order(fps: f64) -> usize {
+    usize::MAX - (fps * 1e6).round() as usize
+}
 pub use freshness::{DirtyReason, FileChange, Status};
 pub use resolve::{apply_audit, resolve};
 pub use split::Split;

@@ -42,15 +42,18 @@ pub fn resolve(
         spec_hash: spec.hash.clone(),
         source: SourcePlan {
             format: manifest.format.name(),
-            path: spec.spec.source.path.clone(),
+            path: spec.source_paths().join(", "),
             fps: manifest.fps,
             episodes: manifest.episodes.len(),
             steps: manifest.episodes.iter().map(|e| e.len).sum(),
             fingerprint: manifest.fingerprint.clone(),
             files: manifest.files.clone(),
             channels: manifest.channels.clone(),
+            parts: manifest.parts.clone(),
             tasks: manifest.tasks.clone(),
         },
+        mixture: (!manifest.parts.is_empty())
+            .then(|| spec.spec.mixture.clone().unwrap_or_default()),
         split,
         rates,
         statistics,
@@ -64,6 +67,9 @@ pub fn resolve(
 
 /// The train/validation split: the source's own (`[split] from = "source"`), else the seeded one.
 fn split_of(spec: &LoadedSpec, manifest: &Manifest) -> Result<Split> {
+    if !manifest.parts.is_empty() {
+        return super::mixture::split(spec, manifest);
+    }
     let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
     let split = match (spec.spec.split.from, &manifest.source_split) {
         (SplitFrom::Source, Some(stored)) => {

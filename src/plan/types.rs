@@ -7,8 +7,8 @@ use serde::Serialize;
 
 use super::{CameraResize, Conversion, Split, Status};
 use crate::audit::Verdict;
-use crate::source::{ChannelInfo, ChannelKind};
-use crate::spec::{NormalizeMode, Profile};
+use crate::source::{ChannelInfo, ChannelKind, SourcePart};
+use crate::spec::{MixtureSpec, NormalizeMode, Profile};
 use crate::window::{Sampling, Window};
 
 #[derive(Debug, Clone, Serialize)]
@@ -17,6 +17,9 @@ pub struct Plan {
     pub tool_version: &'static str,
     pub spec_hash: String,
     pub source: SourcePlan,
+    /// A training mixture's `[mixture]` (absent for one source).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mixture: Option<MixtureSpec>,
     pub split: Split,
     /// One job per distinct profile rate: the source is read once and decimated per rate.
     pub rates: Vec<RateJob>,
@@ -76,6 +79,9 @@ pub struct SourcePlan {
     #[serde(skip)]
     pub files: BTreeMap<String, String>,
     pub channels: Vec<ChannelInfo>,
+    /// A training mixture's sources (empty for one source).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub parts: Vec<SourcePart>,
     /// Each episode's task, by source id (RLDS language instructions); empty when the source
     /// stores none. Not part of the plan's text or JSON: `meta.json` and the card show it.
     #[serde(skip)]

@@ -131,8 +131,7 @@ fn act(inputs: &Inputs) -> Vec<File> {
     };
     let mut add = |prefix: &str, s: &ChannelStats, minmax: bool| {
         let std = s
-            .moments
-            .std(1)
+            .unbiased_std()
             .into_iter()
             .map(|x| x.max(ZSCORE_STD_FLOOR))
             .collect();
@@ -202,7 +201,7 @@ fn diffusion_policy(inputs: &Inputs) -> crate::Result<Vec<File>> {
             let std = if n.mode == crate::spec::NormalizeMode::DpAbsAction {
                 s.std.clone()
             } else {
-                s.moments.std(1)
+                s.unbiased_std()
             };
             json!({
                 "scale": scale, "offset": offset,

@@ -31,6 +31,8 @@ pub struct Built<'a> {
     pub num_samples: [usize; 2],
     /// Per episode, the `[start, end)` steps of its segments (segment sampling only).
     pub segments: &'a [Vec<[usize; 2]>],
+    /// A training mixture's normalizers, per source (empty for one source).
+    pub source_normalizers: &'a [BTreeMap<String, Normalizer>],
 }
 
 /// `meta.json`: everything the loader needs, and the provenance of the dataset.
@@ -92,19 +94,7 @@ pub fn meta_json(
             channels[&ch.name]["transformed_shape"] = json!([width]);
         }
     }
-    let mut normalization = serde_json::Map::new();
-    for (name, n) in built.normalizers {
-        let shape = shape_of(profile, name);
-        normalization.insert(
-            name.clone(),
-            json!({
-                "mode": n.mode,
-                "center": shaped::nested(&n.center, shape),
-                "scale": shaped::nested(&n.scale, shape),
-                "clip": n.clip,
-            }),
-        );
-    }
+    let normalization = normalization_json(profile, built.normalizers);
     let ids: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();
     let doc = json!({
         "format_version": META_FORMAT_VERSION,
@@ -173,7 +163,31 @@ pub fn meta_json(
         // Only profiles that name a simulator carry it (and get `rollout.py`).
         map.insert("env".into(), json!(env));
     }
+    if !plan.source.parts.is_empty() {
+        super::mixture_meta::add(&mut doc, plan, profile, built);
+    }
     pretty(&doc)
+}
+
+/// `meta.json`'s `normalization`: per channel, laid out in its per-step shape.
+pub(super) fn normalization_json(
+    profile: &ProfilePlan,
+    normalizers: &BTreeMap<String, Normalizer>,
+) -> serde_json::Map<String, Value> {
+    let mut normalization = serde_json::Map::new();
+    for (name, n) in normalizers {
+        let shape = shape_of(profile, name);
+        normalization.insert(
+            name.clone(),
+            json!({
+                "mode": n.mode,
+                "center": shaped::nested(&n.center, shape),
+                "scale": shaped::nested(&n.scale, shape),
+                "clip": n.clip,
+            }),
+        );
+    }
+    normalization
 }
 
 /// How an image channel of chunkc's HDF5 layout stores its frames when not as pixels

@@ -27,7 +27,7 @@ use crate::error::{Error, Result};
 use crate::source::block_map::{self, BlockMap};
 use crate::source::ChannelKind;
 use crate::spec::{Compression, ImageCompression, Layout, Padding};
-use crate::stats::normalize::Normalizer;
+use crate::stats::normalize::{Normalizer, RowNormalizer};
 use crate::store::LowdimStore;
 use crate::window::{EpisodeEnds, Window};
 
@@ -446,7 +446,7 @@ impl Sink for Hdf5Writer {
         &mut self,
         channel: usize,
         raw: &Arc<LowdimStore>,
-        normalizer: &Normalizer,
+        normalizer: &RowNormalizer,
     ) -> Result<()> {
         let wanted = match self.layout {
             Layout::Index => false,
@@ -475,7 +475,7 @@ impl Sink for Hdf5Writer {
                     .enumerate()
                     .try_for_each(|(i, piece)| -> Result<()> {
                         raw.rows_into(lo + i * piece_rows, piece)?;
-                        normalizer.apply(piece);
+                        normalizer.apply_rows(lo + i * piece_rows, piece);
                         Ok(())
                     })?;
                 Ok(block)
@@ -496,6 +496,8 @@ impl Sink for Hdf5Writer {
             return Ok(());
         }
         // The windows of these layouts are materialized from the whole channel in memory.
+        // (One source only: a mixture's profiles use the index layout.)
+        let normalizer = normalizer.first();
         let mut values = raw.rows(0, raw.len())?.into_owned();
         normalizer.apply(&mut values);
         self.write_lowdim_rows(channel, 0, &values)?;

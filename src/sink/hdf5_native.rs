@@ -19,7 +19,7 @@ use super::{FrameEncoding, Frames, Sink, WindowIndex};
 use crate::error::{Error, Result};
 use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
-use crate::stats::normalize::Normalizer;
+use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
 use crate::window::EpisodeEnds;
 
@@ -164,7 +164,7 @@ impl<L: NativeLayout> Sink for NativeHdf5Writer<L> {
         &mut self,
         channel: usize,
         raw: &Arc<LowdimStore>,
-        _: &Normalizer,
+        _: &RowNormalizer,
     ) -> Result<()> {
         self.raw[channel] = Some(Arc::clone(raw));
         Ok(())

@@ -54,7 +54,7 @@ use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
 use crate::source::ChannelKind;
 use crate::spec::{Compression, VideoSettings};
-use crate::stats::normalize::Normalizer;
+use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
 use crate::window::Ends;
 
@@ -721,7 +721,7 @@ impl Sink for LerobotWriter {
         &mut self,
         channel: usize,
         raw: &Arc<LowdimStore>,
-        _: &Normalizer,
+        _: &RowNormalizer,
     ) -> Result<()> {
         self.raw[channel] = Some(Arc::clone(raw));
         Ok(())

@@ -19,6 +19,8 @@
 //!   `image_encoding = "video"` and `chunkc synth --format lerobot` writes.
 //! - `robomimic`: robomimic's `data.hdf5` with `data/demo_<i>` (raw values).
 //! - `documents`: `meta.json` and `stats.json`.
+//! - `mixture_meta`: a training mixture's fields of `meta.json` (each episode's source, the
+//!   sampling probabilities, each source's split, widths and normalization).
 //! - `encoder_record`: the frame encoder (library, version, settings) `chunkc.lock` records.
 //! - `dump`: canonical text dumps of written files (golden tests).
 
@@ -34,6 +36,7 @@ mod hdf5_native;
 pub mod hdf5_video;
 pub mod jpeg;
 pub mod lerobot;
+mod mixture_meta;
 pub mod png;
 pub mod robomimic;
 pub mod video_copy;
@@ -49,7 +52,7 @@ use crate::error::Result;
 use crate::plan::ProfilePlan;
 use crate::source::video::PacketSpan;
 use crate::spec::OutputFormat;
-use crate::stats::normalize::Normalizer;
+use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
 use crate::window::Ends;
 
@@ -228,7 +231,7 @@ pub trait Sink: Send {
         &mut self,
         channel: usize,
         raw: &Arc<LowdimStore>,
-        normalizer: &Normalizer,
+        normalizer: &RowNormalizer,
     ) -> Result<()>;
     /// The window index of both splits: rows of (episode position, t, limit, sub), read a block
     /// at a time (or whole, by sinks that need it whole).

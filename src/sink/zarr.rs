@@ -31,7 +31,7 @@ use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
 use crate::source::ChannelKind;
 use crate::spec::Compression;
-use crate::stats::normalize::Normalizer;
+use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
 
 pub const ZARR_DIR: &str = crate::spec::OutputFormat::Zarr.files().data;
@@ -247,7 +247,7 @@ impl Sink for ZarrWriter {
         &mut self,
         channel: usize,
         raw: &Arc<LowdimStore>,
-        _: &Normalizer,
+        _: &RowNormalizer,
     ) -> Result<()> {
         // A block of whole chunks at a time: the store may be on disk.
         let (width, chunk_rows) = (self.widths[channel], self.chunk_rows[channel].max(1));

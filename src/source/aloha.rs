@@ -245,8 +245,9 @@ impl AlohaSource {
         Ok(AlohaSource {
             files,
             manifest: Manifest {
+                parts: Vec::new(),
                 format: SourceFormat::AlohaHdf5,
-                fps: spec.spec.source.fps.unwrap_or(DEFAULT_FPS),
+                fps: spec.source().fps.unwrap_or(DEFAULT_FPS),
                 episodes,
                 channels: mapped.channels.clone(),
                 fingerprint: fingerprint.hash,

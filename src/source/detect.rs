@@ -170,7 +170,9 @@ pub fn detect(path: &Path) -> Result<Detected> {
 /// an empty mapping, and stops where it would map them. Returns where they were listed from.
 pub fn offered(spec: &LoadedSpec) -> Result<(String, Vec<KeyInfo>)> {
     let mut probe = spec.clone();
-    probe.spec.source.channels.clear();
+    if let Some(source) = probe.spec.source.as_mut() {
+        source.channels.clear();
+    }
     match super::open(&probe) {
         Err(Error::Offered(offer)) => Ok((
             offer.place,

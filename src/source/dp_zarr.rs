@@ -266,7 +266,7 @@ impl DpZarrSource {
         let store = Arc::new(FilesystemStore::new(root).map_err(|e| {
             Error::source(format!("{}: cannot open zarr store: {e}", root.display()))
         })?);
-        let fps = spec.spec.source.fps.ok_or_else(|| {
+        let fps = spec.source().fps.ok_or_else(|| {
             spec.error_at(
                 &["source", "fps"],
                 "a diffusion_policy_zarr source stores no rate; set `source.fps`",
@@ -373,6 +373,7 @@ impl DpZarrSource {
         Ok(DpZarrSource {
             root: root.to_path_buf(),
             manifest: Manifest {
+                parts: Vec::new(),
                 format: SourceFormat::DiffusionPolicyZarr,
                 fps,
                 episodes,

@@ -97,7 +97,7 @@ impl Raw {
 /// source so to learn what it holds) stops here with `Error::Offered` and every key.
 // Long function: one arm per mapping form (rename, columns, concat, kind), each with its own messages.
 pub fn resolve(spec: &LoadedSpec, place: &str, available: &[KeyInfo]) -> Result<Mapped> {
-    if spec.spec.source.channels.is_empty() {
+    if spec.source().channels.is_empty() {
         return Err(Error::Offered(Box::new(crate::error::Offer {
             place: place.to_string(),
             keys: available
@@ -111,7 +111,7 @@ pub fn resolve(spec: &LoadedSpec, place: &str, available: &[KeyInfo]) -> Result<
         recipes: Vec::new(),
         warnings: Vec::new(),
     };
-    for (name, channel) in &spec.spec.source.channels {
+    for (name, channel) in &spec.source().channels {
         let at = ["source", "channels", name.as_str()];
         let mut parts = Vec::new();
         let mut infos = Vec::new();

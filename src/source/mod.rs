@@ -124,6 +124,56 @@ pub struct Manifest {
     /// that store none. Written where the outputs keep tasks (`meta.json`, the dataset card).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub tasks: BTreeMap<u64, String>,
+    /// The sources of a training mixture, in index order (empty for one source). Episode ids
+    /// are then the mixture's: a part's own id plus its `id_offset`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub parts: Vec<SourcePart>,
+}
+
+/// One source of a training mixture, as the joined manifest keeps it.
+#[derive(Debug, Clone, Serialize)]
+pub struct SourcePart {
+    /// `[sources.<name>]`'s name.
+    pub name: String,
+    pub format: SourceFormat,
+    /// As written in the spec.
+    pub path: String,
+    /// Its own recording rate (its episodes are converted to the mixture's `fps` when read).
+    pub fps: f64,
+    pub weight: f64,
+    pub fingerprint: String,
+    /// Mixture id of its episode 0: mixture id = `id_offset` + its own id.
+    pub id_offset: u64,
+    /// Per mixture channel (manifest order): its own width, 0 where it lacks the channel (the
+    /// rest of a padded channel is zeros).
+    pub widths: Vec<usize>,
+    /// The split the source stores, in its own ids (`[split] from = "source"`).
+    #[serde(skip)]
+    pub source_split: Option<SourceSplit>,
+}
+
+impl Manifest {
+    /// The index of the mixture source episode `id` belongs to (0 for one source).
+    pub fn source_of(&self, id: u64) -> usize {
+        self.parts
+            .iter()
+            .rposition(|p| p.id_offset <= id)
+            .unwrap_or(0)
+    }
+
+    /// Where episode `id` comes from, for messages: `path: episode 3`, or in a mixture
+    /// `sources.sim (path): episode 3` with the source's own id.
+    pub fn place(&self, id: u64, path: &str) -> String {
+        match self.parts.get(self.source_of(id)) {
+            Some(p) => format!(
+                "sources.{} ({}): episode {}",
+                p.name,
+                p.path,
+                id - p.id_offset
+            ),
+            None => format!("{path}: episode {id}"),
+        }
+    }
 }
 
 /// A train/validation split stored in the source, by source episode id.
@@ -217,7 +267,7 @@ pub trait Source: Send + Sync {
 
 /// Opens the source a spec names.
 pub fn open(spec: &LoadedSpec) -> Result<Box<dyn Source>> {
-    let src = &spec.spec.source;
+    let src = spec.source();
     let path = spec.resolve(&src.path);
     if !path.exists() {
         let message = match std::fs::read_link(&path) {

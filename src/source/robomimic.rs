@@ -182,7 +182,7 @@ impl RobomimicSource {
         }
         let timestamps = has_timestamps.then_some(timestamps);
 
-        let fps = match spec.spec.source.fps {
+        let fps = match spec.source().fps {
             Some(fps) => fps,
             None => timestamps
                 .as_deref()
@@ -211,6 +211,7 @@ impl RobomimicSource {
             file,
             raw,
             manifest: Manifest {
+                parts: Vec::new(),
                 format: SourceFormat::RobomimicHdf5,
                 fps,
                 episodes,

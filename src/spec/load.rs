@@ -6,13 +6,14 @@
 //! serde's error messages are rewritten here into ones that name the key and its table and
 //! suggest the closest valid name.
 
+use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use toml_edit::{Document, Item, TableLike};
 
 use super::diagnostic::{backticked, did_you_mean, Diagnostic};
-use super::model::Spec;
+use super::model::{ChannelSpec, SourceSpec, Spec};
 use super::preset::Profile;
 use super::{reference, validate};
 use crate::error::{Error, Result};
@@ -31,6 +32,22 @@ pub struct LoadedSpec {
     /// BLAKE3 of the canonical JSON of `spec`: comments and formatting do not change it.
     pub hash: String,
     doc: Document<String>,
+    /// Where this spec's `[source]` is written: `["source"]`, or `["sources", name]` in a view of
+    /// one source of a mixture (see [`LoadedSpec::source_views`]); errors at `source.…` keys
+    /// point there.
+    source_at: Vec<String>,
+}
+
+/// One source of a mixture, seen as a one-source spec.
+#[derive(Debug, Clone)]
+pub struct SourceView {
+    /// `[sources.<name>]`'s name.
+    pub name: String,
+    /// Its weight (1 when not given).
+    pub weight: f64,
+    /// The spec with `[source]` = this source: every stage that reads one source reads it, and its
+    /// errors name `sources.<name>.…`.
+    pub spec: LoadedSpec,
 }
 
 /// Which part of a `key = value` line a diagnostic underlines.
@@ -71,6 +88,7 @@ impl LoadedSpec {
             dir: dir.to_path_buf(),
             text: text.to_string(),
             doc,
+            source_at: vec!["source".to_string()],
         };
         loaded.profiles = validate::check(&loaded).map_err(|d| fail(&d))?;
         Ok(loaded)
@@ -93,6 +111,64 @@ impl LoadedSpec {
         self.dir.join(rel)
     }
 
+    /// The one source (`[source]`, or the source of a view). A mixture has none: its stages go
+    /// through [`LoadedSpec::source_views`].
+    pub fn source(&self) -> &SourceSpec {
+        self.spec
+            .source
+            .as_ref()
+            .expect("a one-source spec (a mixture is read through its source views)")
+    }
+
+    /// Whether the spec is a training mixture (`[sources.<name>]`).
+    pub fn is_mixture(&self) -> bool {
+        self.spec.source.is_none() && !self.spec.sources.is_empty()
+    }
+
+    /// Each source as a one-source spec, in name order (`[source]` alone is one view named "").
+    pub fn source_views(&self) -> Vec<SourceView> {
+        if !self.is_mixture() {
+            return vec![SourceView {
+                name: String::new(),
+                weight: 1.0,
+                spec: self.clone(),
+            }];
+        }
+        self.spec
+            .sources
+            .iter()
+            .map(|(name, source)| {
+                let mut spec = self.clone();
+                spec.spec.source = Some(source.clone());
+                spec.spec.sources = BTreeMap::new();
+                spec.source_at = vec!["sources".to_string(), name.clone()];
+                SourceView {
+                    name: name.clone(),
+                    weight: source.weight.unwrap_or(1.0),
+                    spec,
+                }
+            })
+            .collect()
+    }
+
+    /// Every mapped channel and its mapping: the source's, or in a mixture the union of the
+    /// sources' (the first source in name order that maps a channel gives its mapping).
+    pub fn channel_map(&self) -> BTreeMap<&str, &ChannelSpec> {
+        let mut map = BTreeMap::new();
+        for source in self.spec.source.iter().chain(self.spec.sources.values()) {
+            for (name, channel) in &source.channels {
+                map.entry(name.as_str()).or_insert(channel);
+            }
+        }
+        map
+    }
+
+    /// The path of every source, as written.
+    pub fn source_paths(&self) -> Vec<&str> {
+        let all = self.spec.source.iter().chain(self.spec.sources.values());
+        all.map(|s| s.path.as_str()).collect()
+    }
+
     pub(crate) fn error(&self, diagnostics: &[Diagnostic]) -> Error {
         Error::Spec(render_all(
             diagnostics,
@@ -111,6 +187,19 @@ impl LoadedSpec {
         label: impl Into<String>,
     ) -> Diagnostic {
         let diagnostic = Diagnostic::new(message);
+        // In a view of one source of a mixture, `source.…` is `sources.<name>.…`.
+        let rewritten: Vec<&str>;
+        let key = if key.first() == Some(&"source") && self.source_at.len() > 1 {
+            rewritten = self
+                .source_at
+                .iter()
+                .map(String::as_str)
+                .chain(key[1..].iter().copied())
+                .collect();
+            &rewritten[..]
+        } else {
+            key
+        };
         let mut item = self.doc.as_item();
         // The root has no span of its own; its "header" is the start of the file.
         let mut ancestor = 0..0;

@@ -39,7 +39,7 @@ pub(crate) use diagnostic::suggest as suggest_name;
 pub use diagnostic::Diagnostic;
 pub use image_storage::DEFAULT_IMAGE_QUALITY;
 pub(crate) use load::dotted as dotted_key;
-pub use load::LoadedSpec;
+pub use load::{LoadedSpec, SourceView};
 pub use model::*;
 pub use observations::missing_observations;
 pub use output_location::check_output_location;

@@ -14,15 +14,23 @@ use serde::{Deserialize, Serialize};
 pub use super::image_storage::ImageCompression;
 pub use super::transform::{StatsPopulation, TransformSpec};
 
-/// A chunkc build spec (`chunkc.toml`): one source, one split, one output directory, and one
-/// profile per target architecture.
+/// A chunkc build spec (`chunkc.toml`): one source (or a mixture of several), one split, one
+/// output directory, and one profile per target architecture.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Spec {
     /// Spec format version. Must be 1.
     pub version: u32,
-    /// The raw demonstration dataset to read.
-    pub source: SourceSpec,
+    /// The raw demonstration dataset to read. Give either `[source]` or `[sources.<name>]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<SourceSpec>,
+    /// A training mixture: several datasets, `[sources.<name>]`, each today's `[source]` plus a
+    /// `weight`, built into one output (see `[mixture]`).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub sources: BTreeMap<String, SourceSpec>,
+    /// How the sources of `[sources.<name>]` are mixed: sampling balance, statistics, padding.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mixture: Option<MixtureSpec>,
     /// How episodes are divided into training and validation sets.
     #[serde(default)]
     pub split: SplitSpec,
@@ -53,6 +61,69 @@ pub struct SourceSpec {
     /// `{ concat = […] }`. Exactly one channel must be called `action`; every other channel is
     /// an observation and must be named `observation.<name>`.
     pub channels: BTreeMap<String, ChannelSpec>,
+    /// Only in `[sources.<name>]`: this source's sampling weight in the mixture (at least 0;
+    /// default 1). How weights become sampling probabilities is `[mixture] balance`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weight: Option<f64>,
+}
+
+/// `[mixture]`: how the sources of a training mixture are combined.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MixtureSpec {
+    /// How the loader's sampler turns weights into source probabilities.
+    #[serde(default)]
+    pub balance: Balance,
+    /// Which statistics normalize each source's values.
+    #[serde(default)]
+    pub stats: MixtureStats,
+    /// Channels zero-padded to a common width after normalizing, `{ action = 32 }`; each gets a
+    /// `<channel>_dim_mask` in the loader's samples, true on the source's own dimensions.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub pad_to: BTreeMap<String, usize>,
+}
+
+/// `[mixture] balance`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Balance {
+    /// Each source drawn with probability weight / sum of weights.
+    #[default]
+    Weights,
+    /// weight × the source's windows in the split, normalized (Octo's `balance_weights`).
+    Steps,
+    /// Every source with windows equally often, whatever its weight.
+    Uniform,
+}
+
+/// `[mixture] stats`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum MixtureStats {
+    /// Each source normalized with its own statistics (Octo).
+    #[default]
+    PerSource,
+    /// Every source normalized with the statistics of the union (openpi's shared asset).
+    Pooled,
+}
+
+impl Balance {
+    pub fn name(self) -> &'static str {
+        match self {
+            Balance::Weights => "weights",
+            Balance::Steps => "steps",
+            Balance::Uniform => "uniform",
+        }
+    }
+}
+
+impl MixtureStats {
+    pub fn name(self) -> &'static str {
+        match self {
+            MixtureStats::PerSource => "per_source",
+            MixtureStats::Pooled => "pooled",
+        }
+    }
 }
 
 /// One channel of `[source.channels]`: a source key, or a table that selects columns of a key,

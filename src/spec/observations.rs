@@ -27,8 +27,8 @@ fn needs_observations(preset: Preset) -> bool {
 /// One warning per profile whose preset needs observations, when `[source.channels]` maps none
 /// (no `observation.*` channel: neither low-dim nor a camera).
 pub fn missing_observations(spec: &LoadedSpec) -> Vec<String> {
-    let channels = &spec.spec.source.channels;
-    if channels.keys().any(|c| c != "action") {
+    let channels = spec.channel_map();
+    if channels.keys().any(|c| *c != "action") {
         return Vec::new();
     }
     let mut out = Vec::new();
@@ -40,7 +40,7 @@ pub fn missing_observations(spec: &LoadedSpec) -> Vec<String> {
             "profile `{}` (preset `{}`) has no observation: [source.channels] maps only `action`, so the policy would train on no state and no camera; map one, e.g. `\"observation.state\" = \"<state key>\"` (`chunkc inspect {}` lists the keys)",
             p.name,
             preset.name(),
-            spec.spec.source.path
+            spec.source_paths().join(" ")
         ));
     }
     out

@@ -12,26 +12,44 @@ use crate::files::{BUILD_LOCK_FILE, STAGING_DIR};
 /// Refuses an output directory inside the source (however it gets there), and one that a symlink
 /// the spec did not allow sends somewhere else.
 pub fn check_output_location(spec: &LoadedSpec, out_dir: &Path) -> Result<()> {
-    let source_dir = spec.resolve(&spec.spec.source.path);
+    for path in spec.source_paths() {
+        if let Some((message, help)) = inside_source(out_dir, &spec.resolve(path)) {
+            return Err(spec.error_at(&["output", "dir"], message, help));
+        }
+    }
+    let Some((link, target)) = symlink_on_the_way(spec, out_dir) else {
+        return Ok(());
+    };
+    let message = format!(
+        "the output path {} is a symlink to {}; chunkc writes through a symlink in `output.dir` only when the spec allows it",
+        link.display(),
+        target.display()
+    );
+    let help = Some("set `follow_symlinks = true` in `[output]` to write through it, or point `output.dir` at a directory that is not reached through a symlink".into());
+    Err(spec.error_at(&["output", "dir"], message, help))
+}
+
+/// Why `out_dir` is inside the source at `source_dir` (as written, or through a symlink).
+fn inside_source(out_dir: &Path, source_dir: &Path) -> Option<(String, Option<String>)> {
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    let (out_real, source_real) = (real_path(out_dir), real_path(&source_dir));
-    let (message, help) = if abs(out_dir).starts_with(abs(&source_dir)) {
-        let how = if abs(out_dir) == abs(&source_dir) {
+    let (out_real, source_real) = (real_path(out_dir), real_path(source_dir));
+    if abs(out_dir).starts_with(abs(source_dir)) {
+        let how = if abs(out_dir) == abs(source_dir) {
             "is the source"
         } else {
             "is inside the source"
         };
-        (
+        Some((
             format!(
                 "the output directory {} {how} {}; chunkc never writes into a source",
                 out_dir.display(),
                 source_dir.display()
             ),
             None,
-        )
+        ))
     } else if out_real.starts_with(&source_real) {
         // Only symlinks can make this happen: the written path looks harmless.
-        (
+        Some((
             format!(
                 "the output directory {} resolves through a symlink to {}, inside the source {}; chunkc never writes into a source",
                 out_dir.display(),
@@ -39,20 +57,10 @@ pub fn check_output_location(spec: &LoadedSpec, out_dir: &Path) -> Result<()> {
                 source_real.display()
             ),
             Some("point `output.dir` at a directory outside the source, or remove the symlink".into()),
-        )
-    } else if let Some((link, target)) = symlink_on_the_way(spec, out_dir) {
-        (
-            format!(
-                "the output path {} is a symlink to {}; chunkc writes through a symlink in `output.dir` only when the spec allows it",
-                link.display(),
-                target.display()
-            ),
-            Some("set `follow_symlinks = true` in `[output]` to write through it, or point `output.dir` at a directory that is not reached through a symlink".into()),
-        )
+        ))
     } else {
-        return Ok(());
-    };
-    Err(spec.error_at(&["output", "dir"], message, help))
+        None
+    }
 }
 
 /// The first symlink among the paths the spec decides: each component of `output.dir` as written

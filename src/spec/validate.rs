@@ -14,6 +14,7 @@ use super::preset::{self, ExpandError, Profile};
 
 mod export_names;
 mod frames;
+mod mixture;
 
 /// Checks the spec and expands its profiles (in name order).
 pub(crate) fn check(loaded: &LoadedSpec) -> Result<Vec<Profile>, Vec<Diagnostic>> {
@@ -22,7 +23,7 @@ pub(crate) fn check(loaded: &LoadedSpec) -> Result<Vec<Profile>, Vec<Diagnostic>
         found: Vec::new(),
     };
     c.top_level();
-    c.source();
+    c.sources();
     let profiles: Vec<Profile> = loaded
         .spec
         .profiles
@@ -145,7 +146,7 @@ impl Checker<'_> {
     }
 
     fn source(&mut self) {
-        let source = &self.loaded.spec.source;
+        let source = self.loaded.source();
         self.fps(&["source", "fps"], source.fps);
         if source.format == SourceFormat::Rlds && source.fps.is_none() {
             let message =
@@ -284,14 +285,7 @@ impl Checker<'_> {
             }
         }
 
-        let channels: Vec<&str> = self
-            .loaded
-            .spec
-            .source
-            .channels
-            .keys()
-            .map(String::as_str)
-            .collect();
+        let channels: Vec<&str> = self.loaded.channel_map().into_keys().collect();
         for channel in profile.normalize.iter().flat_map(|n| n.keys()) {
             if !channels.contains(&channel.as_str()) {
                 let message = format!(
@@ -350,6 +344,7 @@ impl Checker<'_> {
             Ok(expanded) => {
                 self.output_options(name, &expanded);
                 self.export_keys(name, profile, &expanded);
+                self.mixture_profile(name, &expanded);
                 Some(expanded)
             }
             Err(ExpandError::Missing(missing)) => {
@@ -483,7 +478,7 @@ fn channel_help(name: &str) -> String {
     )
 }
 
-fn is_profile_name(name: &str) -> bool {
+pub(super) fn is_profile_name(name: &str) -> bool {
     !name.is_empty()
         && name
             .chars()

@@ -14,13 +14,7 @@ pub(super) fn check(loaded: &LoadedSpec, name: &str, own: &ProfileSpec) -> Vec<D
     let Some(cameras) = &own.cameras else {
         return found;
     };
-    let channels: Vec<&str> = loaded
-        .spec
-        .source
-        .channels
-        .keys()
-        .map(String::as_str)
-        .collect();
+    let channels: Vec<&str> = loaded.channel_map().into_keys().collect();
     for (camera, spec) in cameras {
         let at = ["profiles", name, "cameras", camera.as_str()];
         if !channels.contains(&camera.as_str()) {

@@ -5,11 +5,14 @@
 //! - `percentile`: exact percentiles (numpy's linear definition).
 //! - `normalize`: per-channel normalization parameters derived from the statistics.
 //! - `shaped`: per-dimension numbers laid out in a channel's per-step shape (for the files).
+//! - `bands`: a channel whose dimensions different populations cover (a padded channel of a
+//!   training mixture), reduced band by band and joined.
 //!
 //! Low-dimensional channels are reduced from the in-memory per-step buffers; image channels are
 //! reduced per colour channel from per-episode partials (moments + a 256-bin histogram) built
 //! while the images stream through.
 
+pub mod bands;
 mod moments;
 pub mod normalize;
 mod percentile;
@@ -45,9 +48,31 @@ pub struct ChannelStats {
     pub q90: Vec<f64>,
     /// Number of timesteps the statistics cover.
     pub count: u64,
+    /// Per dimension, where dimensions cover different numbers of timesteps (a padded channel of
+    /// a training mixture, whose sources have different widths); empty otherwise.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub dim_count: Vec<u64>,
     /// Kept for normalization modes that need another ddof; not serialized.
     #[serde(skip)]
     pub moments: Moments,
+}
+
+impl ChannelStats {
+    /// The sample standard deviation (ddof = 1) per dimension, each over its own count.
+    pub fn unbiased_std(&self) -> Vec<f64> {
+        if self.dim_count.is_empty() {
+            return self.moments.std(1);
+        }
+        let m2 = self.moments.m2.iter().zip(&self.dim_count);
+        m2.map(|(&m2, &n)| {
+            if n > 1 {
+                (m2 / (n - 1) as f64).sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect()
+    }
 }
 
 /// Statistics of a low-dimensional channel from row-major per-episode blocks (`dims` values per
@@ -341,6 +366,7 @@ fn finish(m: Moments, pct: Vec<Vec<f64>>, count: u64) -> ChannelStats {
         q50,
         q90,
         count,
+        dim_count: Vec::new(),
         moments: m,
     }
 }

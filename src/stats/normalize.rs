@@ -65,7 +65,7 @@ impl Normalizer {
         match mode {
             NormalizeMode::None => Normalizer::new(mode, vec![0.0; dims], vec![1.0; dims], false),
             NormalizeMode::Zscore => {
-                let std = stats.moments.std(1);
+                let std = stats.unbiased_std();
                 let scale = std.into_iter().map(|s| s.max(ZSCORE_STD_FLOOR)).collect();
                 Normalizer::new(mode, stats.mean.clone(), scale, false)
             }
@@ -150,6 +150,62 @@ impl Normalizer {
     }
 }
 
+impl Normalizer {
+    /// This normalizer on the first `own` of `width` dimensions and the identity on the rest, so
+    /// that a mixture source's zero padding stays 0 (`self` has at least `own` dimensions).
+    pub fn widened(&self, own: usize, width: usize) -> Normalizer {
+        let mut center = self.center[..own].to_vec();
+        let mut scale = self.scale[..own].to_vec();
+        center.resize(width, 0.0);
+        scale.resize(width, 1.0);
+        Normalizer::new(self.mode, center, scale, self.clip)
+    }
+}
+
+/// The normalizers of a channel's stored rows, by row range: one for a single source, one per
+/// source in a training mixture (each source's rows with its own).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RowNormalizer {
+    /// Each normalizer and the first row it applies to, from row 0, in row order.
+    pieces: Vec<(usize, Normalizer)>,
+}
+
+impl RowNormalizer {
+    /// One normalizer for every row.
+    pub fn single(n: Normalizer) -> Self {
+        RowNormalizer {
+            pieces: vec![(0, n)],
+        }
+    }
+
+    /// Normalizers from their first rows (sorted, the first 0).
+    pub fn pieces(pieces: Vec<(usize, Normalizer)>) -> Self {
+        assert!(pieces.first().is_some_and(|p| p.0 == 0), "rows from 0");
+        RowNormalizer { pieces }
+    }
+
+    /// The normalizer of row 0 (the only one of a single source).
+    pub fn first(&self) -> &Normalizer {
+        &self.pieces[0].1
+    }
+
+    /// Normalizes, in place, the rows of `values` (whole rows), the first of which is row `first`.
+    pub fn apply_rows(&self, first: usize, values: &mut [f32]) {
+        let width = self.first().center.len();
+        if width == 0 {
+            return;
+        }
+        let rows = values.len() / width;
+        for (k, (start, n)) in self.pieces.iter().enumerate() {
+            let end = self.pieces.get(k + 1).map_or(usize::MAX, |p| p.0);
+            let (lo, hi) = (first.max(*start), (first + rows).min(end));
+            if lo < hi {
+                n.apply(&mut values[(lo - first) * width..(hi - first) * width]);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -185,6 +241,23 @@ mod tests {
             let want = (x - q01) / (q99 - q01 + OPENPI_EPS) * 2.0 - 1.0;
             assert!((n.forward(0, x) - want).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn row_pieces_normalize_their_own_rows() {
+        let a = Normalizer::new(NormalizeMode::Zscore, vec![1.0, 0.0], vec![2.0, 1.0], false);
+        let b = Normalizer::new(NormalizeMode::Zscore, vec![10.0], vec![5.0], false).widened(1, 2);
+        assert_eq!(b.center, vec![10.0, 0.0]);
+        let rows = RowNormalizer::pieces(vec![(0, a.clone()), (2, b)]);
+        // Rows 1..4 of [x, pad]: row 1 is a's, rows 2 and 3 b's (its pad dimension stays 0).
+        let mut v = vec![3.0, 4.0, 20.0, 0.0, 15.0, 0.0];
+        rows.apply_rows(1, &mut v);
+        assert_eq!(v, vec![1.0, 4.0, 2.0, 0.0, 1.0, 0.0]);
+        let mut one = vec![3.0, 4.0];
+        RowNormalizer::single(a.clone()).apply_rows(7, &mut one);
+        let mut want = vec![3.0, 4.0];
+        a.apply(&mut want);
+        assert_eq!(one, want);
     }
 
     #[test]

@@ -379,7 +379,7 @@ fn into_report(
                     error.get_or_insert_with(|| {
                         format!(
                             "{}: episode {}: {}: {} (`[audit.doctor] {} = \"error\"`)",
-                            cx.spec.spec.source.path,
+                            cx.spec.source().path,
                             audit.id,
                             f.flag.name(),
                             f.detail,

@@ -104,7 +104,7 @@ impl LerobotSource {
             .map_err(|e| Error::source(format!("{}: cannot read: {e}", info_path.display())))?;
         let info = Info::parse(&bytes, &info_path.display().to_string())?;
         let version = info.version;
-        let fps = match (info.fps, spec.spec.source.fps) {
+        let fps = match (info.fps, spec.source().fps) {
             (Some(stored), Some(given)) if (stored - given).abs() > 1e-9 => {
                 return Err(spec.error_at(
                     &["source", "fps"],
@@ -185,8 +185,7 @@ impl LerobotSource {
         // `[source] episodes` is applied after the opening (`source::Subset`), but an episode
         // left out there is never read: its videos need not exist.
         let selected = |id: u64| {
-            spec.spec
-                .source
+            spec.source()
                 .episodes
                 .as_ref()
                 .is_none_or(|ids| ids.contains(&id))
@@ -307,6 +306,7 @@ impl LerobotSource {
         Ok(LerobotSource {
             root: root.to_path_buf(),
             manifest: Manifest {
+                parts: Vec::new(),
                 format: SourceFormat::Lerobot,
                 fps,
                 episodes,

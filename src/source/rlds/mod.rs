@@ -304,7 +304,7 @@ impl RldsSource {
         }
         files.sort();
         let fingerprint = fingerprint::of_files(&dir, &files)?;
-        let fps = spec.spec.source.fps.ok_or_else(|| {
+        let fps = spec.source().fps.ok_or_else(|| {
             spec.error_at(
                 &["source", "fps"],
                 "`source.fps` is required for `format = \"rlds\"`: RLDS stores no rate",
@@ -313,6 +313,7 @@ impl RldsSource {
         })?;
         Ok(RldsSource {
             manifest: Manifest {
+                parts: Vec::new(),
                 format: SourceFormat::Rlds,
                 fps,
                 episodes,
@@ -363,7 +364,7 @@ fn episodes_tasks(tasks: &[Option<String>]) -> BTreeMap<u64, String> {
 /// A spec error for a channel path `features.json` does not declare, listing those it does.
 fn check_paths(spec: &LoadedSpec, declared: &[Feature], shown: &str) -> Result<()> {
     let names: Vec<&str> = declared.iter().map(|f| f.key.as_str()).collect();
-    for (name, channel) in &spec.spec.source.channels {
+    for (name, channel) in &spec.source().channels {
         for key in channel.keys() {
             let at = ["source", "channels", name.as_str()];
             match declared.iter().find(|f| f.key == key) {

@@ -12,8 +12,8 @@ impl Checker<'_> {
     /// two channels exported under one name (overridden or by default).
     // Long function: one check per rule in the doc above, over the same maps.
     pub(super) fn export_keys(&mut self, name: &str, own: &ProfileSpec, p: &Profile) {
-        let spec = &self.loaded.spec;
-        let channels: Vec<&str> = spec.source.channels.keys().map(String::as_str).collect();
+        let mapped = self.loaded.channel_map();
+        let channels: Vec<&str> = mapped.keys().copied().collect();
         let format = p.format.name();
         let at = |channel: &str| {
             [
@@ -77,7 +77,7 @@ impl Checker<'_> {
             .find(|c| channels.contains(c));
         let names = export_keys::export_names(
             p.format,
-            spec.source.channels.iter().map(|(n, c)| (n.as_str(), c)),
+            mapped.iter().map(|(n, c)| (*n, *c)),
             &p.export_keys,
             state,
         );

@@ -1,10 +1,11 @@
-//! Rate conversion: how a profile's rate is reached from the source's (decimation by an integer
-//! factor, or resampling), and the order in which rates are listed.
+//! Rate conversion: how a rate is reached from the source's (decimation by an integer factor, or
+//! resampling), and its application to an episode's channel. A profile's rate is reached so
+//! (`plan`), and so is a mixture's from each of its sources' ([`super::mixture`]).
 
 use serde::Serialize;
 
+use crate::source::ChannelData;
 use crate::spec::ResampleMethod;
-use crate::window::decimated_len;
 
 /// How a profile's rate is reached from the source's.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -26,7 +27,7 @@ impl Conversion {
     /// Steps of an episode of `len` source steps after conversion.
     pub fn len(&self, len: usize) -> usize {
         match *self {
-            Conversion::Decimate { factor } => decimated_len(len, factor),
+            Conversion::Decimate { factor } => len.div_ceil(factor),
             Conversion::Resample { from, to, .. } => {
                 ((len as f64 * to / from).round() as usize).max(usize::from(len > 0))
             }
@@ -68,9 +69,32 @@ pub fn conversion(
     })
 }
 
-/// Orders rates from the fastest: the source rate first, as decimation factors 1, 2, … did.
-pub(super) fn rate_order(fps: f64) -> usize {
-    usize::MAX - (fps * 1e6).round() as usize
+impl Conversion {
+    /// A channel of `width` values per step of an episode of `len` steps, converted (its values
+    /// borrowed: the caller keeps them).
+    pub fn apply(&self, values: &ChannelData, width: usize, len: usize) -> ChannelData {
+        match *self {
+            Conversion::Decimate { factor } => match values {
+                ChannelData::Lowdim(v) => ChannelData::Lowdim(decimate(v, width, factor)),
+                ChannelData::Image(v) => ChannelData::Image(decimate(v, width, factor)),
+            },
+            Conversion::Resample { method, .. } => {
+                super::repair::convert_rate(values, width, self.len(len), method)
+            }
+        }
+    }
+}
+
+/// Every `factor`-th row of `width` values, from the first.
+fn decimate<T: Copy>(values: &[T], width: usize, factor: usize) -> Vec<T> {
+    if factor == 1 || width == 0 {
+        return values.to_vec();
+    }
+    let mut out = Vec::with_capacity((values.len() / width).div_ceil(factor) * width);
+    for row in values.chunks_exact(width).step_by(factor) {
+        out.extend_from_slice(row);
+    }
+    out
 }
 
 #[cfg(test)]

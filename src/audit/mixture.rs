@@ -1,0 +1,403 @@
+//! A training mixture (`[sources.<name>]`) as one [`Source`]: the sources, each opened and audited
+//! on its own, joined so that everything downstream reads one manifest.
+//!
+//! - Episode ids are made unique: a source's id plus its `id_offset` (the sum of the id spans of
+//!   the sources before it, taken before the audit, so that verdicts never move them). Episodes
+//!   are stored source by source, in name order.
+//! - Every source is converted, as it is read, to the mixture's rate (the fastest profile's):
+//!   integer ratios keep one step in k, others resample (`[audit] resample`).
+//! - Channels are the union of the sources'. A low-dim channel named in `[mixture] pad_to` is
+//!   zero-filled to that width (all zeros where a source lacks it); any other channel must be
+//!   the same in every source.
+
+use std::collections::BTreeMap;
+
+use super::conversion::{conversion, Conversion};
+use super::{AuditReport, Verdict};
+use crate::error::Result;
+use crate::source::{
+    ChannelData, ChannelInfo, ChannelKind, DecodeCounts, Episode, EpisodeInfo, Manifest, Source,
+    SourcePart, SourceSplit, VideoCheck,
+};
+use crate::spec::{LoadedSpec, SourceView};
+
+/// One audited source of a mixture, ready to be joined.
+pub struct Part {
+    pub view: SourceView,
+    pub source: Box<dyn Source>,
+    /// Its first mixture id (see the module docs).
+    pub id_offset: u64,
+    /// The split the source stores, in its own ids (the opened manifest's).
+    pub source_split: Option<SourceSplit>,
+}
+
+pub struct Mixture {
+    parts: Vec<Box<dyn Source>>,
+    manifest: Manifest,
+    /// Per mixture position: the part and the position in it.
+    positions: Vec<(usize, usize)>,
+    /// Per part: from its rate to the mixture's.
+    conversions: Vec<Conversion>,
+    /// Per part, per mixture channel: the part's channel position, if it maps the channel.
+    channel_of: Vec<Vec<Option<usize>>>,
+}
+
+/// The id offsets of sources whose opened manifests are `manifests`, in order.
+pub fn id_offsets<'a>(manifests: impl Iterator<Item = &'a Manifest>) -> Vec<u64> {
+    let mut next = 0u64;
+    manifests
+        .map(|m| {
+            let offset = next;
+            next += m.episodes.iter().map(|e| e.id + 1).max().unwrap_or(0);
+            offset
+        })
+        .collect()
+}
+
+impl Mixture {
+    /// Joins `parts` (in name order) at `fps`.
+    pub fn new(spec: &LoadedSpec, parts: Vec<Part>, fps: f64) -> Result<Mixture> {
+        let channels = joined_channels(spec, &parts)?;
+        let mut conversions = Vec::new();
+        for part in &parts {
+            let own = part.source.manifest().fps;
+            let c = conversion(own, fps, spec.spec.audit.resample).map_err(|_| {
+                spec.error_at(
+                    &["sources", &part.view.name],
+                    format!(
+                        "source `{}` runs at {own} Hz, slower than the mixture's {fps} Hz (its fastest profile's rate); chunkc does not upsample",
+                        part.view.name
+                    ),
+                    Some(format!("set every profile's `fps` to {own} or less, or leave the source out")),
+                )
+            })?;
+            conversions.push(c);
+        }
+        let mut manifest = Manifest {
+            format: parts[0].source.manifest().format,
+            fps,
+            episodes: Vec::new(),
+            channels: channels.clone(),
+            fingerprint: String::new(),
+            files: BTreeMap::new(),
+            timestamps: false,
+            source_split: None,
+            warnings: Vec::new(),
+            tasks: BTreeMap::new(),
+            parts: Vec::new(),
+        };
+        let mut positions = Vec::new();
+        let mut fingerprint = blake3::Hasher::new();
+        let mut channel_of = Vec::new();
+        for (s, part) in parts.iter().enumerate() {
+            let own = part.source.manifest();
+            let name = &part.view.name;
+            for (i, e) in own.episodes.iter().enumerate() {
+                manifest.episodes.push(EpisodeInfo {
+                    id: part.id_offset + e.id,
+                    len: conversions[s].len(e.len),
+                });
+                positions.push((s, i));
+            }
+            for (path, hash) in &own.files {
+                manifest
+                    .files
+                    .insert(format!("{name}/{path}"), hash.clone());
+            }
+            for (id, task) in &own.tasks {
+                manifest.tasks.insert(part.id_offset + id, task.clone());
+            }
+            let warnings = own.warnings.iter().map(|w| format!("sources.{name}: {w}"));
+            manifest.warnings.extend(warnings);
+            for text in [name, &own.fingerprint] {
+                fingerprint.update(&(text.len() as u64).to_le_bytes());
+                fingerprint.update(text.as_bytes());
+            }
+            let map: Vec<Option<usize>> = channels
+                .iter()
+                .map(|c| own.channels.iter().position(|o| o.name == c.name))
+                .collect();
+            manifest.parts.push(SourcePart {
+                name: name.clone(),
+                format: own.format,
+                path: part.view.spec.source().path.clone(),
+                fps: own.fps,
+                weight: part.view.weight,
+                fingerprint: own.fingerprint.clone(),
+                id_offset: part.id_offset,
+                widths: map
+                    .iter()
+                    .map(|k| k.map_or(0, |k| own.channels[k].width()))
+                    .collect(),
+                source_split: part.source_split.clone(),
+            });
+            channel_of.push(map);
+        }
+        manifest.fingerprint = fingerprint.finalize().to_hex().to_string();
+        Ok(Mixture {
+            parts: parts.into_iter().map(|p| p.source).collect(),
+            manifest,
+            positions,
+            conversions,
+            channel_of,
+        })
+    }
+
+    /// `positions` (sorted) per part, translated to the part's own positions.
+    fn by_part(&self, positions: &[usize]) -> Vec<Vec<usize>> {
+        let mut out = vec![Vec::new(); self.parts.len()];
+        for &i in positions {
+            let (s, j) = self.positions[i];
+            out[s].push(j);
+        }
+        out
+    }
+}
+
+/// The mixture's channels: the union of the sources', in name order, with their widths checked
+/// against `[mixture] pad_to`.
+fn joined_channels(spec: &LoadedSpec, parts: &[Part]) -> Result<Vec<ChannelInfo>> {
+    let pad_to = spec
+        .spec
+        .mixture
+        .as_ref()
+        .map(|m| m.pad_to.clone())
+        .unwrap_or_default();
+    let mut union: BTreeMap<&str, Vec<Option<&ChannelInfo>>> = BTreeMap::new();
+    for (s, part) in parts.iter().enumerate() {
+        for ch in &part.source.manifest().channels {
+            union
+                .entry(&ch.name)
+                .or_insert_with(|| vec![None; parts.len()])[s] = Some(ch);
+        }
+    }
+    let name_of = |s: usize| parts[s].view.name.as_str();
+    let mut out = Vec::new();
+    for (name, per_source) in union {
+        let (first, info) = per_source
+            .iter()
+            .enumerate()
+            .find_map(|(s, c)| c.map(|c| (s, c)))
+            .expect("a channel some source has");
+        let Some(&width) = pad_to.get(name) else {
+            same_everywhere(spec, name, &per_source, first, name_of)?;
+            out.push(info.clone());
+            continue;
+        };
+        if info.kind == ChannelKind::Image {
+            return Err(spec.error_at(
+                &["mixture", "pad_to", name],
+                format!("`{name}` is an image channel; `pad_to` pads low-dimensional channels"),
+                None,
+            ));
+        }
+        for (s, ch) in per_source.iter().enumerate() {
+            let Some(ch) = ch else { continue };
+            if ch.kind != ChannelKind::Lowdim || ch.width() > width {
+                return Err(spec.error_at(
+                    &["mixture", "pad_to", name],
+                    format!(
+                        "`mixture.pad_to.{name} = {width}` is narrower than source `{}`'s `{name}`, which has {} values per step",
+                        name_of(s),
+                        ch.width()
+                    ),
+                    Some(format!("pad to at least {}", ch.width())),
+                ));
+            }
+        }
+        let mut padded = info.clone();
+        padded.shape = vec![width];
+        out.push(padded);
+    }
+    Ok(out)
+}
+
+/// A channel not padded: every source maps it, with one kind and one shape.
+fn same_everywhere<'a>(
+    spec: &LoadedSpec,
+    name: &str,
+    per_source: &[Option<&ChannelInfo>],
+    first: usize,
+    name_of: impl Fn(usize) -> &'a str,
+) -> Result<()> {
+    let info = per_source[first].expect("the first source that has it");
+    for (s, ch) in per_source.iter().enumerate() {
+        let Some(ch) = ch else {
+            return Err(spec.error_at(
+                &["sources", name_of(s), "channels"],
+                format!(
+                    "source `{}` maps no `{name}`, which source `{}` maps; every source of a mixture needs every channel",
+                    name_of(s),
+                    name_of(first)
+                ),
+                Some(format!("map `{name}` in `[sources.{}.channels]`, or zero-pad it: `[mixture] pad_to = {{ \"{name}\" = <width> }}`", name_of(s))),
+            ));
+        };
+        if ch.kind != info.kind || ch.shape != info.shape {
+            let help = match info.kind {
+                ChannelKind::Lowdim => Some(format!(
+                    "zero-pad it to a common width: `[mixture] pad_to = {{ \"{name}\" = {} }}`",
+                    ch.width().max(info.width())
+                )),
+                ChannelKind::Image => None,
+            };
+            return Err(spec.error_at(
+                &["sources", name_of(s), "channels", name],
+                format!(
+                    "`{name}` has per-step shape {:?} in source `{}` but {:?} in source `{}`",
+                    ch.shape,
+                    name_of(s),
+                    info.shape,
+                    name_of(first)
+                ),
+                help,
+            ));
+        }
+    }
+    Ok(())
+}
+
+impl Source for Mixture {
+    fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    fn read_episode(&self, index: usize) -> Result<Episode> {
+        let (s, j) = self.positions[index];
+        let mut own = self.parts[s].read_episode(j)?;
+        let conv = self.conversions[s];
+        let same = conv == Conversion::Decimate { factor: 1 };
+        let part = &self.manifest.parts[s];
+        let len = conv.len(own.len);
+        let source_channels = &self.parts[s].manifest().channels;
+        let mut channels = Vec::with_capacity(self.manifest.channels.len());
+        let mut packets = BTreeMap::new();
+        for (c, ch) in self.manifest.channels.iter().enumerate() {
+            let Some(k) = self.channel_of[s][c] else {
+                channels.push(ChannelData::Lowdim(vec![0.0; len * ch.width()]));
+                continue;
+            };
+            let values = std::mem::replace(&mut own.channels[k], ChannelData::Lowdim(Vec::new()));
+            let values = match same {
+                true => values,
+                false => conv.apply(&values, source_channels[k].width(), own.len),
+            };
+            if same {
+                if let Some(p) = own.packets.remove(&k) {
+                    packets.insert(c, p);
+                }
+            }
+            channels.push(pad(values, part.widths[c], ch.width()));
+        }
+        Ok(Episode {
+            id: part.id_offset + own.id,
+            len,
+            timestamps: None,
+            channels,
+            packets,
+        })
+    }
+
+    fn read_timestamps(&self, _index: usize) -> Result<Option<Vec<f64>>> {
+        Ok(None)
+    }
+
+    fn decode_counts(&self) -> DecodeCounts {
+        let mut out = DecodeCounts::new();
+        for (part, source) in self.manifest.parts.iter().zip(&self.parts) {
+            for (array, counts) in source.decode_counts() {
+                out.insert(format!("{}/{array}", part.name), counts);
+            }
+        }
+        out
+    }
+
+    fn prefetch(&self, positions: &[usize]) {
+        for (source, own) in self.parts.iter().zip(self.by_part(positions)) {
+            if !own.is_empty() {
+                source.prefetch(&own);
+            }
+        }
+    }
+
+    fn video_checks(&self, index: usize) -> Result<Vec<VideoCheck>> {
+        // Each source's videos were checked by its own audit.
+        let _ = index;
+        Ok(Vec::new())
+    }
+
+    fn only_reading(&mut self, positions: &[usize]) {
+        let by_part = self.by_part(positions);
+        for (source, own) in self.parts.iter_mut().zip(by_part) {
+            source.only_reading(&own);
+        }
+    }
+}
+
+/// The audits of a mixture's sources as one report, with mixture ids: `reports` are each
+/// source's name, id offset and audit, in order. Rates, thresholds and the histogram are the
+/// first source's (each source's own report says more); warnings name their source.
+pub fn joined_report(reports: Vec<(String, u64, AuditReport)>) -> AuditReport {
+    let mut joined = reports[0].2.clone();
+    joined.episodes.clear();
+    joined.video.clear();
+    joined.warnings.clear();
+    joined.examples.clear();
+    joined.doctor = None;
+    joined.doctor_seconds = None;
+    for (name, offset, report) in reports {
+        joined.timestamps |= report.timestamps;
+        for mut e in report.episodes {
+            e.id += offset;
+            joined.episodes.push(e);
+        }
+        for mut v in report.video {
+            v.episode += offset;
+            joined.video.push(v);
+        }
+        let warnings = report
+            .warnings
+            .iter()
+            .map(|w| format!("sources.{name}: {w}"));
+        joined.warnings.extend(warnings);
+        if let Some(s) = report.doctor_seconds {
+            joined.doctor_seconds = Some(joined.doctor_seconds.unwrap_or(0.0) + s);
+        }
+    }
+    let n = joined.episodes.len().max(1) as f64;
+    let count = |f: fn(&Verdict) -> bool| {
+        joined.episodes.iter().filter(|e| f(&e.verdict)).count() as f64 / n
+    };
+    joined.repaired_fraction = count(|v| matches!(v, Verdict::Interpolate | Verdict::Resample));
+    joined.excluded_fraction = count(|v| *v == Verdict::Exclude);
+    joined
+}
+
+/// Rows of `own` values zero-filled to `width` values each.
+fn pad(values: ChannelData, own: usize, width: usize) -> ChannelData {
+    match values {
+        ChannelData::Lowdim(v) if own < width && own > 0 => {
+            let mut out = Vec::with_capacity(v.len() / own * width);
+            for row in v.chunks_exact(own) {
+                out.extend_from_slice(row);
+                out.resize(out.len() + width - own, 0.0);
+            }
+            ChannelData::Lowdim(out)
+        }
+        other => other,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pads_rows_with_zeros() {
+        let ChannelData::Lowdim(v) = pad(ChannelData::Lowdim(vec![1.0, 2.0, 3.0, 4.0]), 2, 3)
+        else {
+            panic!()
+        };
+        assert_eq!(v, vec![1.0, 2.0, 0.0, 3.0, 4.0, 0.0]);
+    }
+}

@@ -1,0 +1,79 @@
+//! Opening a training mixture (`[sources.<name>]`): each source opened, audited (its dataset
+//! doctor included, at its own rate) and repaired on its own, then joined into one source at the
+//! mixture's rate ([`crate::audit::Mixture`]).
+
+use super::audit::audit;
+use crate::audit::mixture::{id_offsets, joined_report, Part};
+use crate::audit::{AuditReport, Audited, Mixture};
+use crate::error::{Error, Result};
+use crate::source::Source;
+use crate::spec::LoadedSpec;
+
+/// The joined, audited sources of a mixture, and their audits as one report (mixture ids).
+pub(super) fn open(spec: &LoadedSpec) -> Result<(Box<dyn Source>, AuditReport)> {
+    let mut opened = Vec::new();
+    for view in spec.source_views() {
+        let audited = audit(&view.spec, true)?;
+        opened.push((view, audited));
+    }
+    let offsets = id_offsets(opened.iter().map(|(_, a)| a.source.manifest()));
+    let applied = spec.spec.audit.repair;
+    let mut parts = Vec::new();
+    let mut reports = Vec::new();
+    for ((view, audited), id_offset) in opened.into_iter().zip(offsets) {
+        let source_split = audited.source.manifest().source_split.clone();
+        let report = audited.report;
+        let source = Audited::new(audited.source, &report, audited.repairs, applied);
+        if source.manifest().episodes.is_empty() {
+            return Err(Error::source(format!(
+                "sources.{} ({}): the audit excluded every episode; see `chunkc audit`, or relax `[audit]`",
+                view.name,
+                view.spec.source().path
+            )));
+        }
+        reports.push((view.name.clone(), id_offset, report));
+        parts.push(Part {
+            view,
+            source: Box::new(source),
+            id_offset,
+            source_split,
+        });
+    }
+    let fps = rate(spec, &parts)?;
+    let mixture = Mixture::new(spec, parts, fps)?;
+    for warning in &mixture.manifest().warnings {
+        eprintln!("warning: {warning}");
+    }
+    Ok((Box::new(mixture), joined_report(reports)))
+}
+
+/// The mixture's rate: the fastest profile's `fps`, or the sources' common rate when they share
+/// one (a profile without `fps` then runs at it).
+fn rate(spec: &LoadedSpec, parts: &[Part]) -> Result<f64> {
+    let rates: Vec<f64> = parts.iter().map(|p| p.source.manifest().fps).collect();
+    let common = rates.iter().all(|&r| r == rates[0]).then_some(rates[0]);
+    let given = spec.profiles.iter().filter_map(|p| p.fps);
+    let fastest = given.fold(None, |m: Option<f64>, f| Some(m.map_or(f, |m| m.max(f))));
+    let Some(unset) = spec.profiles.iter().find(|p| p.fps.is_none()) else {
+        return Ok(fastest.unwrap_or(rates[0]));
+    };
+    if let Some(common) = common {
+        return Ok(common);
+    }
+    let each: Vec<String> = parts
+        .iter()
+        .zip(&rates)
+        .map(|(p, r)| format!("{r} Hz ({})", p.view.name))
+        .collect();
+    let name = &unset.name;
+    Err(spec.error_at(
+        &["profiles", name, "fps"],
+        format!(
+            "profile `{name}` has no `fps`, and the mixture's sources run at {}",
+            each.join(", ")
+        ),
+        Some(format!(
+            "set `profiles.{name}.fps`: every source is converted to it"
+        )),
+    ))
+}

@@ -1,0 +1,96 @@
+//! `meta.json`'s fields for a training mixture: which source each stored episode is from
+//! (`episode_sources`), the mixture's settings and the sampling probabilities of each split
+//! (`mixture`), and per source its rate, episodes, split, widths, samples and normalization
+//! (`sources`). The top-level `source` names the mixture.
+
+use serde_json::{json, Map, Value};
+
+use super::documents::{normalization_json, Built};
+use crate::plan::mixture::{balanced, windows};
+use crate::plan::{conversion, Conversion, Plan, ProfilePlan};
+use crate::spec::ResampleMethod;
+
+/// Adds the mixture's fields to `doc` (a one-source `meta.json` has none of them).
+pub fn add(doc: &mut Value, plan: &Plan, profile: &ProfilePlan, built: &Built) {
+    let parts = &plan.source.parts;
+    let mixture = plan.mixture.clone().unwrap_or_default();
+    let source_of = |id: u64| parts.iter().rposition(|p| p.id_offset <= id).unwrap_or(0);
+    let episode_sources: Vec<usize> = profile.episodes.iter().map(|e| source_of(e.id)).collect();
+    let weights: Vec<f64> = parts.iter().map(|p| p.weight).collect();
+    let (train, val) = (
+        windows(profile, parts, true),
+        windows(profile, parts, false),
+    );
+    let method = match profile.conversion {
+        Conversion::Resample { method, .. } => method,
+        Conversion::Decimate { .. } => ResampleMethod::Fourier,
+    };
+    let mut sources = Map::new();
+    for (s, part) in parts.iter().enumerate() {
+        let local = |ids: &[u64]| -> Vec<u64> {
+            let own = ids.iter().filter(|&&id| source_of(id) == s);
+            own.map(|id| id - part.id_offset).collect()
+        };
+        let stored: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();
+        // From the source's own rate straight to the profile's (the rows are the same as
+        // through the mixture's rate when both steps decimate).
+        let rate = conversion(part.fps, profile.fps, method).ok();
+        let widths: Map<String, Value> = plan
+            .source
+            .channels
+            .iter()
+            .zip(&part.widths)
+            .map(|(ch, w)| (ch.name.clone(), json!(w)))
+            .collect();
+        let normalization = built
+            .source_normalizers
+            .get(s)
+            .map(|n| normalization_json(profile, n))
+            .unwrap_or_default();
+        sources.insert(
+            part.name.clone(),
+            json!({
+                "index": s,
+                "format": part.format.name(),
+                "path": part.path,
+                "fingerprint": part.fingerprint,
+                "weight": part.weight,
+                "fps": part.fps,
+                "id_offset": part.id_offset,
+                "rate": {
+                    "source_fps": part.fps,
+                    "factor": rate.and_then(|r| r.factor()),
+                    "conversion": rate,
+                },
+                "episodes": local(&stored),
+                "split": { "train": local(&plan.split.train), "val": local(&plan.split.val) },
+                "widths": widths,
+                "num_samples": { "train": train[s], "val": val[s] },
+                "normalization": normalization,
+            }),
+        );
+    }
+    let names: Vec<&str> = parts.iter().map(|p| p.name.as_str()).collect();
+    let Some(map) = doc.as_object_mut() else {
+        return;
+    };
+    map.insert(
+        "source".into(),
+        json!({ "format": "mixture", "path": Value::Null, "fingerprint": plan.source.fingerprint }),
+    );
+    map.insert("episode_sources".into(), json!(episode_sources));
+    map.insert(
+        "mixture".into(),
+        json!({
+            "balance": mixture.balance.name(),
+            "stats": mixture.stats.name(),
+            "pad_to": mixture.pad_to,
+            "source_names": names,
+            "weights": {
+                "train": balanced(mixture.balance, &weights, &train),
+                "val": balanced(mixture.balance, &weights, &val),
+            },
+        }),
+    );
+    map.insert("sources".into(), Value::Object(sources));
+}

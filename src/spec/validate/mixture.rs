@@ -1,0 +1,157 @@
+//! `[source]` or `[sources.<name>]` (a training mixture), `[mixture]`, and what a profile of a
+//! mixture may not do yet. The rules that need the sources' data (widths, a channel a source
+//! lacks) are the mixture source's (`source::mixture`).
+
+use super::{is_profile_name, Checker};
+use crate::spec::diagnostic::did_you_mean;
+use crate::spec::model::{Layout, OutputFormat};
+use crate::spec::preset::Profile;
+use crate::spec::StatsPopulation;
+
+impl Checker<'_> {
+    /// Exactly one of `[source]` and `[sources.<name>]`, each source's own rules, the weights
+    /// and `[mixture]`.
+    pub(super) fn sources(&mut self) {
+        let spec = &self.loaded.spec;
+        match (&spec.source, spec.sources.is_empty()) {
+            (Some(source), true) => {
+                self.source();
+                if source.weight.is_some() {
+                    let message = "`source.weight` weighs a source of a mixture; `[source]` is the only source".to_string();
+                    let help = Some("remove it, or name the source: `[sources.<name>]`".into());
+                    self.key(&["source", "weight"], message, "one source", help);
+                }
+                if spec.mixture.is_some() {
+                    let message =
+                        "`[mixture]` needs several sources: `[sources.<name>]`, not `[source]`"
+                            .to_string();
+                    self.key(&["mixture"], message, "no mixture", None);
+                }
+            }
+            (Some(_), false) => {
+                let message = "give either `[source]` (one dataset) or `[sources.<name>]` (a mixture), not both".to_string();
+                self.key(&["source"], message, "and `[sources]`", None);
+            }
+            (None, true) => {
+                let message = "the spec has no source".to_string();
+                let help = Some("add `[source]` (one dataset), or `[sources.<name>]` tables (a training mixture)".into());
+                self.value(&["source"], message, "", help);
+            }
+            (None, false) => self.mixture(),
+        }
+    }
+
+    fn mixture(&mut self) {
+        let spec = &self.loaded.spec;
+        let views = self.loaded.source_views();
+        for view in &views {
+            let mut checker = Checker {
+                loaded: &view.spec,
+                found: Vec::new(),
+            };
+            checker.source();
+            self.found.extend(checker.found);
+            let name = view.name.as_str();
+            if !is_profile_name(name) {
+                let message = format!("invalid source name `{name}`");
+                let help = Some("source names become directory names (`sources/<name>/`): use letters, digits, `_` and `-`".into());
+                self.key(&["sources", name], message, "not a valid name", help);
+            }
+            if !(view.weight.is_finite() && view.weight >= 0.0) {
+                let message = format!(
+                    "`sources.{name}.weight` must be a finite number at least 0, not {}",
+                    view.weight
+                );
+                self.value(&["sources", name, "weight"], message, "out of range", None);
+            }
+        }
+        if views.iter().all(|v| v.weight == 0.0) {
+            let last = &views[views.len() - 1].name;
+            let message = "every source's weight is 0: the sampler would draw nothing".to_string();
+            let help =
+                Some("give at least one source a positive `weight` (1 when left out)".into());
+            self.value(&["sources", last, "weight"], message, "all 0", help);
+        }
+        let mixture = spec.mixture.clone().unwrap_or_default();
+        let channels: Vec<&str> = self.loaded.channel_map().into_keys().collect();
+        for (channel, &width) in &mixture.pad_to {
+            let at = ["mixture", "pad_to", channel.as_str()];
+            if !channels.contains(&channel.as_str()) {
+                let message = format!(
+                    "`mixture.pad_to` names `{channel}`, which no source maps in `[sources.<name>.channels]`"
+                );
+                let help = did_you_mean(channel, &channels, "channel");
+                self.key(&at, message, "unknown channel", help);
+            } else if width == 0 {
+                let message = format!("`mixture.pad_to.{channel}` must be at least 1");
+                self.value(&at, message, "must be at least 1", None);
+            }
+        }
+    }
+
+    /// What a profile of a mixture cannot do yet (each source would need its own transform
+    /// dimensions or padding values inside a window).
+    pub(super) fn mixture_profile(&mut self, name: &str, p: &Profile) {
+        if !self.loaded.is_mixture() {
+            return;
+        }
+        let refuse = |what: String| {
+            format!(
+                "profile `{name}`: {what} is not supported for a mixture (`[sources.<name>]`) yet"
+            )
+        };
+        if matches!(
+            p.format,
+            OutputFormat::ActEpisodes | OutputFormat::RobomimicHdf5
+        ) {
+            let message = refuse(format!("`format = \"{}\"`", p.format.name()));
+            let help =
+                Some("use `hdf5`, `zarr` or `parquet`, which keep each episode's source".into());
+            self.value(
+                &["profiles", name, "format"],
+                message,
+                "one source only",
+                help,
+            );
+        }
+        if p.layout != Layout::Index {
+            let message = refuse(format!("`layout = \"{}\"`", p.layout.name()));
+            self.value(
+                &["profiles", name, "layout"],
+                message,
+                "one source only",
+                None,
+            );
+        }
+        if !p.transforms.is_empty() {
+            let message = refuse("`[[transforms]]`".to_string());
+            self.key(
+                &["profiles", name, "transforms"],
+                message,
+                "one source only",
+                None,
+            );
+        }
+        if p.stats_population == StatsPopulation::Windows {
+            let message = refuse("`stats_population = \"windows\"`".to_string());
+            let help = Some(format!(
+                "set `profiles.{name}.stats_population = \"frames\"` (statistics over every training step)"
+            ));
+            self.value(
+                &["profiles", name, "stats_population"],
+                message,
+                "one source only",
+                help,
+            );
+        }
+        if p.segment.is_some() {
+            let message = refuse("`segment`".to_string());
+            self.key(
+                &["profiles", name, "segment"],
+                message,
+                "one source only",
+                None,
+            );
+        }
+    }
+}
