@@ -6,6 +6,7 @@
 //!   are stored source by source, in name order.
 //! - Every source is converted, as it is read, to the mixture's rate (the fastest profile's):
 //!   integer ratios keep one step in k, others resample (`[audit] resample`).
+//! - An episode without a task of its own gets its source's name as its task.
 //! - Channels are the union of the sources'. A low-dim channel named in `[mixture] pad_to` is
 //!   zero-filled to that width (all zeros where a source lacks it); any other channel must be
 //!   the same in every source.
@@ -104,8 +105,11 @@ impl Mixture {
                     .files
                     .insert(format!("{name}/{path}"), hash.clone());
             }
-            for (id, task) in &own.tasks {
-                manifest.tasks.insert(part.id_offset + id, task.clone());
+            // An episode without a task of its own has its source's name as its task (the
+            // LeRobot export's `task` then tells the sources apart).
+            for e in &own.episodes {
+                let task = own.tasks.get(&e.id).unwrap_or(name);
+                manifest.tasks.insert(part.id_offset + e.id, task.clone());
             }
             let warnings = own.warnings.iter().map(|w| format!("sources.{name}: {w}"));
             manifest.warnings.extend(warnings);

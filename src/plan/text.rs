@@ -19,6 +19,41 @@ pub(super) fn human_bytes(n: u64) -> String {
     }
 }
 
+/// A training mixture's sources, one line each: rate, weight, widths and id offset.
+fn mixture_lines(s: &mut String, plan: &Plan) {
+    let Some(mixture) = &plan.mixture else {
+        return;
+    };
+    let _ = writeln!(
+        s,
+        "mixture balance {}, statistics {}, {} sources at {} Hz",
+        mixture.balance.name(),
+        mixture.stats.name(),
+        plan.source.parts.len(),
+        plan.source.fps
+    );
+    for part in &plan.source.parts {
+        let widths: Vec<String> = plan
+            .source
+            .channels
+            .iter()
+            .zip(&part.widths)
+            .map(|(ch, w)| format!("{} {w}", ch.name))
+            .collect();
+        let _ = writeln!(
+            s,
+            "        {}: {} {} at {} Hz, weight {}, ids from {}; widths: {}",
+            part.name,
+            part.format.name(),
+            part.path,
+            part.fps,
+            part.weight,
+            part.id_offset,
+            widths.join(", ")
+        );
+    }
+}
+
 // Long function: one section per part of the plan, printed in order.
 pub fn render_text(plan: &Plan) -> String {
     let mut s = String::new();
@@ -29,6 +64,7 @@ pub fn render_text(plan: &Plan) -> String {
         src.format, src.path, src.episodes, src.steps, src.fps
     );
     let _ = writeln!(s, "        fingerprint {}", &src.fingerprint[..16]);
+    mixture_lines(&mut s, plan);
     for ch in &src.channels {
         let _ = writeln!(
             s,
