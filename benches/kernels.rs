@@ -13,7 +13,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 
 use chunkc::source::{ChannelData, ChannelKind};
 use chunkc::spec::{LoadedSpec, SourceFormat};
-use chunkc::stats::normalize::Normalizer;
+use chunkc::stats::normalize::{Normalizer, RowNormalizer};
 use chunkc::{commands, sink, stats, synth};
 
 const EPISODES: usize = 16;
@@ -251,8 +251,12 @@ fn writers(c: &mut Criterion) {
                     match ch.kind {
                         ChannelKind::Lowdim => {
                             let st = stats[c].as_ref().expect("low-dim stats");
-                            s.write_lowdim(c, &stores[c], &Normalizer::fit(ch.normalize, st))
-                                .expect("lowdim");
+                            s.write_lowdim(
+                                c,
+                                &stores[c],
+                                &RowNormalizer::single(Normalizer::fit(ch.normalize, st)),
+                            )
+                            .expect("lowdim");
                         }
                         ChannelKind::Image => {
                             for (e, frames) in encoded.iter().enumerate() {

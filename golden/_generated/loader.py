@@ -55,6 +55,26 @@ the source's representation and units, as a robot or simulator takes them. Witho
 is `denormalize`. The rotation conversions (`rotation_to_matrix`, `matrix_to_rotation`) and
 `apply_transforms` (the same transforms on rows and reference rows of your own, e.g. live
 observations) are numpy alone.
+
+Training mixtures (a spec with several `[sources.<name>]`; `meta.json` "sources", "mixture" and
+"episode_sources"): every stored episode belongs to one source, and
+
+    ds.source_names          # ["own", "sim"]: source s is ds.source_names[s]
+    ds.episode_sources       # (E,) int64, the source of each stored episode
+    ds.window_sources        # (len(ds),) int64, the source of each window of this split
+    ds.source_weights        # (S,) float64, the balanced probabilities of this split
+    sample["source"]         # int, the window's source
+    sample["action_dim_mask"]  # (W,) bool for a channel in "mixture" "pad_to": the source's own dims
+    raw = ds.denormalize("action", sample["action"], source=sample["source"])
+    loader = DataLoader(ds, batch_size=64, sampler=ds.sampler(num_samples, seed, epoch))
+
+Each window is normalized with its own source's table (`meta.json` "sources"[name]
+"normalization"), so `normalize` and `denormalize` need the source (an int, or one per row).
+Padded dimensions (dims at or past a source's width) hold 0 and are left as they are by every
+table. `ds.sampler` draws a source with `ds.source_weights`, then a window of it uniformly: the
+mixture's balance (`meta.json` "mixture" "balance") whatever the sources' sizes. Without
+"sources" in `meta.json` none of this applies: the attributes are None, samples have no
+"source" key, and `normalize`/`denormalize` ignore `source`.
 """
 
 import json
@@ -491,6 +511,84 @@ class _ParquetBackend(_Backend):
 _BACKENDS = {"hdf5": _Hdf5Backend, "zarr": _ZarrBackend, "parquet": _ParquetBackend}
 
 
+def balanced_weights(balance, weights, counts):
+    """A mixture's balanced probabilities per source (`meta.json` "mixture" "weights"): from the
+    sources' raw `weights` and `counts` (n_s, their windows in the split). "weights": w_s / sum w;
+    "steps": w_s n_s / sum w n (Octo's balance_weights); "uniform": 1 / S'. A source without
+    windows gets 0 and the others share 1 (all 0 when no source has a window)."""
+    w = np.asarray(weights, dtype=np.float64)
+    n = np.asarray(counts, dtype=np.int64)
+    if balance == "weights":
+        p = np.where(n > 0, w, 0.0)
+    elif balance == "steps":
+        p = w * n
+    elif balance == "uniform":
+        p = (n > 0).astype(np.float64)
+    else:
+        raise ValueError(f"mixture balance {balance!r}: one of weights, steps, uniform")
+    total = p.sum()
+    return p / total if total > 0 else np.zeros_like(p)
+
+
+class _IndexSampler:
+    """Window indices drawn for one epoch (`ChunkedDataset.sampler`): a source with probability
+    `weights[s]`, then one of its windows uniformly, `num_samples` times (with replacement), by
+    numpy's Generator(PCG64([seed, epoch])). The draws are made when the sampler is made and by
+    `set_epoch`, in the calling process; iterating yields `indices` in order, as Python ints.
+    `sources` holds each drawn window's source."""
+
+    def __init__(self, window_sources, weights, num_samples, seed, epoch=0):
+        self.window_sources = np.asarray(window_sources, dtype=np.int64)
+        self.weights = np.asarray(weights, dtype=np.float64)
+        self.num_samples = int(num_samples)
+        if self.num_samples < 0:
+            raise ValueError(f"num_samples must be at least 0, not {num_samples}")
+        if self.num_samples and not self.weights.any():
+            raise ValueError("the split holds no window to draw from")
+        self.seed = int(seed)
+        # Windows grouped by source (in index order within each): source s's are
+        # order[first[s]:first[s] + counts[s]].
+        self._order = np.argsort(self.window_sources, kind="stable")
+        self._counts = np.bincount(self.window_sources, minlength=len(self.weights))
+        self._first = np.concatenate([[0], np.cumsum(self._counts)[:-1]]).astype(np.int64)
+        self.set_epoch(epoch)
+
+    def set_epoch(self, epoch):
+        """Draws the indices of `epoch` (as torch's DistributedSampler.set_epoch: call it before
+        each epoch's iteration to have new draws with one sampler)."""
+        self.epoch = int(epoch)
+        rng = np.random.Generator(np.random.PCG64([self.seed, self.epoch]))
+        self.sources = rng.choice(len(self.weights), size=self.num_samples, p=self.weights) \
+            if self.num_samples else np.zeros(0, dtype=np.int64)
+        within = rng.integers(0, self._counts[self.sources]) if self.num_samples else np.zeros(0, dtype=np.int64)
+        self.indices = self._order[self._first[self.sources] + within]
+
+    def __iter__(self):
+        return iter(self.indices.tolist())
+
+    def __len__(self):
+        return self.num_samples
+
+
+# _IndexSampler as a torch.utils.data.Sampler, defined when first asked for (torch imported
+# then, and only if installed), under this module-level name (pickle finds it).
+_TorchIndexSampler = None
+
+
+def _sampler_class():
+    """The class `ChunkedDataset.sampler` returns: a torch Sampler when torch imports, else the
+    plain iterable."""
+    global _TorchIndexSampler
+    if _TorchIndexSampler is None:
+        try:
+            from torch.utils.data import Sampler
+        except ImportError:  # pragma: no cover - exercised in numpy-only environments
+            return _IndexSampler
+        _TorchIndexSampler = type("_TorchIndexSampler", (_IndexSampler, Sampler),
+                                  {"__module__": __name__, "__doc__": _IndexSampler.__doc__})
+    return _TorchIndexSampler
+
+
 class ChunkedDataset(_DatasetBase):
     """Action-chunked samples of one split of the profile's data file.
 
@@ -578,6 +676,10 @@ class ChunkedDataset(_DatasetBase):
         self._raw_cache = {}
         f = self._backend.open()
         self.index = np.asarray(f["index"][split][...], dtype=np.int64).reshape(-1, 4)
+        # Training mixtures (meta.json "sources"; see the module's docstring). None without one.
+        self.source_names = self.episode_sources = self.window_sources = self.source_weights = None
+        if "sources" in self.meta:
+            self._init_mixture()
         # Cameras stored as JPEG or video (`meta.json` channel "storage") are decoded on read.
         stored = {n for n in self._images if "storage" in self.meta["channels"][n]}
         if in_memory or self._backend.reads_whole:
@@ -606,9 +708,101 @@ class ChunkedDataset(_DatasetBase):
     def __len__(self):
         return len(self.index)
 
-    def _normalized(self, name, rows):
+    def _init_mixture(self):
+        """The sources of a mixture: each stored episode's and row's, each window's, each
+        source's normalization tables (stacked per channel), the masks of the padded channels
+        and this split's balanced weights."""
+        where = os.path.join(self.root, "meta.json")
+        mixture, sources = self.meta["mixture"], self.meta["sources"]
+        self.source_names = list(mixture["source_names"])
+        missing = [n for n in self.source_names if n not in sources]
+        if missing:
+            raise ValueError(f"{where}: mixture source {missing[0]!r} has no entry in \"sources\"")
+        self.episode_sources = np.asarray(self.meta["episode_sources"], dtype=np.int64).reshape(-1)
+        if len(self.episode_sources) != len(self.episode_ends):
+            raise ValueError(f"{where}: {len(self.episode_sources)} episode_sources for "
+                             f"{len(self.episode_ends)} stored episodes")
+        bad = (self.episode_sources < 0) | (self.episode_sources >= len(self.source_names))
+        if bad.any():
+            raise ValueError(f"{where}: episode_sources holds {int(self.episode_sources[bad][0])}, not "
+                             f"a source of {self.source_names}")
+        self.window_sources = self.episode_sources[self.index[:, 0]]
+        # Every stored row's source: the stored arrays are normalized per episode range.
+        self._row_sources = np.repeat(self.episode_sources, self.episode_ends - self.episode_starts)
+        # Channel -> (center (S, ...), scale (S, ...), clip (S,)): each source's table.
+        self._source_norm = {}
+        for name in self._norm:
+            tables = []
+            for s in self.source_names:
+                p = sources[s].get("normalization", {}).get(name)
+                if p is None:
+                    raise ValueError(f"{where}: source {s!r} has no normalization table for {name!r}")
+                tables.append(p)
+            self._source_norm[name] = (
+                np.stack([_shaped(p["center"], self._shapes[name]) for p in tables]),
+                np.stack([_shaped(p["scale"], self._shapes[name]) for p in tables]),
+                np.array([bool(p["clip"]) for p in tables]),
+            )
+        # Channel in "pad_to" -> (S, W) bool: true on each source's own dims.
+        pad_to = mixture.get("pad_to") or {}
+        self._dim_masks = {}
+        for name in self.channels:
+            if name in pad_to:
+                widths = np.array([int(sources[s].get("widths", {}).get(name, 0)) for s in self.source_names])
+                self._dim_masks[name] = np.arange(int(pad_to[name]))[None, :] < widths[:, None]
+        counts = np.bincount(self.window_sources, minlength=len(self.source_names))
+        self.source_weights = balanced_weights(mixture.get("balance", "weights"),
+                                               [float(sources[s].get("weight", 1.0)) for s in self.source_names],
+                                               counts)
+
+    def sampler(self, num_samples, seed, epoch=0):
+        """`num_samples` window indices of this split for one epoch, drawn with replacement: a
+        source with probability `ds.source_weights` (the mixture's balance, recomputed from this
+        split's windows; `meta.json` "mixture" "weights"), then one of its windows uniformly.
+        numpy's Generator(PCG64([seed, epoch])): the same (seed, epoch) gives the same indices.
+        The indices are drawn here, in the calling process (DataLoader workers only see them),
+        and again by the sampler's `set_epoch(epoch)`. Returns a torch.utils.data.Sampler when
+        torch imports (`DataLoader(ds, sampler=ds.sampler(...))`), else a plain iterable of the
+        same ints with `len`; either holds them as `.indices` (int64) and their sources as
+        `.sources`. A dataset without a mixture is one source: its windows drawn uniformly."""
+        if self.source_names is None:
+            sources = np.zeros(len(self), dtype=np.int64)
+            weights = np.ones(1) if len(self) else np.zeros(1)
+        else:
+            sources, weights = self.window_sources, self.source_weights
+        try:
+            return _sampler_class()(sources, weights, num_samples, seed, epoch)
+        except ValueError as e:
+            raise ValueError(f"{self.root} ({self.split}): {e}") from None
+
+    def _source_table(self, name, x, source):
+        """Channel `name`'s (center, scale, clip) of each row's source, shaped to broadcast
+        against `x`: `source` an int, or ints shaped like the leading axes of `x`."""
+        if source is None:
+            raise ValueError(f"{name}: this dataset mixes the sources {self.source_names}, each normalized "
+                             "with its own table: pass source= (a sample's \"source\": an int, or one per row)")
+        centers, scales, clips = self._source_norm[name]
+        s = np.asarray(source)
+        if s.dtype.kind not in "iu" and not (s.dtype.kind == "f" and np.all(s == np.round(s))):
+            raise ValueError(f"{name}: source must be source indices (ints), not {s.dtype}")
+        s = s.astype(np.int64)
+        bad = (s < 0) | (s >= len(self.source_names))
+        if bad.any():
+            raise ValueError(f"{name}: source {int(s[bad].reshape(-1)[0])} is not one of the "
+                             f"{len(self.source_names)} sources {self.source_names}")
+        step = centers.shape[1:]
+        extra = x.ndim - len(step) - s.ndim
+        if extra < 0 or x.shape[:s.ndim] != s.shape:
+            raise ValueError(f"{name}: source of shape {s.shape} does not lead values of shape {x.shape} "
+                             f"(per-step shape {step})")
+        lead = s.shape + (1,) * extra
+        return (centers[s].reshape(lead + step), scales[s].reshape(lead + step),
+                clips[s].reshape(lead + (1,) * len(step)))
+
+    def _normalized(self, name, rows, at=None):
         """Stored rows in normalized units (formats storing raw values are normalized here;
-        a channel with rotation transforms alone is transformed first)."""
+        a channel with rotation transforms alone is transformed first). `at`: the rows' stored
+        positions (None: every stored row, in order), whose sources pick a mixture's tables."""
         if self.raw_values and name in self._lowdim:
             if name in self._transforms:
                 if name in self._xform:
@@ -618,6 +812,9 @@ class ChunkedDataset(_DatasetBase):
                 for op in self._transforms[name]:
                     x = apply_transform(op, x)
                 rows = x.reshape((len(rows),) + self._shapes[name])
+            if self.source_names is not None:
+                return self.normalize(name, rows, self._row_sources if at is None else self._row_sources[at]) \
+                    .astype(np.float32)
             return self.normalize(name, rows).astype(np.float32)
         return rows
 
@@ -651,7 +848,7 @@ class ChunkedDataset(_DatasetBase):
         cached = self._cache.get(name)
         if cached is not None:
             return np.take(cached, rows, axis=0)
-        return self._normalized(name, self._reader(name)(rows))
+        return self._normalized(name, self._reader(name)(rows), rows)
 
     def _read_raw(self, name, rows):
         """Stored rows `rows` of a low-dim channel as stored (raw values): a new array."""
@@ -681,7 +878,10 @@ class ChunkedDataset(_DatasetBase):
         source episode id, and "frame_index"). Without transforms this is `denormalize`. A
         batch (a dict of stacked samples, values (B, K, D')) gives (B, K, ...)."""
         channel = "action" if name == "coarse_action" else name
-        x = self.denormalize(channel, values)
+        if self.source_names is not None:
+            x = self.denormalize(channel, values, sample.get("source"))
+        else:
+            x = self.denormalize(channel, values)
         ops = self._transforms.get(channel)
         if not ops:
             return x
@@ -729,14 +929,25 @@ class ChunkedDataset(_DatasetBase):
         state["_pid"] = None
         return state
 
-    def normalize(self, name, x):
-        """Raw units -> stored units, as the build applied it."""
+    def normalize(self, name, x, source=None):
+        """Raw units -> stored units, as the build applied it. In a mixture with the table of
+        `source` (required there: an int, or one per row, shaped like the leading axes of `x`,
+        as samples' "source" give it); ignored without a mixture."""
+        if self.source_names is not None:
+            x = np.asarray(x, dtype=np.float64)
+            center, scale, clip = self._source_table(name, x, source)
+            y = (x - center) / scale
+            return np.where(clip, np.clip(y, -1.0, 1.0), y) if clip.any() else y
         center, scale, clip = self._norm[name]
         y = (np.asarray(x, dtype=np.float64) - center) / scale
         return np.clip(y, -1.0, 1.0) if clip else y
 
-    def denormalize(self, name, x):
-        """Stored (normalized) units -> raw units."""
+    def denormalize(self, name, x, source=None):
+        """Stored (normalized) units -> raw units (`source` as for `normalize`)."""
+        if self.source_names is not None:
+            x = np.asarray(x, dtype=np.float64)
+            center, scale, _ = self._source_table(name, x, source)
+            return x * scale + center
         center, scale, _ = self._norm[name]
         return np.asarray(x, dtype=np.float64) * scale + center
 
@@ -777,6 +988,8 @@ class ChunkedDataset(_DatasetBase):
         start = self.episode_starts[ep]
         length = self.episode_ends[ep] - start
         k, h = self.chunk_size, self.obs_history
+        # A mixture's window sources (None without one).
+        src = self.episode_sources[ep] if self.source_names is not None else None
 
         batch = {}
         # The current step: the last observation step (a hierarchy's fine chunk start).
@@ -787,15 +1000,16 @@ class ChunkedDataset(_DatasetBase):
             # `limit` is the coarse chunk; the fine chunk `sub` lies inside it.
             fine_start = current
             coarse_stop = np.minimum(t + limit, length)
-            batch["action"], batch["action_is_pad"] = self._actions(start, fine_start, k, coarse_stop, length, refs)
+            batch["action"], batch["action_is_pad"] = self._actions(start, fine_start, k, coarse_stop, length, refs,
+                                                                    src)
             batch["coarse_action"], batch["coarse_action_is_pad"] = self._actions(
-                start, t, int(limit[0]), coarse_stop, length, refs
+                start, t, int(limit[0]), coarse_stop, length, refs, src
             )
             batch["fine_index"] = sub.tolist()
             batch["coarse_frame_index"] = t.tolist()
         else:
             first = t - self.action_lead
-            batch["action"], batch["action_is_pad"] = self._actions(start, first, k, first + limit, length, refs)
+            batch["action"], batch["action_is_pad"] = self._actions(start, first, k, first + limit, length, refs, src)
 
         # Observations current-h+1 .. current, the first frame repeated before the episode start.
         steps = current[:, None] + np.arange(1 - h, 1)
@@ -816,14 +1030,21 @@ class ChunkedDataset(_DatasetBase):
 
         batch["episode_index"] = self.episode_ids[ep].tolist()
         batch["frame_index"] = current.tolist()
+        if src is not None:
+            batch["source"] = src.tolist()
+            # Padded channels: true on the dims the window's source has.
+            for name, masks in self._dim_masks.items():
+                if name == "action" or name in self.channels:
+                    batch[name + "_dim_mask"] = masks[src]
         keys = list(batch)
         columns = [v if isinstance(v, list) else list(v) for v in batch.values()]
         return [dict(zip(keys, values)) for values in zip(*columns)]
 
-    def _actions(self, start, first, k, stop, length, refs=None):
+    def _actions(self, start, first, k, stop, length, refs=None, src=None):
         """(B, k) action rows of episodes starting at stored row `start` (B,), from episode steps
         `first` (B,; may be negative), valid below `stop` (B,), with their padding mask; `refs`:
-        the samples' reference rows when the action has transforms that need them."""
+        the samples' reference rows when the action has transforms that need them; `src`: a
+        mixture's window sources (zero padding is 0 in each source's raw units)."""
         lo = np.clip(first, 0, length - 1)
         hi = np.maximum(np.minimum(stop, length), lo + 1)
         valid_end = lo + np.minimum(hi - lo, k - (lo - first))
@@ -837,7 +1058,11 @@ class ChunkedDataset(_DatasetBase):
             action = self._read("action", rows.reshape(-1))
             action = action.reshape(rows.shape + action.shape[1:])
         if self.padding in ("zero", "mask") and is_pad.any():
-            action[is_pad] = self._pad_value("action", action[0, 0])
+            if src is not None and self.padding == "zero":
+                at = np.broadcast_to(src[:, None], is_pad.shape)[is_pad]
+                action[is_pad] = self.normalize("action", np.zeros((len(at),) + action.shape[2:]), at)
+            else:
+                action[is_pad] = self._pad_value("action", action[0, 0])
         return action.astype(np.float32, copy=False), is_pad
 
 

@@ -19,6 +19,13 @@
    normalize -> denormalize round trip (within 1e-6).
 6. A histogram of the normalized values of each action and state dimension over the training
    split (hist_<channel>.png), naming the dimensions with heavy tails (a note, not a failure).
+7. Training mixtures (`meta.json` "sources"): the loader's balanced source weights against
+   `meta.json` "mixture" "weights", and the sampler's realised source frequencies over 100,000
+   draws (seeded) against them, per split: a source more than 4 binomial standard deviations
+   off fails. Check 1 then holds per source (its own rows and dims, `sources/<name>/stats.json`)
+   and for the pooled `stats.json` (per dimension, over the sources that have it); check 5 runs
+   the round trip with each sample's source (LeRobot's normalizer takes one table per channel:
+   not run on a mixture).
 
 Exit status 1 when a check fails (the printout says which), 2 when lerobot is missing.
 """
@@ -54,6 +61,10 @@ GIF_FRAMES = 60
 TINY_GIF_FRAMES = 12
 # Push-T's actions and agent positions are pixel coordinates of a 512x512 workspace.
 PUSHT_WORKSPACE = 512.0
+# Training mixtures: sampler draws per split, and how many binomial standard deviations a
+# source's count may stray from draws * weight.
+MIXTURE_DRAWS = 100_000
+MIXTURE_SDS = 4.0
 
 
 def source_chunk(ds, s):
@@ -61,6 +72,8 @@ def source_chunk(ds, s):
     transforms undone: the source's representation) when meta.json has transforms."""
     if ds.meta.get("transforms"):
         return ds.to_source("action", s["action"], s)
+    if ds.source_names is not None:
+        return ds.denormalize("action", s["action"], s["source"])
     return ds.denormalize("action", s["action"])
 
 
@@ -162,33 +175,34 @@ def _flat(values, n):
     return np.asarray(values, dtype=np.float64).reshape(n, -1)
 
 
-def mode_problems(name, mode, y):
+def mode_problems(name, mode, y, first=0):
     """What the normalization `mode` guarantees of the normalized training values `y` (rows,
     dims), whatever the data: z-score has mean 0 and std at most 1 (a floored std only shrinks
     the values), limits and min-max lie within [-1, 1], openpi's quantile mode has at most 1%
-    beyond each end."""
+    beyond each end. `first`: the channel's dimension of y's column 0."""
     problems = []
     if mode in ZSCORE_MODES:
         mean, std = y.mean(axis=0), y.std(axis=0)
         for d in np.flatnonzero((np.abs(mean) > ZSCORE_MEAN) | (std > ZSCORE_STD)):
-            problems.append(f"{name}[{d}] ({mode}): the training split has mean {mean[d]:.3g} and std "
+            problems.append(f"{name}[{d + first}] ({mode}): the training split has mean {mean[d]:.3g} and std "
                             f"{std[d]:.3g}, where z-scoring gives mean 0 and std at most 1")
     elif mode in BOUNDED_MODES:
         worst = np.abs(y).max(axis=0)
         for d in np.flatnonzero(worst > BOUNDED):
-            problems.append(f"{name}[{d}] ({mode}): training values reach {worst[d]:.4g}, beyond [-1, 1]")
+            problems.append(f"{name}[{d + first}] ({mode}): training values reach {worst[d]:.4g}, beyond [-1, 1]")
     elif mode == "quantile":
         low, high = (y < -BOUNDED).mean(axis=0), (y > BOUNDED).mean(axis=0)
         slack = QUANTILE_BEYOND + 1.0 / len(y)
         for d in np.flatnonzero((low > slack) | (high > slack)):
-            problems.append(f"{name}[{d}] (quantile): {low[d]:.1%} of the training values below -1 and "
+            problems.append(f"{name}[{d + first}] (quantile): {low[d]:.1%} of the training values below -1 and "
                             f"{high[d]:.1%} above 1, where q01/q99 leave at most 1% each")
     return problems
 
 
-def stats_problems(name, norm, s, raw):
+def stats_problems(name, norm, s, raw, first=0):
     """stats.json's numbers for `name` against the raw training values `raw` (rows, dims) they
-    describe. A clipping mode stores values clipped at p001/p999: those bound them instead."""
+    describe. A clipping mode stores values clipped at p001/p999: those bound them instead.
+    `first`: the channel's dimension of raw's column 0."""
     n = len(raw)
     problems = []
     if int(s["count"]) != n:
@@ -207,11 +221,11 @@ def stats_problems(name, norm, s, raw):
         checks.append(("mean", np.asarray(s["mean"], dtype=np.float64).reshape(-1), raw.mean(axis=0)))
     for what, stated, actual in checks:
         for d in np.flatnonzero(np.abs(stated - actual) > tol):
-            problems.append(f"{name}[{d}]: stats.json {what} {stated[d]:.6g}, the training values' {actual[d]:.6g}")
+            problems.append(f"{name}[{d + first}]: stats.json {what} {stated[d]:.6g}, the training values' {actual[d]:.6g}")
     if not clipped:
         off = np.minimum(np.abs(std - raw.std(axis=0)), np.abs(std - ddof1)) > tol
         for d in np.flatnonzero(off):
-            problems.append(f"{name}[{d}]: stats.json std {std[d]:.6g}, the training values' {raw.std(axis=0)[d]:.6g}")
+            problems.append(f"{name}[{d + first}]: stats.json std {std[d]:.6g}, the training values' {raw.std(axis=0)[d]:.6g}")
     return problems
 
 
@@ -230,14 +244,82 @@ def split_checks(ds):
         y = np.asarray(ds._population(name), dtype=np.float64)
         if not len(y):
             continue
-        found = mode_problems(name, norm["mode"], y)
-        if name in stats:
-            found += stats_problems(name, norm, stats[name], _flat(ds.denormalize(name, y), len(y)))
+        per_source = ""
+        if ds.source_names is not None:
+            found, per_source = mixture_split_problems(ds, name, norm, y, stats.get(name))
+        else:
+            found = mode_problems(name, norm["mode"], y)
+            if name in stats:
+                found += stats_problems(name, norm, stats[name], _flat(ds.denormalize(name, y), len(y)))
         verdict = "ok" if not found else f"{len(found)} problem(s)"
         what = "window rows" if ds.meta.get("stats_population") == "windows" else "steps"
-        print(f"  {name:<30} {norm['mode']:<18} {y.shape[1]} dims over {len(y)} training {what}: {verdict}")
+        print(f"  {name:<30} {norm['mode']:<18} {y.shape[1]} dims over {len(y)} training {what}{per_source}: {verdict}")
         problems += found[:5] + ([f"{name}: {len(found) - 5} more"] if len(found) > 5 else [])
     return problems
+
+
+def _stats_slice(s, lo, hi, count):
+    """stats.json's entry `s` for dims [lo, hi) of a channel: its per-dim lists cut, `count`."""
+    out = {k: list(np.asarray(v, dtype=np.float64).reshape(-1)[lo:hi]) for k, v in s.items()
+           if isinstance(v, list) and k != "dim_count"}
+    out["count"] = count
+    return out
+
+
+def mixture_split_problems(ds, name, norm, y, pooled):
+    """Check 1 on a mixture's channel `name`, from the normalized training rows `y` (rows,
+    dims), each normalized with its source's table: per source on its own rows and dims (the
+    mode's guarantees when each source has its own fit, `stats = "per_source"`, and its
+    `sources/<name>/stats.json`), then pooled (`stats.json`, and the mode's guarantees of a
+    pooled fit) per dimension over the sources that have it (padding never enters a statistic).
+    Returns the problems and what each source holds, for the printout."""
+    meta = ds.meta
+    sources = meta["sources"]
+    own_fit = meta["mixture"].get("stats", "per_source") == "per_source"
+    shape = tuple(meta["channels"][name].get("transformed_shape", meta["channels"][name]["shape"]))
+    rows = train_rows(ds)
+    src = np.repeat(ds.episode_sources, ds.episode_ends - ds.episode_starts)[rows]
+    raw = _flat(ds.denormalize(name, y.reshape((len(y),) + shape), src), len(y))
+    dims = y.shape[1]
+    widths = np.array([min(int(sources[n].get("widths", {}).get(name, dims)), dims) for n in ds.source_names])
+    problems = []
+    held = " (" + "; ".join(f"{n} {int(widths[s])} dims, {int((src == s).sum())} steps"
+                            for s, n in enumerate(ds.source_names)) + ")"
+    for s, sname in enumerate(ds.source_names):
+        at, width = src == s, int(widths[s])
+        if not at.any() or not width:
+            continue
+        table = sources[sname]["normalization"][name]
+        label = f"{name} ({sname})"
+        if own_fit:
+            problems += mode_problems(label, table["mode"], y[at, :width])
+        path = os.path.join(ds.root, "sources", sname, "stats.json")
+        if (own_fit or not table.get("clip")) and os.path.exists(path):
+            with open(path) as f:
+                own = json.load(f).get(name)
+            if own is not None:
+                cut = {"scale": np.asarray(table["scale"], dtype=np.float64).reshape(-1)[:width], "clip": table["clip"]}
+                problems += stats_problems(label, cut, own, raw[at, :width])
+    # Pooled, per run of dimensions held by the same sources (a source of width w holds dims < w).
+    having = [s for s in range(len(widths)) if widths[s] and (src == s).any()]
+    cuts = sorted({0} | {int(widths[s]) for s in having})
+    for lo, hi in zip(cuts[:-1], cuts[1:]):
+        at = np.isin(src, [s for s in having if widths[s] >= hi])
+        if not at.any():
+            continue
+        if not own_fit:
+            problems += mode_problems(name, norm["mode"], y[at, lo:hi], first=lo)
+        if pooled is None:
+            continue
+        count = int(pooled["dim_count"][lo] if "dim_count" in pooled else pooled["count"])
+        if norm.get("clip") and own_fit:
+            # Values clipped per source at its own p001/p999: the pooled numbers bound nothing.
+            if count != int(at.sum()):
+                problems.append(f"{name}[{lo}]: stats.json counts {count} steps, the training split holds {int(at.sum())}")
+            continue
+        cut = {"scale": np.asarray(norm["scale"], dtype=np.float64).reshape(-1)[lo:hi], "clip": norm.get("clip")}
+        problems += stats_problems(name, cut, _stats_slice(pooled, lo, hi, count), raw[at, lo:hi], first=lo)
+    return problems, held
 
 
 def image_workspace(ds, rows):
@@ -246,7 +328,13 @@ def image_workspace(ds, rows):
     if "action" not in ds.meta["channels"] or int(np.prod(ds.meta["channels"]["action"]["shape"])) != 2:
         return None
     # Transformed actions: the stored rows are raw, in the source's representation.
-    raw = ds._read_raw("action", rows) if ds.meta.get("transforms") else ds.denormalize("action", ds._read("action", rows))
+    if ds.meta.get("transforms"):
+        raw = ds._read_raw("action", rows)
+    elif ds.source_names is not None:
+        src = np.repeat(ds.episode_sources, ds.episode_ends - ds.episode_starts)[rows]
+        raw = ds.denormalize("action", ds._read("action", rows), src)
+    else:
+        raw = ds.denormalize("action", ds._read("action", rows))
     return PUSHT_WORKSPACE if len(raw) and raw.min() >= -1 and raw.max() <= PUSHT_WORKSPACE + 1 else None
 
 
@@ -355,12 +443,52 @@ def forward_pass(ds, samples, tiny):
 
 
 def round_trip(ds, batch):
+    # A mixture's values go through each sample's own source's table.
+    source = {"source": np.asarray(batch["source"])} if ds.source_names is not None else {}
     worst = 0.0
     for name, c in ds.meta["channels"].items():
         if c["kind"] == "lowdim" and name in batch:
             x = np.asarray(batch[name], dtype=np.float64)
-            worst = max(worst, float(np.abs(ds.normalize(name, ds.denormalize(name, x)) - x).max()))
+            worst = max(worst, float(np.abs(ds.normalize(name, ds.denormalize(name, x, **source), **source) - x).max()))
     return worst
+
+
+def mixture_checks(ds, seed):
+    """Check 7: per split, the loader's balanced weights against meta.json's, and the sampler's
+    source frequencies over MIXTURE_DRAWS draws (seeded) against the weights; returns the
+    problems and the report's entry."""
+    mixture = ds.meta["mixture"]
+    names = ds.source_names
+    print(f"mixture of {len(names)} sources ({mixture.get('balance', 'weights')} balance): the sampler's "
+          f"source frequencies over {MIXTURE_DRAWS} draws (seed {seed}) against the balanced weights:")
+    problems, report = [], {}
+    for split in ("train", "val"):
+        view = ds if split == ds.split else ChunkedDataset(ds.root, split)
+        p = view.source_weights
+        stated = mixture.get("weights", {}).get(split)
+        if stated is not None and (len(stated) != len(p) or np.abs(np.asarray(stated, dtype=np.float64) - p).max() > 1e-9):
+            problems.append(f"{split}: meta.json's mixture weights {stated} differ from the loader's {p.tolist()}")
+        windows = np.bincount(view.window_sources, minlength=len(names))
+        if not len(view):
+            print(f"  {split:<5} no windows")
+            report[split] = {}
+            continue
+        drawn = np.bincount(view.window_sources[view.sampler(MIXTURE_DRAWS, seed).indices], minlength=len(names))
+        expected = MIXTURE_DRAWS * p
+        sd = np.sqrt(MIXTURE_DRAWS * p * (1 - p))
+        report[split] = {}
+        for s, name in enumerate(names):
+            off = abs(drawn[s] - expected[s])
+            bad = off > MIXTURE_SDS * sd[s] + 1e-9
+            z = f"{(drawn[s] - expected[s]) / sd[s]:+.2f} sd" if sd[s] > 0 else "exact" if not bad else "off"
+            print(f"  {split:<5} {name:<24} {windows[s]:>8} windows  weight {p[s]:.4f}  drawn {drawn[s] / MIXTURE_DRAWS:.4f}"
+                  f"  ({z})")
+            report[split][name] = {"windows": int(windows[s]), "weight": float(p[s]),
+                                   "frequency": float(drawn[s] / MIXTURE_DRAWS)}
+            if bad:
+                problems.append(f"{split}: source {name} drawn {drawn[s]} times in {MIXTURE_DRAWS}, expected "
+                                f"{expected[s]:.0f} +- {MIXTURE_SDS:g} sd ({sd[s]:.1f})")
+    return problems, report
 
 
 def render_episodes(ds, args, rng):
@@ -397,7 +525,9 @@ def policy_checks(ds, samples, batch, args, report, problems):
     except ImportError:
         return "torch is not installed: pip install torch"
     try:
-        if target_policy.target(ds.meta) is not None:
+        if ds.source_names is not None:
+            print("LeRobot's normalizer is not compared: it takes one table per channel, a mixture has one per source")
+        elif target_policy.target(ds.meta) is not None:
             agree = target_policy.lerobot_check(ds, samples)
             report["lerobot_normalizer"] = {k: v[0] for k, v in agree.items()}
             for name, (diff, mode) in agree.items():
@@ -451,6 +581,10 @@ def main(argv=None):
     print(f"normalize -> denormalize round trip: max error {err:.2e} (limit {ROUND_TRIP:g})")
     if err > ROUND_TRIP:
         problems.append(f"round trip error {err:.2e} exceeds {ROUND_TRIP:g}")
+
+    if ds.source_names is not None:
+        found, report["mixture"] = mixture_checks(ds, args.seed)
+        problems += found
 
     missing = policy_checks(ds, samples, batch, args, report, problems)
     report["files"] = [os.path.basename(p) for p in written]

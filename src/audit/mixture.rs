@@ -17,8 +17,8 @@ use super::conversion::{conversion, Conversion};
 use super::{AuditReport, Verdict};
 use crate::error::Result;
 use crate::source::{
-    ChannelData, ChannelInfo, ChannelKind, DecodeCounts, Episode, EpisodeInfo, Manifest, Source,
-    SourcePart, SourceSplit, VideoCheck,
+    ChannelData, DecodeCounts, Episode, EpisodeInfo, Manifest, Source, SourcePart, SourceSplit,
+    VideoCheck,
 };
 use crate::spec::{LoadedSpec, SourceView};
 
@@ -58,22 +58,8 @@ pub fn id_offsets<'a>(manifests: impl Iterator<Item = &'a Manifest>) -> Vec<u64>
 impl Mixture {
     /// Joins `parts` (in name order) at `fps`.
     pub fn new(spec: &LoadedSpec, parts: Vec<Part>, fps: f64) -> Result<Mixture> {
-        let channels = joined_channels(spec, &parts)?;
-        let mut conversions = Vec::new();
-        for part in &parts {
-            let own = part.source.manifest().fps;
-            let c = conversion(own, fps, spec.spec.audit.resample).map_err(|_| {
-                spec.error_at(
-                    &["sources", &part.view.name],
-                    format!(
-                        "source `{}` runs at {own} Hz, slower than the mixture's {fps} Hz (its fastest profile's rate); chunkc does not upsample",
-                        part.view.name
-                    ),
-                    Some(format!("set every profile's `fps` to {own} or less, or leave the source out")),
-                )
-            })?;
-            conversions.push(c);
-        }
+        let channels = super::mixture_channels::joined(spec, &parts)?;
+        let conversions = conversions(spec, &parts, fps)?;
         let mut manifest = Manifest {
             format: parts[0].source.manifest().format,
             fps,
@@ -158,107 +144,24 @@ impl Mixture {
     }
 }
 
-/// The mixture's channels: the union of the sources', in name order, with their widths checked
-/// against `[mixture] pad_to`.
-fn joined_channels(spec: &LoadedSpec, parts: &[Part]) -> Result<Vec<ChannelInfo>> {
-    let pad_to = spec
-        .spec
-        .mixture
-        .as_ref()
-        .map(|m| m.pad_to.clone())
-        .unwrap_or_default();
-    let mut union: BTreeMap<&str, Vec<Option<&ChannelInfo>>> = BTreeMap::new();
-    for (s, part) in parts.iter().enumerate() {
-        for ch in &part.source.manifest().channels {
-            union
-                .entry(&ch.name)
-                .or_insert_with(|| vec![None; parts.len()])[s] = Some(ch);
-        }
-    }
-    let name_of = |s: usize| parts[s].view.name.as_str();
-    let mut out = Vec::new();
-    for (name, per_source) in union {
-        let (first, info) = per_source
-            .iter()
-            .enumerate()
-            .find_map(|(s, c)| c.map(|c| (s, c)))
-            .expect("a channel some source has");
-        let Some(&width) = pad_to.get(name) else {
-            same_everywhere(spec, name, &per_source, first, name_of)?;
-            out.push(info.clone());
-            continue;
-        };
-        if info.kind == ChannelKind::Image {
-            return Err(spec.error_at(
-                &["mixture", "pad_to", name],
-                format!("`{name}` is an image channel; `pad_to` pads low-dimensional channels"),
-                None,
-            ));
-        }
-        for (s, ch) in per_source.iter().enumerate() {
-            let Some(ch) = ch else { continue };
-            if ch.kind != ChannelKind::Lowdim || ch.width() > width {
-                return Err(spec.error_at(
-                    &["mixture", "pad_to", name],
-                    format!(
-                        "`mixture.pad_to.{name} = {width}` is narrower than source `{}`'s `{name}`, which has {} values per step",
-                        name_of(s),
-                        ch.width()
-                    ),
-                    Some(format!("pad to at least {}", ch.width())),
-                ));
-            }
-        }
-        let mut padded = info.clone();
-        padded.shape = vec![width];
-        out.push(padded);
-    }
-    Ok(out)
-}
-
-/// A channel not padded: every source maps it, with one kind and one shape.
-fn same_everywhere<'a>(
-    spec: &LoadedSpec,
-    name: &str,
-    per_source: &[Option<&ChannelInfo>],
-    first: usize,
-    name_of: impl Fn(usize) -> &'a str,
-) -> Result<()> {
-    let info = per_source[first].expect("the first source that has it");
-    for (s, ch) in per_source.iter().enumerate() {
-        let Some(ch) = ch else {
-            return Err(spec.error_at(
-                &["sources", name_of(s), "channels"],
+/// Each part's conversion to the mixture's rate `fps`; a source slower than it is refused.
+fn conversions(spec: &LoadedSpec, parts: &[Part], fps: f64) -> Result<Vec<Conversion>> {
+    let mut conversions = Vec::new();
+    for part in parts {
+        let own = part.source.manifest().fps;
+        let c = conversion(own, fps, spec.spec.audit.resample).map_err(|_| {
+            spec.error_at(
+                &["sources", &part.view.name],
                 format!(
-                    "source `{}` maps no `{name}`, which source `{}` maps; every source of a mixture needs every channel",
-                    name_of(s),
-                    name_of(first)
+                    "source `{}` runs at {own} Hz, slower than the mixture's {fps} Hz (its fastest profile's rate); chunkc does not upsample",
+                    part.view.name
                 ),
-                Some(format!("map `{name}` in `[sources.{}.channels]`, or zero-pad it: `[mixture] pad_to = {{ \"{name}\" = <width> }}`", name_of(s))),
-            ));
-        };
-        if ch.kind != info.kind || ch.shape != info.shape {
-            let help = match info.kind {
-                ChannelKind::Lowdim => Some(format!(
-                    "zero-pad it to a common width: `[mixture] pad_to = {{ \"{name}\" = {} }}`",
-                    ch.width().max(info.width())
-                )),
-                ChannelKind::Image => None,
-            };
-            return Err(spec.error_at(
-                &["sources", name_of(s), "channels", name],
-                format!(
-                    "`{name}` has per-step shape {:?} in source `{}` but {:?} in source `{}`",
-                    ch.shape,
-                    name_of(s),
-                    info.shape,
-                    name_of(first)
-                ),
-                help,
-            ));
-        }
+                Some(format!("set every profile's `fps` to {own} or less, or leave the source out")),
+            )
+        })?;
+        conversions.push(c);
     }
-    Ok(())
+    Ok(conversions)
 }
 
 impl Source for Mixture {

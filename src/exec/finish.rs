@@ -61,10 +61,7 @@ pub(super) fn all(
         |(rate, profiles)| -> Result<Vec<_>> {
             let (stats, sources) = {
                 let _statistics = timings::phase("statistics");
-                let sources = match manifest.parts.is_empty() {
-                    true => Vec::new(),
-                    false => super::mixture_stats::per_source(rate, manifest, &train_mask)?,
-                };
+                let sources = super::mixture_stats::per_source(rate, manifest, &train_mask)?;
                 (rate.stats(manifest, &train_mask)?, sources)
             };
             Ok(profiles
@@ -243,13 +240,7 @@ fn write_documents(
         ),
     )?;
     write(STATS_FILE, documents::stats_json(p, stats))?;
-    // A mixture's sources' own statistics, beside the pooled ones.
-    for (part, own) in shared.manifest.parts.iter().zip(all_stats.sources) {
-        let sub = dir.join("sources").join(&part.name);
-        std::fs::create_dir_all(&sub).at("create", &sub)?;
-        let path = sub.join(STATS_FILE);
-        std::fs::write(&path, documents::stats_json(p, own)).at("write", &path)?;
-    }
+    super::mixture_stats::write_source_stats(shared.manifest, p, all_stats.sources, dir)?;
     if p.values.format == crate::spec::OutputFormat::Parquet {
         // LeRobot v3.0 reads its statistics from `meta/stats.json`.
         let path = dir.join(sink::lerobot::STATS_PATH);

@@ -6,18 +6,37 @@
 
 use std::collections::BTreeMap;
 use std::ops::Range;
+use std::path::Path;
 
 use super::finish::{Shared, Stats};
 use super::rate::{Partial, RateState};
-use crate::error::Result;
-use crate::plan::ProfilePlan;
+use crate::error::{IoContext, Result};
+use crate::plan::{ProfilePlan, STATS_FILE};
+use crate::sink::documents;
 use crate::source::{ChannelKind, Manifest};
 use crate::spec::MixtureStats;
 use crate::stats::normalize::{Normalizer, RowNormalizer};
 use crate::stats::{self, bands, ChannelStats, Moments};
 use crate::store::LowdimStore;
 
-/// Per source (mixture order), every channel it has: its own statistics, at its own width.
+/// A mixture's sources' own statistics, `sources/<name>/stats.json` beside the pooled ones.
+pub(super) fn write_source_stats(
+    manifest: &Manifest,
+    p: &ProfilePlan,
+    sources: &[BTreeMap<String, ChannelStats>],
+    dir: &Path,
+) -> Result<()> {
+    for (part, own) in manifest.parts.iter().zip(sources) {
+        let sub = dir.join("sources").join(&part.name);
+        std::fs::create_dir_all(&sub).at("create", &sub)?;
+        let path = sub.join(STATS_FILE);
+        std::fs::write(&path, documents::stats_json(p, own)).at("write", &path)?;
+    }
+    Ok(())
+}
+
+/// Per source (mixture order), every channel it has: its own statistics, at its own width
+/// (none for one source).
 pub(super) fn per_source(
     rate: &RateState,
     manifest: &Manifest,

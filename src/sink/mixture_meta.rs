@@ -8,67 +8,28 @@ use serde_json::{json, Map, Value};
 use super::documents::{normalization_json, Built};
 use crate::plan::mixture::{balanced, windows};
 use crate::plan::{conversion, Conversion, Plan, ProfilePlan};
+use crate::source::SourcePart;
 use crate::spec::ResampleMethod;
 
 /// Adds the mixture's fields to `doc` (a one-source `meta.json` has none of them).
 pub fn add(doc: &mut Value, plan: &Plan, profile: &ProfilePlan, built: &Built) {
     let parts = &plan.source.parts;
     let mixture = plan.mixture.clone().unwrap_or_default();
-    let source_of = |id: u64| parts.iter().rposition(|p| p.id_offset <= id).unwrap_or(0);
-    let episode_sources: Vec<usize> = profile.episodes.iter().map(|e| source_of(e.id)).collect();
+    let episode_sources: Vec<usize> = profile
+        .episodes
+        .iter()
+        .map(|e| source_of(parts, e.id))
+        .collect();
     let weights: Vec<f64> = parts.iter().map(|p| p.weight).collect();
     let (train, val) = (
         windows(profile, parts, true),
         windows(profile, parts, false),
     );
-    let method = match profile.conversion {
-        Conversion::Resample { method, .. } => method,
-        Conversion::Decimate { .. } => ResampleMethod::Fourier,
-    };
     let mut sources = Map::new();
     for (s, part) in parts.iter().enumerate() {
-        let local = |ids: &[u64]| -> Vec<u64> {
-            let own = ids.iter().filter(|&&id| source_of(id) == s);
-            own.map(|id| id - part.id_offset).collect()
-        };
-        let stored: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();
-        // From the source's own rate straight to the profile's (the rows are the same as
-        // through the mixture's rate when both steps decimate).
-        let rate = conversion(part.fps, profile.fps, method).ok();
-        let widths: Map<String, Value> = plan
-            .source
-            .channels
-            .iter()
-            .zip(&part.widths)
-            .map(|(ch, w)| (ch.name.clone(), json!(w)))
-            .collect();
-        let normalization = built
-            .source_normalizers
-            .get(s)
-            .map(|n| normalization_json(profile, n))
-            .unwrap_or_default();
-        sources.insert(
-            part.name.clone(),
-            json!({
-                "index": s,
-                "format": part.format.name(),
-                "path": part.path,
-                "fingerprint": part.fingerprint,
-                "weight": part.weight,
-                "fps": part.fps,
-                "id_offset": part.id_offset,
-                "rate": {
-                    "source_fps": part.fps,
-                    "factor": rate.and_then(|r| r.factor()),
-                    "conversion": rate,
-                },
-                "episodes": local(&stored),
-                "split": { "train": local(&plan.split.train), "val": local(&plan.split.val) },
-                "widths": widths,
-                "num_samples": { "train": train[s], "val": val[s] },
-                "normalization": normalization,
-            }),
-        );
+        let counts = (train[s], val[s]);
+        let entry = source_entry(plan, profile, built, s, counts);
+        sources.insert(part.name.clone(), entry);
     }
     let names: Vec<&str> = parts.iter().map(|p| p.name.as_str()).collect();
     let Some(map) = doc.as_object_mut() else {
@@ -93,4 +54,64 @@ pub fn add(doc: &mut Value, plan: &Plan, profile: &ProfilePlan, built: &Built) {
         }),
     );
     map.insert("sources".into(), Value::Object(sources));
+}
+
+fn source_of(parts: &[SourcePart], id: u64) -> usize {
+    parts.iter().rposition(|p| p.id_offset <= id).unwrap_or(0)
+}
+
+/// `sources.<name>` of `meta.json`: source `s`'s rate, episodes and split (its own ids), widths,
+/// samples (`counts`: train, val) and normalization.
+fn source_entry(
+    plan: &Plan,
+    profile: &ProfilePlan,
+    built: &Built,
+    s: usize,
+    counts: (usize, usize),
+) -> Value {
+    let parts = &plan.source.parts;
+    let part = &parts[s];
+    let method = match profile.conversion {
+        Conversion::Resample { method, .. } => method,
+        Conversion::Decimate { .. } => ResampleMethod::Fourier,
+    };
+    let local = |ids: &[u64]| -> Vec<u64> {
+        let own = ids.iter().filter(|&&id| source_of(parts, id) == s);
+        own.map(|id| id - part.id_offset).collect()
+    };
+    let stored: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();
+    // From the source's own rate straight to the profile's (the rows are the same as through
+    // the mixture's rate when both steps decimate).
+    let rate = conversion(part.fps, profile.fps, method).ok();
+    let widths: Map<String, Value> = plan
+        .source
+        .channels
+        .iter()
+        .zip(&part.widths)
+        .map(|(ch, w)| (ch.name.clone(), json!(w)))
+        .collect();
+    let normalization = built
+        .source_normalizers
+        .get(s)
+        .map(|n| normalization_json(profile, n))
+        .unwrap_or_default();
+    json!({
+        "index": s,
+        "format": part.format.name(),
+        "path": part.path,
+        "fingerprint": part.fingerprint,
+        "weight": part.weight,
+        "fps": part.fps,
+        "id_offset": part.id_offset,
+        "rate": {
+            "source_fps": part.fps,
+            "factor": rate.and_then(|r| r.factor()),
+            "conversion": rate,
+        },
+        "episodes": local(&stored),
+        "split": { "train": local(&plan.split.train), "val": local(&plan.split.val) },
+        "widths": widths,
+        "num_samples": { "train": counts.0, "val": counts.1 },
+        "normalization": normalization,
+    })
 }
