@@ -213,6 +213,7 @@ fn writers(c: &mut Criterion) {
                 scratch: out.path(),
                 episode_ends: &ends,
                 episode_ids: &ids,
+                episode_sources: &[],
                 tasks: &Default::default(),
                 spill_budget: chunkc::exec::spill_budget(),
             };
@@ -243,6 +244,7 @@ fn writers(c: &mut Criterion) {
                     scratch: &dir.join(".scratch"),
                     episode_ends: &ends,
                     episode_ids: &ids,
+                    episode_sources: &[],
                     tasks: &Default::default(),
                     spill_budget: chunkc::exec::spill_budget(),
                 };

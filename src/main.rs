@@ -278,16 +278,20 @@ fn run(cli: Cli) -> Result<(), Error> {
         }
         Command::Audit { spec } => {
             let spec = LoadedSpec::load(&spec)?;
-            let (report, paths) = commands::audit_report(&spec)?;
-            print!("{}", report.summary());
-            if let Some(doctor) = report.doctor_seconds {
-                eprintln!("the dataset doctor took {doctor:.2} s");
+            for (name, report, paths) in commands::audit_report(&spec)? {
+                if !name.is_empty() {
+                    println!("source `{name}`:");
+                }
+                print!("{}", report.summary());
+                if let Some(doctor) = report.doctor_seconds {
+                    eprintln!("the dataset doctor took {doctor:.2} s");
+                }
+                eprintln!(
+                    "wrote {} and {}",
+                    tidy(&paths[0]).display(),
+                    tidy(&paths[1]).display()
+                );
             }
-            eprintln!(
-                "wrote {} and {}",
-                tidy(&paths[0]).display(),
-                tidy(&paths[1]).display()
-            );
         }
         Command::Init { path, out, fps } => {
             let options = init_options(fps)?;

@@ -33,9 +33,27 @@ pub fn audit(spec: &LoadedSpec, doctor: bool) -> Result<Audit> {
     })
 }
 
-/// `chunkc audit`: the audit with its repair examples, written as JSON and HTML; returns the
-/// report and the two paths.
-pub fn audit_report(spec: &LoadedSpec) -> Result<(AuditReport, Vec<PathBuf>)> {
+/// One source's audit as `chunkc audit` wrote it: the source's name in a mixture (empty for
+/// `[source]`), the report, and the JSON and HTML paths.
+pub type Written = (String, AuditReport, Vec<PathBuf>);
+
+/// `chunkc audit`: the audit with its repair examples, written as JSON and HTML, under
+/// `audit/` (a mixture: each source's under `audit/<name>/`).
+pub fn audit_report(spec: &LoadedSpec) -> Result<Vec<Written>> {
+    let mut out = Vec::new();
+    for view in spec.source_views() {
+        let dir = match spec.is_mixture() {
+            true => crate::analyze::audit_dir(spec).join(&view.name),
+            false => crate::analyze::audit_dir(spec),
+        };
+        let (report, paths) = audit_one(&view.spec, &dir)?;
+        out.push((view.name, report, paths));
+    }
+    Ok(out)
+}
+
+/// The audit of one source, written into `dir`.
+fn audit_one(spec: &LoadedSpec, dir: &std::path::Path) -> Result<(AuditReport, Vec<PathBuf>)> {
     let Audit {
         source,
         mut report,
@@ -45,7 +63,7 @@ pub fn audit_report(spec: &LoadedSpec) -> Result<(AuditReport, Vec<PathBuf>)> {
     let title = format!("chunkc audit: {}", spec.file.display());
     let html = crate::report::audit_html(&report, &title);
     let paths = files::write_files(
-        &crate::analyze::audit_dir(spec),
+        dir,
         &[
             ("audit.json", report.to_json().into_bytes()),
             ("report.html", html.into_bytes()),

@@ -113,6 +113,10 @@ fn set_up(
         .map(|(r, job)| rate::RateState::new(r, job.conversion, manifest, staging, budget))
         .collect();
     let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
+    let sources: Vec<usize> = match manifest.parts.is_empty() {
+        true => Vec::new(),
+        false => ids.iter().map(|&id| manifest.source_of(id)).collect(),
+    };
     let mut sinks: Vec<(usize, Box<dyn Sink>)> = Vec::with_capacity(stale.len());
     let mut dirs = Vec::with_capacity(stale.len());
     for p in stale {
@@ -125,6 +129,7 @@ fn set_up(
             scratch: &staging.scratch_dir(),
             episode_ends: &rates[rate].ends,
             episode_ids: &ids,
+            episode_sources: &sources,
             tasks: &manifest.tasks,
             spill_budget: budget,
         })?;

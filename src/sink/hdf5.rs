@@ -6,6 +6,7 @@
 //! /data/<channel>      (N, ...) float32 (normalized low-dim) or uint8 (images, HWC)
 //! /meta/episode_ends   (E,) int64  exclusive ends of each episode in /data
 //! /meta/episode_ids    (E,) int64  source episode ids, in stored order
+//! /meta/episode_sources (E,) int64 a training mixture's: each episode's source index
 //! /index/train         (S, 4) int64 rows of (episode position, current step t, limit, sub)
 //! /index/val           (S, 4) int64
 //! ```
@@ -20,6 +21,7 @@ use hdf5::{Dataset, File, Group};
 use ndarray::{ArrayViewD, IxDyn};
 
 use super::hdf5_chunks::{self, Stored, Windows};
+use super::hdf5_rows::write_rows;
 use super::hdf5_lossy::LossyFrames;
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::bytes::f32_bytes;
@@ -79,20 +81,6 @@ fn group(parent: &Group, name: &str) -> Result<Group> {
 /// HDF5 stores frames raw or deflated; it never asks for PNGs, and JPEGs go to `hdf5_lossy`.
 fn no_png() -> Error {
     Error::Internal("HDF5 frames are never PNG-encoded, nor JPEGs outside hdf5_lossy".into())
-}
-
-/// Writes `values` (whole rows of `ds`, flattened) at rows `lo..` of `ds`, through HDF5.
-pub(super) fn write_rows<T: hdf5::H5Type>(ds: &Dataset, lo: usize, values: &[T]) -> Result<()> {
-    let shape = ds.shape();
-    let rows = values.len() / shape[1..].iter().product::<usize>().max(1);
-    let mut dims = shape.clone();
-    dims[0] = rows;
-    let view = ArrayViewD::from_shape(IxDyn(&dims), values)
-        .map_err(|e| Error::Internal(format!("rows of {}: {e}", ds.name())))?;
-    let mut sel: Vec<hdf5::SliceOrIndex> = vec![(lo..lo + rows).into()];
-    sel.extend(shape[1..].iter().map(|&d| hdf5::SliceOrIndex::from(0..d)));
-    ds.write_slice(view, hdf5::Hyperslab::from(sel))?;
-    Ok(())
 }
 
 fn text(s: &str) -> Result<VarLenUnicode> {
@@ -244,7 +232,12 @@ impl Hdf5Writer {
         let meta = group(root, "meta")?;
         let ends: Vec<i64> = episode_ends.iter().map(|&e| e as i64).collect();
         let ids: Vec<i64> = ids.iter().map(|&e| e as i64).collect();
-        for (name, values) in [("episode_ends", &ends), ("episode_ids", &ids)] {
+        let sources: Vec<i64> = ctx.episode_sources.iter().map(|&s| s as i64).collect();
+        let mut meta_arrays = vec![("episode_ends", &ends), ("episode_ids", &ids)];
+        if !sources.is_empty() {
+            meta_arrays.push(("episode_sources", &sources));
+        }
+        for (name, values) in meta_arrays {
             meta.new_dataset::<i64>()
                 .shape([values.len()])
                 .obj_track_times(false)

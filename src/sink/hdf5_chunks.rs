@@ -17,7 +17,7 @@ use hdf5::{File, Group};
 use hdf5_sys::h5::hsize_t;
 use hdf5_sys::h5i::hid_t;
 
-use super::hdf5::write_rows;
+use super::hdf5_rows::write_rows;
 use crate::error::{Error, Result};
 use crate::spec::Padding;
 use crate::stats::normalize::Normalizer;

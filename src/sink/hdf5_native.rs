@@ -3,7 +3,7 @@
 //!
 //! [`NativeHdf5Writer`] is the [`Sink`]: it keeps the raw low-dim stores until `finish`, writes
 //! each run of frames into the datasets the [`NativeLayout`] names (through
-//! [`super::hdf5::write_rows`], as chunkc's own HDF5 layouts do), and hands every episode's raw
+//! [`super::hdf5_rows::write_rows`], as chunkc's own HDF5 layouts do), and hands every episode's raw
 //! low-dim rows to the layout at the end. A layout says only which file holds an episode, where
 //! its frames go, and what it writes per episode. The helpers below create files, groups and
 //! datasets with object time tracking off, so the bytes depend only on the contents.
@@ -14,7 +14,7 @@ use std::sync::Arc;
 
 use hdf5::{Dataset, File, Group};
 
-use super::hdf5::write_rows;
+use super::hdf5_rows::write_rows;
 use super::{FrameEncoding, Frames, Sink, WindowIndex};
 use crate::error::{Error, Result};
 use crate::plan::ProfileChannel;

@@ -6,7 +6,8 @@
 //!                                   <channel> FixedSizeList<float32> raw (low-dim) or
 //!                                   struct {bytes: PNG, path: null} (images), timestamp
 //!                                   float32 = frame_index / fps, frame_index, episode_index
-//!                                   (source id), index (global row), task_index (int64)
+//!                                   (source id), index (global row), task_index (int64);
+//!                                   a training mixture's `source_index` (int64)
 //! meta/info.json                    codebase_version "v3.0", fps, features, totals, paths
 //! meta/episodes/chunk-000/file-000.parquet  one row per episode
 //! meta/tasks.parquet                task_index, the task strings as pandas' index (LeRobot's
@@ -34,35 +35,32 @@
 //! own writer does.
 
 use std::fs::File;
-use std::io::{BufWriter, Read, Seek, Write};
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use arrow_array::builder::{BinaryBuilder, ListBuilder, StringBuilder};
-use arrow_array::{
-    Array, ArrayRef, FixedSizeListArray, Float32Array, Int64Array, RecordBatch, StringArray,
-    StructArray,
-};
-use arrow_schema::{DataType, Field, Fields, Schema};
+use arrow_array::builder::{ListBuilder, StringBuilder};
+use arrow_array::{ArrayRef, Float32Array, RecordBatch, StringArray};
+use arrow_schema::{DataType, Field, Schema};
 use parquet::arrow::ArrowWriter;
 use parquet::basic::{Compression as PqCompression, ZstdLevel};
 use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use serde_json::{json, Value};
 
-use super::video_encode::{self, Background, StreamShape};
+use super::lerobot_columns::{err, i64_col, CREATED_BY, image_fields, lowdim_column, lowdim_type, video_shape};
+use super::lerobot_spill::{FrameSpill, SpillReader};
+use super::lerobot_tasks::Tasks;
+pub use super::lerobot_tasks::tasks_table;
+use super::video_encode::{self, Background};
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
 use crate::source::ChannelKind;
 use crate::spec::{Compression, VideoSettings};
 use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
-use crate::window::Ends;
 
 pub const DATA_PATH: &str = crate::spec::OutputFormat::Parquet.files().data;
 pub const INDEX_FILE: &str = "chunkc_index.parquet";
 pub const STATS_PATH: &str = "meta/stats.json";
-const TASK: &str = "chunkc";
-const CREATED_BY: &str = "chunkc";
 const DEFAULT_ZSTD_LEVEL: u32 = 3;
 /// LeRobot's `video_path` template (v3.0).
 pub const VIDEO_PATH: &str = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4";
@@ -78,6 +76,8 @@ pub struct LerobotWriter {
     props: WriterProperties,
     ends: Vec<u64>,
     ids: Vec<u64>,
+    /// A mixture's: each stored episode's source, the `source_index` column (empty: none).
+    sources: Vec<usize>,
     /// The tasks, in the order their first episode is stored, and each stored episode's.
     tasks: Tasks,
     /// Per channel: the name, its shape, its kind.
@@ -93,243 +93,6 @@ pub struct LerobotWriter {
     val: Vec<[i64; 4]>,
 }
 
-fn err(e: impl std::fmt::Display) -> Error {
-    Error::output(format!("parquet: {e}"))
-}
-
-/// One camera's PNG frames in stored-row order, back to back in a scratch file.
-struct FrameSpill {
-    path: PathBuf,
-    file: BufWriter<File>,
-    /// Exclusive end of each frame in the file.
-    ends: Vec<u64>,
-}
-
-impl FrameSpill {
-    fn create(path: PathBuf, frames: usize) -> Result<Self> {
-        if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent).at("create", parent)?;
-        }
-        let file = File::options()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&path)
-            .at("create", &path)?;
-        Ok(FrameSpill {
-            file: BufWriter::with_capacity(1 << 20, file),
-            path,
-            ends: Vec::with_capacity(frames),
-        })
-    }
-
-    fn push(&mut self, frames: &Frames) -> Result<()> {
-        self.file
-            .write_all(frames.bytes())
-            .at("write", &self.path)?;
-        let mut end = self.ends.last().copied().unwrap_or(0);
-        for f in frames.iter() {
-            end += f.len() as u64;
-            self.ends.push(end);
-        }
-        Ok(())
-    }
-
-    /// Reads the frames back in order, `rows` at a time, and deletes the file.
-    fn into_reader(self) -> Result<SpillReader> {
-        let mut file = self
-            .file
-            .into_inner()
-            .map_err(|e| e.into_error())
-            .at("write", &self.path)?;
-        file.rewind().at("read", &self.path)?;
-        Ok(SpillReader {
-            file: std::io::BufReader::with_capacity(1 << 20, file),
-            path: self.path,
-            ends: Ends::new(self.ends),
-            row: 0,
-        })
-    }
-}
-
-struct SpillReader {
-    path: PathBuf,
-    file: std::io::BufReader<File>,
-    ends: Ends,
-    row: usize,
-}
-
-impl SpillReader {
-    /// The next `n` frames (rows `row..row + n`) as a LeRobot image column.
-    fn next(&mut self, n: usize, name: &str) -> Result<StructArray> {
-        let (lo, hi) = (self.row, self.row + n);
-        if hi > self.ends.len() {
-            return Err(Error::Internal(format!("missing frames of {name}")));
-        }
-        let (start, end) = {
-            let r = self.ends.rows(lo..hi);
-            (r.start as u64, r.end as u64)
-        };
-        let mut bytes = vec![0u8; (end - start) as usize];
-        self.file.read_exact(&mut bytes).at("read", &self.path)?;
-        let mut column = BinaryBuilder::with_capacity(n, bytes.len());
-        let mut paths = StringBuilder::new();
-        let mut at = start;
-        for &end in &self.ends[lo..hi] {
-            column.append_value(&bytes[(at - start) as usize..(end - start) as usize]);
-            paths.append_null();
-            at = end;
-        }
-        self.row = hi;
-        StructArray::try_new(
-            image_fields(),
-            vec![Arc::new(column.finish()), Arc::new(paths.finish())],
-            None,
-        )
-        .map_err(err)
-    }
-}
-
-impl Drop for SpillReader {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.path);
-    }
-}
-
-fn image_fields() -> Fields {
-    Fields::from(vec![
-        Field::new("bytes", DataType::Binary, true),
-        Field::new("path", DataType::Utf8, true),
-    ])
-}
-
-fn item() -> Arc<Field> {
-    Arc::new(Field::new("item", DataType::Float32, true))
-}
-
-/// The per-step shape's axes as list levels: LeRobot stores a `(a, b)` feature as a list of `a`
-/// lists of `b` values, so each axis is one level of fixed-size list, and a one-value feature
-/// (`shape: [1]` in info.json, or a scalar) as a plain `float32` column: its `datasets`
-/// features make `(1,)` a `Value`, and `LeRobotDataset` cannot cast a one-item list to it.
-fn axes(shape: &[usize]) -> Vec<i32> {
-    match shape {
-        [] | [1] => Vec::new(),
-        _ => shape.iter().map(|&d| d as i32).collect(),
-    }
-}
-
-/// The arrow type of a low-dim feature of `shape`: fixed-size lists nested once per axis.
-fn lowdim_type(shape: &[usize]) -> DataType {
-    let mut field = item();
-    let mut dt = DataType::Float32;
-    for &d in axes(shape).iter().rev() {
-        dt = DataType::FixedSizeList(field, d);
-        field = Arc::new(Field::new("item", dt.clone(), true));
-    }
-    dt
-}
-
-/// Rows of `shape` (row-major `values`) as the nested fixed-size lists of [`lowdim_type`].
-fn lowdim_column(values: Vec<f32>, shape: &[usize]) -> Result<ArrayRef> {
-    let mut array: ArrayRef = Arc::new(Float32Array::from(values));
-    let mut field = item();
-    for &d in axes(shape).iter().rev() {
-        let list = FixedSizeListArray::try_new(field, d, array, None).map_err(err)?;
-        field = Arc::new(Field::new("item", list.data_type().clone(), true));
-        array = Arc::new(list);
-    }
-    Ok(array)
-}
-
-fn i64_col(values: impl IntoIterator<Item = i64>) -> ArrayRef {
-    Arc::new(Int64Array::from_iter_values(values))
-}
-
-/// The stream of camera `name` of per-step `shape`: RGB frames only (LeRobot's videos are
-/// three-channel); any other camera is an error that says to keep it PNG.
-fn video_shape(name: &str, shape: &[usize], fps: f64) -> Result<StreamShape> {
-    match shape {
-        [height, width, 3] => Ok(StreamShape {
-            height: *height,
-            width: *width,
-            fps,
-        }),
-        _ => Err(Error::output(format!(
-            "channel `{name}`: `image_encoding = \"video\"` stores (height, width, 3) RGB frames, \
-             and this channel's frames are {shape:?}; use `image_encoding = \"png\"`"
-        ))),
-    }
-}
-
-/// The export's tasks: each distinct task once, numbered in the order of the first stored
-/// episode that has it, and each stored episode's number.
-struct Tasks {
-    names: Vec<String>,
-    of_episode: Vec<usize>,
-}
-
-impl Tasks {
-    /// Episodes without a task of their own get [`TASK`] (LeRobot needs one for every frame).
-    fn of(ids: &[u64], tasks: &std::collections::BTreeMap<u64, String>) -> Tasks {
-        // Looked up by string: OXE sets have tens of thousands of distinct instructions.
-        let mut numbers: std::collections::HashMap<&str, usize> = Default::default();
-        let mut names: Vec<String> = Vec::new();
-        let of_episode = ids
-            .iter()
-            .map(|id| {
-                let task = tasks.get(id).map_or(TASK, String::as_str);
-                *numbers.entry(task).or_insert_with(|| {
-                    names.push(task.to_string());
-                    names.len() - 1
-                })
-            })
-            .collect();
-        if names.is_empty() {
-            names.push(TASK.to_string());
-        }
-        Tasks { names, of_episode }
-    }
-}
-
-/// `meta/tasks.parquet` as LeRobot writes it (`pandas.DataFrame.to_parquet` of a frame whose
-/// index is the task strings): `task_index`, then the strings in `__index_level_0__`, with
-/// the `pandas` schema metadata that makes `pd.read_parquet` give them back as the index.
-pub fn tasks_table(names: &[String]) -> Result<(Arc<Schema>, RecordBatch)> {
-    const INDEX: &str = "__index_level_0__";
-    let pandas = json!({
-        "index_columns": [INDEX],
-        "column_indexes": [{"name": null, "field_name": null, "pandas_type": "unicode",
-                            "numpy_type": "object", "metadata": {"encoding": "UTF-8"}}],
-        "columns": [
-            {"name": "task_index", "field_name": "task_index", "pandas_type": "int64",
-             "numpy_type": "int64", "metadata": null},
-            {"name": null, "field_name": INDEX, "pandas_type": "unicode",
-             "numpy_type": "object", "metadata": null},
-        ],
-        "attributes": {},
-        "creator": {"library": CREATED_BY, "version": env!("CARGO_PKG_VERSION")},
-    });
-    let metadata = [("pandas".to_string(), pandas.to_string())].into();
-    let schema = Arc::new(Schema::new_with_metadata(
-        vec![
-            Field::new("task_index", DataType::Int64, false),
-            Field::new(INDEX, DataType::LargeUtf8, false),
-        ],
-        metadata,
-    ));
-    let batch = RecordBatch::try_new(
-        schema.clone(),
-        vec![
-            i64_col(0..names.len() as i64),
-            Arc::new(arrow_array::LargeStringArray::from_iter_values(
-                names.iter(),
-            )),
-        ],
-    )
-    .map_err(err)?;
-    Ok((schema, batch))
-}
 
 impl LerobotWriter {
     /// Whether channels of `kind` are stored as video.
@@ -390,6 +153,7 @@ impl LerobotWriter {
             props,
             ends: ctx.episode_ends.to_vec(),
             ids: ctx.episode_ids.to_vec(),
+            sources: ctx.episode_sources.to_vec(),
             tasks: Tasks::of(ctx.episode_ids, ctx.tasks),
             raw: channels.iter().map(|_| None).collect(),
             frames: channels
@@ -464,6 +228,9 @@ impl LerobotWriter {
         ] {
             fields.push(Field::new(name, dt, false));
         }
+        if !self.sources.is_empty() {
+            fields.push(Field::new("source_index", DataType::Int64, false));
+        }
         let schema = Arc::new(Schema::new(fields));
         let mut frames: Vec<Option<SpillReader>> = std::mem::take(&mut self.frames)
             .into_iter()
@@ -507,6 +274,9 @@ impl LerobotWriter {
             cols.push(i64_col((lo..hi).map(|i| i as i64)));
             let task = this.tasks.of_episode[e] as i64;
             cols.push(i64_col((0..n).map(|_| task)));
+            if let Some(&source) = this.sources.get(e) {
+                cols.push(i64_col((0..n).map(|_| source as i64)));
+            }
             RecordBatch::try_new(schema.clone(), cols).map_err(err)
         });
         this.write_parquet(DATA_PATH, schema.clone(), batches)
@@ -622,7 +392,11 @@ impl LerobotWriter {
             ("episode_index", "int64"),
             ("index", "int64"),
             ("task_index", "int64"),
+            ("source_index", "int64"),
         ] {
+            if name == "source_index" && self.sources.is_empty() {
+                continue;
+            }
             features.insert(
                 name.into(),
                 json!({"dtype": dtype, "shape": [1], "names": null}),
@@ -752,20 +526,5 @@ impl Sink for LerobotWriter {
         self.episodes()?;
         self.info()?;
         self.chunkc_index()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn tasks_are_numbered_by_first_stored_episode_and_default_to_chunkc() {
-        let tasks = [(7u64, "stack".to_string()), (3, "pick".to_string())].into();
-        let t = Tasks::of(&[7, 5, 3, 9, 7], &tasks);
-        assert_eq!(t.names, ["stack", TASK, "pick"]);
-        assert_eq!(t.of_episode, [0, 1, 2, 1, 0]);
-        let none = Tasks::of(&[], &Default::default());
-        assert_eq!(none.names, [TASK]);
     }
 }

@@ -11,7 +11,10 @@
 //! - `zarr` (+ `zarr_store`): a Diffusion Policy replay buffer (raw values) + the window index.
 //! - `act_episodes`: ACT's `episode_<i>.hdf5` files (raw values).
 //! - `hdf5_native`: the writer path `act_episodes` and `robomimic` share.
-//! - `lerobot`: a LeRobot v3.0 parquet dataset + the window index (raw values).
+//! - `hdf5_rows`: rows written into an HDF5 dataset (every HDF5 writer).
+//! - `lerobot`: a LeRobot v3.0 parquet dataset + the window index (raw values); its arrow
+//!   columns (`lerobot_columns`), the frames spilled until their row groups (`lerobot_spill`)
+//!   and its tasks (`lerobot_tasks`).
 //! - `png`: the PNG encoding of frames that `lerobot` stores.
 //! - `video_copy`: a source video's packets copied as an episode's file (`hdf5_video`), where
 //!   the frames are the video's own.
@@ -33,9 +36,13 @@ mod hdf5_chunks;
 mod hdf5_jpeg;
 mod hdf5_lossy;
 mod hdf5_native;
+mod hdf5_rows;
 pub mod hdf5_video;
 pub mod jpeg;
 pub mod lerobot;
+mod lerobot_columns;
+mod lerobot_spill;
+mod lerobot_tasks;
 mod mixture_meta;
 pub mod png;
 pub mod robomimic;
@@ -205,6 +212,8 @@ pub struct SinkContext<'a> {
     pub episode_ends: &'a [u64],
     /// Source episode ids, in stored order.
     pub episode_ids: &'a [u64],
+    /// A training mixture's: each stored episode's source (its index); empty for one source.
+    pub episode_sources: &'a [usize],
     /// Each episode's task (a language instruction), by source id; episodes without one are
     /// absent (the LeRobot export gives them its default task).
     pub tasks: &'a BTreeMap<u64, String>,

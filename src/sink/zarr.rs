@@ -6,6 +6,7 @@
 //!   data/<key>          (N, ...) float32 raw values (low-dim) or uint8 HWC frames (images)
 //!   meta/episode_ends   (E,) int64  exclusive ends (Diffusion Policy's key)
 //!   meta/episode_ids    (E,) int64  source episode ids, in stored order
+//!   meta/episode_sources (E,) int64 a training mixture's: each episode's source index
 //!   index/train         (S, 4) int64 rows of (episode position, current step t, limit, sub)
 //!   index/val           (S, 4) int64
 //! ```
@@ -95,6 +96,10 @@ impl ZarrWriter {
         let ids: Vec<i64> = ctx.episode_ids.iter().map(|&e| e as i64).collect();
         w.whole_i64("meta/episode_ends", &ends, &[ends.len()])?;
         w.whole_i64("meta/episode_ids", &ids, &[ids.len()])?;
+        if !ctx.episode_sources.is_empty() {
+            let sources: Vec<i64> = ctx.episode_sources.iter().map(|&s| s as i64).collect();
+            w.whole_i64("meta/episode_sources", &sources, &[sources.len()])?;
+        }
         Ok(w)
     }
 

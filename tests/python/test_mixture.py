@@ -240,20 +240,33 @@ def test_hdf5_stores_each_sources_rows_normalized_with_its_own_table_and_padding
             assert (rows[:, width:] == 0).all()
 
 
-def test_lerobot_export_is_one_dataset_whose_tasks_name_the_sources(built):
+def test_lerobot_export_is_one_dataset_with_a_source_column(built):
     root = built / "lerobot"
     meta = json.loads((root / "meta.json").read_text())
     data = pq.read_table(root / "data" / "chunk-000" / "file-000.parquet")
     tasks = pq.read_table(root / "meta" / "tasks.parquet").to_pydict()
+    info = json.loads((root / "meta" / "info.json").read_text())
+    assert info["features"]["source_index"] == {"dtype": "int64", "shape": [1], "names": None}
     episode = np.asarray(data.column("episode_index").to_pylist())
+    source = np.asarray(data.column("source_index").to_pylist())
     task = np.asarray(data.column("task_index").to_pylist())
     assert sorted(set(episode.tolist())) == meta["episodes"]
-    names = dict(zip(tasks["task_index"], tasks.get("task", tasks.get("__index_level_0__", []))))
-    # Push-T stores no task: its episodes' task is their source's name.
+    names = dict(zip(tasks["task_index"], tasks["__index_level_0__"]))
     for e, s in zip(meta["episodes"], meta["episode_sources"]):
+        assert set(source[episode == e].tolist()) == {s}
         if s == 1:
+            # Push-T stores no task: its episodes' task is their source's name.
             assert {names[t] for t in task[episode == e]} == {"sim"}
     assert np.asarray(data.column("action").to_pylist()).shape[1] == 32
+
+
+def test_hdf5_and_zarr_keep_each_episodes_source(built):
+    import h5py
+
+    for profile, read in (("act", lambda p: h5py.File(p / "data.h5")["meta/episode_sources"][...]),
+                          ("dp", lambda p: zarr.open(str(p / "data.zarr"), mode="r")["meta/episode_sources"][...])):
+        meta = json.loads((built / profile / "meta.json").read_text())
+        assert read(built / profile).tolist() == meta["episode_sources"]
 
 
 def test_lerobot_dataset_opens_the_mixture_export(built):
@@ -261,9 +274,20 @@ def test_lerobot_dataset_opens_the_mixture_export(built):
     meta = json.loads((built / "lerobot" / "meta.json").read_text())
     ds = dataset.LeRobotDataset("chunkc/mixture", root=built / "lerobot")
     assert ds.num_episodes == len(meta["episodes"])
-    item = ds[len(ds) - 1]
-    assert item["task"] == "sim"
-    assert tuple(item["action"].shape) == (32,)
+    first, last = ds[0], ds[len(ds) - 1]
+    assert int(first["source_index"]) == 0 and int(last["source_index"]) == 1
+    assert last["task"] == "sim"
+    assert tuple(last["action"].shape) == (32,)
+
+
+def test_audit_writes_each_sources_report(tmp_path):
+    spec = mixture_spec(tmp_path)
+    proc = run_chunkc("audit", spec)
+    assert "source `own`:" in proc.stdout and "source `sim`:" in proc.stdout
+    for name, fps in (("own", 30.0), ("sim", 10.0)):
+        report = json.loads((tmp_path / "out" / "audit" / name / "audit.json").read_text())
+        assert report["source_fps"] == fps
+        assert (tmp_path / "out" / "audit" / name / "report.html").exists()
 
 
 def hashes(root: Path):
