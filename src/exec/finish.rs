@@ -240,7 +240,7 @@ fn write_documents(
         ),
     )?;
     write(STATS_FILE, documents::stats_json(p, stats))?;
-    super::mixture_stats::write_source_stats(shared.manifest, p, all_stats.sources, dir)?;
+    super::mixture_stats::write_source_stats(shared, p, all_stats.sources, dir)?;
     if p.values.format == crate::spec::OutputFormat::Parquet {
         // LeRobot v3.0 reads its statistics from `meta/stats.json`.
         let path = dir.join(sink::lerobot::STATS_PATH);

@@ -365,3 +365,17 @@ def test_a_channel_a_source_lacks_is_refused_unless_padded(tmp_path):
     meta = json.loads((tmp_path / "out" / "dp" / "meta.json").read_text())
     assert meta["sources"]["sim"]["widths"]["observation.state"] == 0
     assert meta["sources"]["sim"]["normalization"]["observation.state"]["scale"] == [1.0] * 26
+
+
+def test_each_sources_codebase_statistics_files_describe_that_source(built):
+    import pickle
+
+    meta = json.loads((built / "act" / "meta.json").read_text())
+    for source in ("own", "sim"):
+        rows = train_rows(meta, source, "action")
+        act = pickle.loads((built / "act" / "sources" / source / "dataset_stats.pkl").read_bytes())
+        np.testing.assert_allclose(act["action_mean"], rows.mean(0), rtol=1e-6)
+        np.testing.assert_allclose(act["action_std"], np.maximum(rows.std(0, ddof=1), 1e-2), rtol=1e-6)
+        lerobot = json.loads((built / "act" / "sources" / source / "lerobot_stats.json").read_text())
+        np.testing.assert_allclose(lerobot["action"]["q99"], np.percentile(rows, 99, axis=0), rtol=1e-6)
+        assert lerobot["action"]["count"] == [len(rows)]
