@@ -514,8 +514,9 @@ _BACKENDS = {"hdf5": _Hdf5Backend, "zarr": _ZarrBackend, "parquet": _ParquetBack
 def balanced_weights(balance, weights, counts):
     """A mixture's balanced probabilities per source (`meta.json` "mixture" "weights"): from the
     sources' raw `weights` and `counts` (n_s, their windows in the split). "weights": w_s / sum w;
-    "steps": w_s n_s / sum w n (Octo's balance_weights); "uniform": 1 / S'. A source without
-    windows gets 0 and the others share 1 (all 0 when no source has a window)."""
+    "steps": w_s n_s / sum w n (Octo's balance_weights); "uniform": 1 / S' over the S' sources
+    with windows and a positive weight. A source without windows, or without weight, gets 0 and
+    the others share 1 (all 0 when no source has a window)."""
     w = np.asarray(weights, dtype=np.float64)
     n = np.asarray(counts, dtype=np.int64)
     if balance == "weights":
@@ -523,7 +524,7 @@ def balanced_weights(balance, weights, counts):
     elif balance == "steps":
         p = w * n
     elif balance == "uniform":
-        p = (n > 0).astype(np.float64)
+        p = ((n > 0) & (w > 0)).astype(np.float64)
     else:
         raise ValueError(f"mixture balance {balance!r}: one of weights, steps, uniform")
     total = p.sum()
@@ -1347,12 +1348,15 @@ def make_dataloader(
     pin_memory=True,
     prefetch_factor=2,
     shuffle=None,
+    seed=0,
     **dataset_kwargs,
 ):
     """A torch DataLoader over ChunkedDataset (requires torch). Workers open the file lazily,
     one handle each; `prefetch_factor` applies only with workers. `num_workers=None` is 4, or
     the number of CPUs this process may use when fewer (torch warns about more workers than
-    CPUs)."""
+    CPUs). Over a training mixture, a shuffled loader draws with `ds.sampler(len(ds), seed)`,
+    so that each source comes with its balanced weight: call `loader.sampler.set_epoch(epoch)`
+    at each epoch for new draws."""
     import torch
     import torch.utils.data
 
@@ -1363,6 +1367,9 @@ def make_dataloader(
     if shuffle is None:
         shuffle = split == "train"
     extra = {"prefetch_factor": prefetch_factor, "persistent_workers": True} if num_workers > 0 else {}
+    if shuffle and ds.source_names is not None:
+        extra["sampler"] = ds.sampler(len(ds), seed)
+        shuffle = False
     return torch.utils.data.DataLoader(
         ds,
         batch_size=batch_size,

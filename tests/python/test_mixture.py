@@ -17,7 +17,7 @@ import pyarrow.parquet as pq
 import pytest
 import zarr
 
-from conftest import PUSHT, REPO, model_tier, run_chunkc
+from conftest import PUSHT, REPO, import_loader, model_tier, run_chunkc
 
 G1 = REPO / "tests" / "data" / "lerobot_g1_subset"
 STATS_KEYS = [("mean", None), ("min", None), ("max", None), ("p001", 0.1), ("p999", 99.9),
@@ -121,7 +121,7 @@ def assert_stats(got, rows, dims=None):
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     d = tmp_path_factory.mktemp("mixture")
-    run_chunkc("build", "-q", mixture_spec(d))
+    run_chunkc("build", "-q", "-j", "2", mixture_spec(d))
     return d / "out"
 
 
@@ -379,3 +379,20 @@ def test_each_sources_codebase_statistics_files_describe_that_source(built):
         lerobot = json.loads((built / "act" / "sources" / source / "lerobot_stats.json").read_text())
         np.testing.assert_allclose(lerobot["action"]["q99"], np.percentile(rows, 99, axis=0), rtol=1e-6)
         assert lerobot["action"]["count"] == [len(rows)]
+
+
+def test_make_dataloader_draws_the_sources_with_their_weights(built):
+    pytest.importorskip("torch")
+    loader = import_loader(built / "dp")
+    dl = loader.make_dataloader(built / "dp", "train", batch_size=256, num_workers=0, seed=3)
+    ds = dl.dataset
+    assert ds.source_names == ["own", "sim"]
+    drawn = np.asarray(dl.sampler.indices)
+    assert len(drawn) == len(ds)
+    share = np.bincount(ds.window_sources[drawn], minlength=2) / len(drawn)
+    # One epoch of draws (every training window once on average) at p = 0.7.
+    assert abs(share[0] - 0.7) < 4 * np.sqrt(0.7 * 0.3 / len(drawn))
+    batch = next(iter(dl))
+    assert batch["action_dim_mask"].shape == (256, 32)
+    own = batch["source"] == 0
+    assert batch["action_dim_mask"][own].sum(1).eq(26).all() and batch["action_dim_mask"][~own].sum(1).eq(2).all()
