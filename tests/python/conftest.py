@@ -11,6 +11,7 @@ import zarr
 
 REPO = Path(__file__).resolve().parents[2]
 PUSHT = REPO / "tests" / "data" / "pusht_subset.zarr"
+G1 = REPO / "tests" / "data" / "lerobot_g1_subset"
 
 
 def model_tier(module: str):
@@ -96,6 +97,64 @@ def write_spec(directory: Path, profiles: str, source: Path = PUSHT, fps: float 
     spec = directory / "spec.toml"
     spec.write_text("\n".join(lines) + "\n")
     return spec
+
+
+MIXTURE_PROFILES = """
+[profiles.dp]
+preset = "diffusion_policy"
+fps = 10
+format = "zarr"
+
+[profiles.act]
+preset = "act"
+fps = 10
+chunk = 8
+
+[profiles.lerobot]
+preset = "diffusion_policy"
+fps = 10
+format = "parquet"
+"""
+
+
+def write_mixture_spec(directory: Path, mixture='pad_to = { action = 32, "observation.state" = 32 }',
+                 own_extra="weight = 0.7", sim_extra="weight = 0.3", profiles=MIXTURE_PROFILES,
+                 split="val_fraction = 0.25\nseed = 0") -> Path:
+    """A training mixture in `directory`: the G1 humanoid subset (30 Hz, 26-wide action and
+    state) as `own` and Push-T (10 Hz, 2 and 5) as `sim`, with `[mixture]` `mixture`."""
+    text = f"""version = 1
+
+[sources.own]
+format = "lerobot"
+path = "{G1}"
+{own_extra}
+[sources.own.channels]
+action = "action"
+"observation.state" = "observation.state"
+
+[sources.sim]
+format = "diffusion_policy_zarr"
+path = "{PUSHT}"
+fps = 10
+{sim_extra}
+[sources.sim.channels]
+action = "action"
+"observation.state" = "state"
+
+[mixture]
+{mixture}
+
+[split]
+{split}
+
+[output]
+dir = "out"
+{profiles}
+"""
+    spec = directory / "spec.toml"
+    spec.write_text(text)
+    return spec
+
 
 
 class RawSource:

@@ -17,65 +17,12 @@ import pyarrow.parquet as pq
 import pytest
 import zarr
 
-from conftest import PUSHT, REPO, import_loader, model_tier, run_chunkc
+from conftest import G1, PUSHT, import_loader, model_tier, run_chunkc
+from conftest import write_mixture_spec as mixture_spec
 
-G1 = REPO / "tests" / "data" / "lerobot_g1_subset"
 STATS_KEYS = [("mean", None), ("min", None), ("max", None), ("p001", 0.1), ("p999", 99.9),
               ("q01", 1), ("q10", 10), ("q50", 50), ("q90", 90), ("q99", 99)]
 
-PROFILES = """
-[profiles.dp]
-preset = "diffusion_policy"
-fps = 10
-format = "zarr"
-
-[profiles.act]
-preset = "act"
-fps = 10
-chunk = 8
-
-[profiles.lerobot]
-preset = "diffusion_policy"
-fps = 10
-format = "parquet"
-"""
-
-
-def mixture_spec(directory: Path, mixture='pad_to = { action = 32, "observation.state" = 32 }',
-                 own_extra="weight = 0.7", sim_extra="weight = 0.3", profiles=PROFILES,
-                 split="val_fraction = 0.25\nseed = 0") -> Path:
-    text = f"""version = 1
-
-[sources.own]
-format = "lerobot"
-path = "{G1}"
-{own_extra}
-[sources.own.channels]
-action = "action"
-"observation.state" = "observation.state"
-
-[sources.sim]
-format = "diffusion_policy_zarr"
-path = "{PUSHT}"
-fps = 10
-{sim_extra}
-[sources.sim.channels]
-action = "action"
-"observation.state" = "state"
-
-[mixture]
-{mixture}
-
-[split]
-{split}
-
-[output]
-dir = "out"
-{profiles}
-"""
-    spec = directory / "spec.toml"
-    spec.write_text(text)
-    return spec
 
 
 def g1_episodes(key):

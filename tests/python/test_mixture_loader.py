@@ -32,9 +32,8 @@ import numpy as np
 import pytest
 import zarr
 
-from conftest import PUSHT, REPO, model_tier, run_chunkc, write_spec
+from conftest import PUSHT, REPO, model_tier, run_chunkc, write_mixture_spec, write_spec
 
-DATA = REPO / "tests" / "data"
 NAMES = ["own", "sim"]
 WEIGHTS = {"own": 0.7, "sim": 0.3}
 DRAWS = 100_000
@@ -793,30 +792,7 @@ def test_validate_checks_pooled_and_per_source_stats(padded, tmp_path, stats_fil
 
 # --- real mixtures, built by chunkc (issue 40's contract) ---------------------------------
 
-MIXTURE_SPEC = """version = 1
-[sources.own]
-format = "lerobot"
-path = "{own}"
-weight = 0.7
-[sources.own.channels]
-action = "action"
-"observation.state" = "observation.state"
-[sources.sim]
-format = "diffusion_policy_zarr"
-path = "{sim}"
-fps = 10
-weight = 0.3
-[sources.sim.channels]
-action = "action"
-"observation.state" = "state"
-[mixture]
-balance = "{balance}"
-pad_to = {{ action = 32, "observation.state" = 32 }}
-[split]
-val_fraction = 0.2
-seed = 0
-[output]
-dir = "out"
+LOADER_PROFILES = """
 [profiles.dp]
 preset = "diffusion_policy"
 fps = 10
@@ -833,15 +809,12 @@ format = "parquet"
 
 
 def build_mixture(directory, balance="weights"):
-    """The contract's mixture (G1 humanoid "own" + Push-T "sim", pad_to 32) built by chunkc; the
-    test is skipped while the binary refuses `[sources.*]`/`[mixture]` (issue 40's Rust side)."""
-    spec = directory / "spec.toml"
-    spec.write_text(MIXTURE_SPEC.format(own=DATA / "lerobot_g1_subset", sim=PUSHT, balance=balance))
-    proc = run_chunkc("build", "-q", spec, check=False)
-    if proc.returncode != 0 and ("unknown key `mixture`" in proc.stderr or "unknown key `sources`" in proc.stderr):
-        pytest.skip("the chunkc binary does not build mixtures yet ([sources.*]/[mixture]: issue 40's Rust side): "
-                    + proc.stderr.strip().splitlines()[0])
-    assert proc.returncode == 0, proc.stderr
+    """The mixture of conftest.write_mixture_spec (G1 humanoid "own" + Push-T "sim", pad_to 32)
+    built by chunkc, with `balance`."""
+    mixture = f'balance = "{balance}"\npad_to = {{ action = 32, "observation.state" = 32 }}'
+    spec = write_mixture_spec(directory, mixture=mixture, profiles=LOADER_PROFILES,
+                              split="val_fraction = 0.2\nseed = 0")
+    run_chunkc("build", "-q", spec)
     out = directory / "out"
     for profile in ("dp", "h5", "pq"):
         install_templates(out / profile)
