@@ -9,7 +9,6 @@ per-source normalization are tested in test_mixture_loader.py."""
 
 import hashlib
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
