@@ -41,7 +41,10 @@ pub fn resolve(
         tool_version: TOOL_VERSION,
         spec_hash: spec.hash.clone(),
         source: SourcePlan {
-            format: manifest.format.name(),
+            format: match manifest.parts.is_empty() {
+                true => manifest.format.name(),
+                false => "mixture",
+            },
             path: spec.source_paths().join(", "),
             fps: manifest.fps,
             episodes: manifest.episodes.len(),

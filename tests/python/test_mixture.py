@@ -148,6 +148,9 @@ def test_meta_names_each_episodes_source_and_the_balanced_weights(built):
     assert meta["sources"]["own"]["rate"]["factor"] == 3 and meta["sources"]["sim"]["rate"]["factor"] == 1
     n = meta["sources"]
     assert n["own"]["num_samples"]["train"] + n["sim"]["num_samples"]["train"] == meta["num_samples"]["train"]
+    card = (built / "dp" / "README.md").read_text()
+    assert "| format | `mixture` |" in card
+    assert f"| `sim` | `diffusion_policy_zarr` | `{PUSHT}` | 10.0 Hz | 0.3 | 8 |" in card
 
 
 @pytest.mark.parametrize("stats_mode", ["per_source", "pooled"])
