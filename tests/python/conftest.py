@@ -119,7 +119,7 @@ format = "parquet"
 
 def write_mixture_spec(directory: Path, mixture='pad_to = { action = 32, "observation.state" = 32 }',
                  own_extra="weight = 0.7", sim_extra="weight = 0.3", profiles=MIXTURE_PROFILES,
-                 split="val_fraction = 0.25\nseed = 0") -> Path:
+                 split="val_fraction = 0.25\nseed = 0", sim: Path = PUSHT) -> Path:
     """A training mixture in `directory`: the G1 humanoid subset (30 Hz, 26-wide action and
     state) as `own` and Push-T (10 Hz, 2 and 5) as `sim`, with `[mixture]` `mixture`."""
     text = f"""version = 1
@@ -134,7 +134,7 @@ action = "action"
 
 [sources.sim]
 format = "diffusion_policy_zarr"
-path = "{PUSHT}"
+path = "{sim}"
 fps = 10
 {sim_extra}
 [sources.sim.channels]

@@ -9,6 +9,7 @@ per-source normalization are tested in test_mixture_loader.py."""
 
 import hashlib
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -345,3 +346,19 @@ def test_make_dataloader_draws_the_sources_with_their_weights(built):
     assert batch["action_dim_mask"].shape == (256, 32)
     own = batch["source"] == 0
     assert batch["action_dim_mask"][own].sum(1).eq(26).all() and batch["action_dim_mask"][~own].sum(1).eq(2).all()
+
+
+def test_a_changed_file_of_one_source_rebuilds_and_names_it(tmp_path):
+    sim = shutil.copytree(PUSHT, tmp_path / "pusht.zarr")
+    spec = mixture_spec(tmp_path, sim=sim)
+    run_chunkc("build", "-q", spec)
+    assert "up to date" in run_chunkc("plan", spec).stdout
+    chunk = sorted((sim / "data" / "action").glob("[0-9]*"))[0]
+    root = zarr.open(str(sim), mode="r+")
+    values = root["data/action"][:]
+    values[0, 0] += 1.0
+    root["data/action"][:] = values
+    plan = run_chunkc("plan", spec).stdout
+    assert f"sim/data/action/{chunk.name}" in plan and "was modified" in plan, plan
+    run_chunkc("build", "-q", spec)
+    assert "up to date" in run_chunkc("plan", spec).stdout
