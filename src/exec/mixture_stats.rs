@@ -42,7 +42,12 @@ pub(super) fn write_source_stats(
         let normalizers: BTreeMap<String, Normalizer> = narrowed
             .channels
             .iter()
-            .map(|ch| (ch.name.clone(), Normalizer::fit(ch.normalize, &own[&ch.name])))
+            .map(|ch| {
+                (
+                    ch.name.clone(),
+                    Normalizer::fit(ch.normalize, &own[&ch.name]),
+                )
+            })
             .collect();
         let inputs = render::codebase::Inputs {
             profile: &narrowed,
@@ -52,8 +57,14 @@ pub(super) fn write_source_stats(
             renderer: shared.renderer,
         };
         let mut files = vec![
-            (STATS_FILE.to_string(), documents::stats_json(&narrowed, own).into_bytes()),
-            ("lerobot_stats.json".into(), render::codebase::lerobot(&narrowed, own)),
+            (
+                STATS_FILE.to_string(),
+                documents::stats_json(&narrowed, own).into_bytes(),
+            ),
+            (
+                "lerobot_stats.json".into(),
+                render::codebase::lerobot(&narrowed, own),
+            ),
         ];
         for f in render::codebase::files(&p.values.stats_formats, &inputs)? {
             files.push((f.name, f.bytes));

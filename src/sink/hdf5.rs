@@ -21,8 +21,8 @@ use hdf5::{Dataset, File, Group};
 use ndarray::{ArrayViewD, IxDyn};
 
 use super::hdf5_chunks::{self, Stored, Windows};
-use super::hdf5_rows::write_rows;
 use super::hdf5_lossy::LossyFrames;
+use super::hdf5_rows::write_rows;
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::bytes::f32_bytes;
 use crate::error::{Error, Result};

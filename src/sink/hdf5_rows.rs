@@ -19,4 +19,3 @@ pub(super) fn write_rows<T: hdf5::H5Type>(ds: &Dataset, lo: usize, values: &[T])
     ds.write_slice(view, hdf5::Hyperslab::from(sel))?;
     Ok(())
 }
-

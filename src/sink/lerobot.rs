@@ -46,10 +46,12 @@ use parquet::basic::{Compression as PqCompression, ZstdLevel};
 use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use serde_json::{json, Value};
 
-use super::lerobot_columns::{err, i64_col, CREATED_BY, image_fields, lowdim_column, lowdim_type, video_shape};
+use super::lerobot_columns::{
+    err, i64_col, image_fields, lowdim_column, lowdim_type, video_shape, CREATED_BY,
+};
 use super::lerobot_spill::{FrameSpill, SpillReader};
-use super::lerobot_tasks::Tasks;
 pub use super::lerobot_tasks::tasks_table;
+use super::lerobot_tasks::Tasks;
 use super::video_encode::{self, Background};
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
@@ -92,7 +94,6 @@ pub struct LerobotWriter {
     train: Vec<[i64; 4]>,
     val: Vec<[i64; 4]>,
 }
-
 
 impl LerobotWriter {
     /// Whether channels of `kind` are stored as video.

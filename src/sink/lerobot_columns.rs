@@ -80,4 +80,3 @@ pub(super) fn video_shape(name: &str, shape: &[usize], fps: f64) -> Result<Strea
         ))),
     }
 }
-

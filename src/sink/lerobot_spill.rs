@@ -114,4 +114,3 @@ impl Drop for SpillReader {
         let _ = std::fs::remove_file(&self.path);
     }
 }
-

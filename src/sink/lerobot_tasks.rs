@@ -82,7 +82,6 @@ pub fn tasks_table(names: &[String]) -> Result<(Arc<Schema>, RecordBatch)> {
     Ok((schema, batch))
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
