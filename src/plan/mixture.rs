@@ -58,6 +58,14 @@ pub(super) fn split(spec: &LoadedSpec, manifest: &Manifest) -> Result<Split> {
     Ok(joined)
 }
 
+/// The source format the plan names: the source's, or `mixture`.
+pub(super) fn format_name(manifest: &Manifest) -> &'static str {
+    match manifest.parts.is_empty() {
+        true => manifest.format.name(),
+        false => "mixture",
+    }
+}
+
 /// Each source's windows in one split of a profile (`train`: the training split).
 pub fn windows(
     p: &ProfilePlan,

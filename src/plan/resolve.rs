@@ -41,10 +41,7 @@ pub fn resolve(
         tool_version: TOOL_VERSION,
         spec_hash: spec.hash.clone(),
         source: SourcePlan {
-            format: match manifest.parts.is_empty() {
-                true => manifest.format.name(),
-                false => "mixture",
-            },
+            format: super::mixture::format_name(manifest),
             path: spec.source_paths().join(", "),
             fps: manifest.fps,
             episodes: manifest.episodes.len(),
