@@ -4,7 +4,7 @@
 
 use super::{split, ProfilePlan, Split};
 use crate::error::Result;
-use crate::source::Manifest;
+use crate::source::{Manifest, SourcePart};
 use crate::spec::{Balance, LoadedSpec, SplitFrom};
 
 /// Each source's episodes split on their own ids (`[split] from = "source"`: the split the
@@ -67,19 +67,11 @@ pub(super) fn format_name(manifest: &Manifest) -> &'static str {
 }
 
 /// Each source's windows in one split of a profile (`train`: the training split).
-pub fn windows(
-    p: &ProfilePlan,
-    manifest_parts: &[crate::source::SourcePart],
-    train: bool,
-) -> Vec<usize> {
+pub fn windows(p: &ProfilePlan, manifest_parts: &[SourcePart], train: bool) -> Vec<usize> {
     let mut out = vec![0; manifest_parts.len()];
     let want = if train { "train" } else { "val" };
     for e in p.episodes.iter().filter(|e| e.split == want) {
-        let s = manifest_parts
-            .iter()
-            .rposition(|part| part.id_offset <= e.id)
-            .unwrap_or(0);
-        out[s] += e.samples.unwrap_or(0);
+        out[SourcePart::index_of(manifest_parts, e.id)] += e.samples.unwrap_or(0);
     }
     out
 }

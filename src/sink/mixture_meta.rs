@@ -18,7 +18,7 @@ pub fn add(doc: &mut Value, plan: &Plan, profile: &ProfilePlan, built: &Built) {
     let episode_sources: Vec<usize> = profile
         .episodes
         .iter()
-        .map(|e| source_of(parts, e.id))
+        .map(|e| SourcePart::index_of(parts, e.id))
         .collect();
     let weights: Vec<f64> = parts.iter().map(|p| p.weight).collect();
     let (train, val) = (
@@ -56,10 +56,6 @@ pub fn add(doc: &mut Value, plan: &Plan, profile: &ProfilePlan, built: &Built) {
     map.insert("sources".into(), Value::Object(sources));
 }
 
-fn source_of(parts: &[SourcePart], id: u64) -> usize {
-    parts.iter().rposition(|p| p.id_offset <= id).unwrap_or(0)
-}
-
 /// `sources.<name>` of `meta.json`: source `s`'s rate, episodes and split (its own ids), widths,
 /// samples (`counts`: train, val) and normalization.
 fn source_entry(
@@ -76,7 +72,9 @@ fn source_entry(
         Conversion::Decimate { .. } => ResampleMethod::Fourier,
     };
     let local = |ids: &[u64]| -> Vec<u64> {
-        let own = ids.iter().filter(|&&id| source_of(parts, id) == s);
+        let own = ids
+            .iter()
+            .filter(|&&id| SourcePart::index_of(parts, id) == s);
         own.map(|id| id - part.id_offset).collect()
     };
     let stored: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();

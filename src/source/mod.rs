@@ -152,13 +152,18 @@ pub struct SourcePart {
     pub source_split: Option<SourceSplit>,
 }
 
+impl SourcePart {
+    /// The index, among `parts` (a mixture's, in order), of the source mixture episode `id`
+    /// belongs to (0 when there are none).
+    pub fn index_of(parts: &[SourcePart], id: u64) -> usize {
+        parts.iter().rposition(|p| p.id_offset <= id).unwrap_or(0)
+    }
+}
+
 impl Manifest {
     /// The index of the mixture source episode `id` belongs to (0 for one source).
     pub fn source_of(&self, id: u64) -> usize {
-        self.parts
-            .iter()
-            .rposition(|p| p.id_offset <= id)
-            .unwrap_or(0)
+        SourcePart::index_of(&self.parts, id)
     }
 
     /// Where episode `id` comes from, for messages: `path: episode 3`, or in a mixture
