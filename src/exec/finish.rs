@@ -68,16 +68,22 @@ pub(super) fn all(
                 .into_par_iter()
                 .map(|(i, sink, dir)| {
                     let p = stale[i];
-                    let own =
-                        super::window_stats::profile_stats(p, rate, manifest, &stats, &train_mask);
+                    let own = super::window_stats::profile_stats(
+                        p,
+                        rate,
+                        manifest,
+                        &stats,
+                        &sources,
+                        &train_mask,
+                    );
                     let own = match own {
                         Ok(own) => own,
                         Err(e) => return (i, Err(e)),
                     };
                     let stats = Stats {
-                        own: own.as_ref().unwrap_or(&stats),
+                        own: own.as_ref().map_or(&stats, |o| &o.pooled),
                         stored: &stats,
-                        sources: &sources,
+                        sources: own.as_ref().map_or(&sources, |o| &o.sources),
                     };
                     (i, profile(shared, p, rate, &stats, sink, &dir))
                 })
@@ -101,8 +107,8 @@ pub(super) fn all(
 pub(super) struct Stats<'a> {
     pub own: &'a BTreeMap<String, ChannelStats>,
     pub stored: &'a BTreeMap<String, ChannelStats>,
-    /// A training mixture's, per source (its own width); empty for one source. `own` and
-    /// `stored` are then the pooled ones.
+    /// A training mixture's own, per source (its own width, after its transforms); empty for
+    /// one source. `own` and `stored` are then the pooled ones.
     pub sources: &'a [BTreeMap<String, ChannelStats>],
 }
 

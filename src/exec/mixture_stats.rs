@@ -200,9 +200,14 @@ impl Normalizers {
         for (s, part) in manifest.parts.iter().enumerate() {
             let mut own = BTreeMap::new();
             for (c, ch) in p.channels.iter().enumerate() {
-                let width = manifest.channels[c].width();
+                // After the transforms: each source's own dimensions, then its padding.
+                let width = p.widths[c].after;
                 let fitted = |stats: &ChannelStats| Normalizer::fit(ch.normalize, stats);
-                let n = match (ch.kind, part.widths[c], mode) {
+                let own_width = match part.widths[c] {
+                    0 => 0,
+                    _ => p.widths[c].own_after[s],
+                };
+                let n = match (ch.kind, own_width, mode) {
                     (ChannelKind::Image, _, _) => fitted(&stats.own[&ch.name]),
                     (ChannelKind::Lowdim, 0, _) => Normalizer::identity(width),
                     (ChannelKind::Lowdim, w, MixtureStats::PerSource) => {

@@ -10,6 +10,7 @@
 //! windows, flat in the number of episodes, and the result does not depend on the threads.
 
 use std::collections::BTreeMap;
+use std::ops::Range;
 
 use rayon::prelude::*;
 
@@ -18,70 +19,125 @@ use crate::error::{Error, Result};
 use crate::plan::ProfilePlan;
 use crate::source::{ChannelKind, Manifest};
 use crate::spec::StatsPopulation;
-use crate::stats::{self, ChannelStats, Moments};
+use crate::stats::{self, bands, ChannelStats, Moments};
 use crate::transform::{self, Transform};
 use crate::window::{Sampling, Step};
 
 /// Episodes whose rows are generated side by side, per thread.
 const EPISODES_PER_THREAD: usize = 2;
 
-/// `shared` with the profile's own statistics in place of the channels it transforms or counts
-/// by windows, or `None` when it has none of its own (the default: nothing is copied). Every
-/// episode's rows (training or not) are checked to hold rotations first.
+/// A profile's own statistics: `pooled` (a mixture's union, or one source's) and per source
+/// (empty for one source), each the shared statistics with the profile's own in place of the
+/// channels it transforms or counts by windows.
+pub(super) struct Own {
+    pub pooled: BTreeMap<String, ChannelStats>,
+    pub sources: Vec<BTreeMap<String, ChannelStats>>,
+}
+
+/// The profile's own statistics, or `None` when it has none of its own (the default: nothing
+/// is copied). `shared` and `shared_sources` are the rate's. Every episode's rows (training or
+/// not) are checked to hold rotations first.
 pub(super) fn profile_stats(
     p: &ProfilePlan,
     rate: &RateState,
     manifest: &Manifest,
     shared: &BTreeMap<String, ChannelStats>,
+    shared_sources: &[BTreeMap<String, ChannelStats>],
     train_mask: &[bool],
-) -> Result<Option<BTreeMap<String, ChannelStats>>> {
+) -> Result<Option<Own>> {
     if p.transforms.is_empty() && p.values.stats_population == StatsPopulation::Frames {
         return Ok(None);
     }
-    let mut out = shared.clone();
+    let mut out = Own {
+        pooled: shared.clone(),
+        sources: shared_sources.to_vec(),
+    };
     check_rotations(p, rate, manifest)?;
+    let train: Vec<usize> = (0..p.episodes.len()).filter(|&e| train_mask[e]).collect();
+    let source_of = |e: usize| manifest.source_of(p.episodes[e].id);
     for (c, ch) in manifest.channels.iter().enumerate() {
         if ch.kind != ChannelKind::Lowdim || !p.windowed_stats(c) {
             continue;
         }
-        let rows = Rows {
+        let widths = &p.widths[c];
+        let rows = |sources: &[usize], dims: Range<usize>| Rows {
             p,
             rate,
             manifest,
             channel: c,
-            transforms: p.transforms_of(c).collect(),
-            width: transform::width_after(p.transforms_of(c), ch.width()),
-            train: (0..p.episodes.len()).filter(|&e| train_mask[e]).collect(),
+            train: train
+                .iter()
+                .copied()
+                .filter(|&e| sources.contains(&source_of(e)))
+                .collect(),
+            dims,
         };
-        let mut m = Moments::new(rows.width);
-        rows.each_block(&mut |block| m.merge(&Moments::of_rows(block, rows.width)))?;
-        // Over windows, openpi's population, the percentiles are the data values openpi's
-        // histogram quantiles approximate (within one of its bins).
-        let definition = match p.values.stats_population {
-            StatsPopulation::Windows => stats::Definition::InvertedCdf,
-            StatsPopulation::Frames => stats::Definition::Linear,
-        };
-        let s =
-            stats::lowdim_from_rows_as(m, rows.width, None, definition, |f| rows.each_block(f))?;
-        out.insert(ch.name.clone(), s);
+        if manifest.parts.is_empty() {
+            let (_, s) = rows(&[0], 0..widths.after).stats()?;
+            out.pooled.insert(ch.name.clone(), s);
+            continue;
+        }
+        // Each source's own, then the union's per band of the sources that cover it.
+        let mut moments = Vec::new();
+        for (s, &own) in widths.own_after.iter().enumerate() {
+            if widths.own[s] == 0 {
+                moments.push(Moments::new(0));
+                continue;
+            }
+            let (m, stats) = rows(&[s], 0..own).stats()?;
+            out.sources[s].insert(ch.name.clone(), stats);
+            moments.push(m);
+        }
+        let mut parts = Vec::new();
+        for (dims, sources) in bands::bands(&widths.own_after, widths.after) {
+            if sources.is_empty() {
+                parts.push(bands::uncovered(dims.len()));
+                continue;
+            }
+            let mut m = Moments::new(dims.len());
+            for &s in &sources {
+                m.merge(&moments[s].columns(dims.clone()));
+            }
+            parts.push(rows(&sources, dims).percentiles(m)?);
+        }
+        out.pooled.insert(ch.name.clone(), bands::concat(parts));
     }
     Ok(Some(out))
 }
 
-/// The rows one channel's statistics cover.
+/// The rows one channel's statistics cover: each training episode's of the sources read,
+/// transformed by its own source's transforms on its own dimensions, then the dimensions `dims`.
 struct Rows<'a> {
     p: &'a ProfilePlan,
     rate: &'a RateState,
     manifest: &'a Manifest,
     channel: usize,
-    transforms: Vec<&'a Transform>,
-    /// Values per row after the transforms.
-    width: usize,
     /// Training episodes (positions), in order.
     train: Vec<usize>,
+    /// The dimensions kept of each transformed row.
+    dims: Range<usize>,
 }
 
 impl Rows<'_> {
+    /// Moments (merged in episode order) and the statistics of the rows.
+    fn stats(&self) -> Result<(Moments, ChannelStats)> {
+        let width = self.dims.len();
+        let mut m = Moments::new(width);
+        self.each_block(&mut |block| m.merge(&Moments::of_rows(block, width)))?;
+        Ok((m.clone(), self.percentiles(m)?))
+    }
+
+    /// The statistics of the rows, whose moments are `m`.
+    fn percentiles(&self, m: Moments) -> Result<ChannelStats> {
+        // Over windows, openpi's population, the percentiles are the data values openpi's
+        // histogram quantiles approximate (within one of its bins).
+        let definition = match self.p.values.stats_population {
+            StatsPopulation::Windows => stats::Definition::InvertedCdf,
+            StatsPopulation::Frames => stats::Definition::Linear,
+        };
+        stats::lowdim_from_rows_as(m, self.dims.len(), None, definition, |f| self.each_block(f))
+    }
+
     /// Calls `f` with each training episode's block of rows, in episode order.
     fn each_block(&self, f: &mut dyn FnMut(&[f32])) -> Result<()> {
         let group = rayon::current_num_threads() * EPISODES_PER_THREAD;
@@ -101,10 +157,14 @@ impl Rows<'_> {
     fn episode(&self, e: usize) -> Result<Vec<f32>> {
         let (start, end) = (self.rate.start(e), self.rate.ends.range(e).end);
         let len = end - start;
-        let width = self.manifest.channels[self.channel].width();
-        let values = self.rate.lowdim[self.channel].rows(start, end)?;
-        let references = references(self.rate, &self.transforms, start, end)?;
-        let is_action = self.manifest.channels[self.channel].name == "action";
+        let c = self.channel;
+        let width = self.manifest.channels[c].width();
+        let s = self.manifest.source_of(self.p.episodes[e].id);
+        let own = self.p.widths[c].own[s];
+        let transforms: Vec<&Transform> = self.p.transforms_for(c, s).collect();
+        let values = self.rate.lowdim[c].rows(start, end)?;
+        let references = references(self.rate, &transforms, start, end)?;
+        let is_action = self.manifest.channels[c].name == "action";
         // (current step, row) pairs.
         let pairs: Vec<(usize, usize)> = match self.p.values.stats_population {
             StatsPopulation::Frames => (0..len).map(|r| (r, r)).collect(),
@@ -132,21 +192,21 @@ impl Rows<'_> {
                     .collect()
             }
         };
-        let mut out = Vec::with_capacity(pairs.len() * self.width);
-        let mut row = Vec::with_capacity(self.width);
+        let mut out = Vec::with_capacity(pairs.len() * self.dims.len());
+        let mut row = Vec::with_capacity(self.dims.end);
         for (t, r) in pairs {
             row.clear();
             row.extend(
-                values[r * width..(r + 1) * width]
+                values[r * width..r * width + own]
                     .iter()
                     .map(|&v| f64::from(v)),
             );
-            for tr in &self.transforms {
+            for tr in &transforms {
                 let reference = reference_row(&references, tr, t);
                 tr.apply(&mut row, reference)
                     .map_err(|why| not_rotation(self.p, e, r, tr, &why))?;
             }
-            out.extend(row.iter().map(|&v| v as f32));
+            out.extend(row[self.dims.clone()].iter().map(|&v| v as f32));
         }
         Ok(out)
     }
@@ -200,8 +260,9 @@ fn not_rotation(p: &ProfilePlan, e: usize, step: usize, t: &Transform, why: &str
     ))
 }
 
-/// Every episode's every row through its channel's transforms (the reference at the same
-/// step), so that a slice holding no rotation is named by episode and step, whatever its split.
+/// Every episode's every row through its channel's transforms (its source's, on its own
+/// dimensions; the reference at the same step), so that a slice holding no rotation is named by
+/// episode and step, whatever its split.
 fn check_rotations(p: &ProfilePlan, rate: &RateState, manifest: &Manifest) -> Result<()> {
     let channels: Vec<usize> = (0..manifest.channels.len())
         .filter(|&c| p.transforms_of(c).next().is_some())
@@ -211,16 +272,21 @@ fn check_rotations(p: &ProfilePlan, rate: &RateState, manifest: &Manifest) -> Re
             .into_par_iter()
             .map(|e| -> Result<()> {
                 let (start, end) = (rate.start(e), rate.ends.range(e).end);
+                let s = manifest.source_of(p.episodes[e].id);
                 for &c in &channels {
-                    let transforms: Vec<&Transform> = p.transforms_of(c).collect();
+                    let transforms: Vec<&Transform> = p.transforms_for(c, s).collect();
+                    if transforms.is_empty() {
+                        continue;
+                    }
                     let width = manifest.channels[c].width();
+                    let own = p.widths[c].own[s];
                     let values = rate.lowdim[c].rows(start, end)?;
                     let references = references(rate, &transforms, start, end)?;
                     let mut row = Vec::new();
                     for r in 0..end - start {
                         row.clear();
                         row.extend(
-                            values[r * width..(r + 1) * width]
+                            values[r * width..r * width + own]
                                 .iter()
                                 .map(|&v| f64::from(v)),
                         );

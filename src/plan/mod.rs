@@ -30,6 +30,7 @@ mod sampling;
 pub mod shards;
 pub mod split;
 mod text;
+mod transform_fit;
 mod transforms;
 mod types;
 

@@ -208,7 +208,7 @@ fn resolve_profile(
     cameras::apply(spec, manifest, profile, &mut channels)?;
     export::assign(spec, profile, &mut channels)?;
     let sampling = sampling_of(spec, manifest, profile, fps)?;
-    let transforms = super::transforms::resolve(spec, manifest, profile, &sampling)?;
+    let (transforms, widths) = super::transforms::resolve(spec, manifest, profile, &sampling)?;
     if profile.abs_action && !profile.normalize.contains_key("action") {
         if let Some(action) = channels.iter_mut().find(|c| c.name == "action") {
             action.normalize = NormalizeMode::DpAbsAction;
@@ -235,6 +235,7 @@ fn resolve_profile(
         sampling,
         channels,
         transforms,
+        widths,
         episodes: used.episodes,
         excluded: Vec::new(),
         repaired: Vec::new(),

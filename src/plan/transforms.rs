@@ -9,24 +9,24 @@ use crate::spec::{
     DeltaSpec, LoadedSpec, OutputFormat, Preset, Profile, RelativePoseSpec, RotationSpec,
     StatsPopulation, TransformSpec,
 };
-use crate::transform::{expand_mask, Op, Transform};
+use crate::transform::{expand_mask, Op, Transform, Widths};
 use crate::window::Sampling;
 
 /// Where the errors of one profile's transforms point.
-struct At<'a> {
+pub(super) struct At<'a> {
     spec: &'a LoadedSpec,
-    profile: &'a str,
+    pub profile: &'a str,
 }
 
 impl At<'_> {
-    fn key(&self, path: &[&str], message: String, help: Option<String>) -> Error {
+    pub fn key(&self, path: &[&str], message: String, help: Option<String>) -> Error {
         let mut key = vec!["profiles", self.profile];
         key.extend_from_slice(path);
         self.spec.error_at(&key, message, help)
     }
 
     /// An error at `transforms[i].<field>`, whose message starts with the dotted key.
-    fn field(&self, i: usize, field: &str, message: String) -> Error {
+    pub fn field(&self, i: usize, field: &str, message: String) -> Error {
         let index = i.to_string();
         self.key(
             &["transforms", &index, field],
@@ -39,13 +39,14 @@ impl At<'_> {
     }
 }
 
-/// The profile's transforms (those of `abs_action` first), bound to the manifest's channels.
+/// The profile's transforms (those of `abs_action` first), bound to the manifest's channels and
+/// to the sources they apply to, and every channel's widths through them.
 pub(super) fn resolve(
     spec: &LoadedSpec,
     manifest: &Manifest,
     profile: &Profile,
     sampling: &Sampling,
-) -> Result<Vec<Transform>> {
+) -> Result<(Vec<Transform>, Vec<Widths>)> {
     let at = At {
         spec,
         profile: &profile.name,
@@ -73,11 +74,15 @@ pub(super) fn resolve(
             channel: manifest.channels[c].name.clone(),
             channel_index: c,
             op,
+            sources: sources(&at, manifest, i, t.sources())?,
         };
         widths[c] = t.width_after(widths[c]);
         out.push(t);
     }
     population(&at, profile, sampling, &out)?;
+    let first = out.len() - profile.transforms.len();
+    super::transform_fit::each_source(&at, manifest, &out, first)?;
+    let widths = super::transform_fit::widths(&at, manifest, &out, first)?;
     if !out.is_empty()
         && profile.format == OutputFormat::Hdf5
         && profile.layout != crate::spec::Layout::Index
@@ -92,7 +97,55 @@ pub(super) fn resolve(
             Some("leave `layout` out (`index`)".into()),
         ));
     }
-    Ok(out)
+    Ok((out, widths))
+}
+
+/// `transforms[i].sources`: names of the mixture's sources, as (position, name).
+fn sources(
+    at: &At,
+    manifest: &Manifest,
+    i: usize,
+    names: Option<&[String]>,
+) -> Result<Option<Vec<(usize, String)>>> {
+    let Some(names) = names else {
+        return Ok(None);
+    };
+    let known: Vec<&str> = manifest.parts.iter().map(|p| p.name.as_str()).collect();
+    if known.is_empty() {
+        return Err(at.field(
+            i,
+            "sources",
+            "names sources of a training mixture, but this spec has one `[source]`".into(),
+        ));
+    }
+    if names.is_empty() {
+        return Err(at.field(
+            i,
+            "sources",
+            format!(
+                "is empty: name one of {} or leave `sources` out (every source)",
+                known.join(", ")
+            ),
+        ));
+    }
+    let mut out: Vec<(usize, String)> = Vec::new();
+    for name in names {
+        let Some(s) = known.iter().position(|k| k == name) else {
+            return Err(at.field(
+                i,
+                "sources",
+                format!(
+                    "no source `{name}` (the mixture's sources are {})",
+                    known.join(", ")
+                ),
+            ));
+        };
+        if !out.iter().any(|(k, _)| *k == s) {
+            out.push((s, name.clone()));
+        }
+    }
+    out.sort();
+    Ok(Some(out))
 }
 
 /// `op = "rotation"` on a channel `width` wide (as the transforms before leave it).
@@ -339,6 +392,7 @@ fn abs_action(at: &At, manifest: &Manifest, profile: &Profile) -> Result<Vec<Tra
         .map(|&start| Transform {
             channel: "action".into(),
             channel_index: c,
+            sources: None,
             op: Op::Rotation {
                 dims: [start, start + 3],
                 from: RotationKind::AxisAngle,

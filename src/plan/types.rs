@@ -126,6 +126,9 @@ pub struct ProfilePlan {
     /// The action representations, bound to the channels (`abs_action`'s first), in order.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub transforms: Vec<crate::transform::Transform>,
+    /// Per channel (manifest order): its widths through the transforms, per source.
+    #[serde(skip)]
+    pub widths: Vec<crate::transform::Widths>,
     pub episodes: Vec<ProfileEpisode>,
     pub excluded: Vec<Excluded>,
     /// Episodes the audit repaired (re-gridded or resampled) before they were used.
@@ -220,6 +223,16 @@ impl ProfilePlan {
     /// The transforms of channel `c` (a manifest position), in order.
     pub fn transforms_of(&self, c: usize) -> impl Iterator<Item = &crate::transform::Transform> {
         self.transforms.iter().filter(move |t| t.channel_index == c)
+    }
+
+    /// The transforms of channel `c` that apply to source `s` (a mixture position; 0 for one
+    /// source), in order.
+    pub fn transforms_for(
+        &self,
+        c: usize,
+        s: usize,
+    ) -> impl Iterator<Item = &crate::transform::Transform> {
+        self.transforms_of(c).filter(move |t| t.applies_to(s))
     }
 
     /// Whether channel `c`'s statistics are not the per-frame ones of its stored values: it is

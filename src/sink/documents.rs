@@ -89,9 +89,7 @@ pub fn meta_json(
     // A transformed channel's width after its transforms (its normalization's).
     for (c, ch) in profile.channels.iter().enumerate() {
         if profile.transforms_of(c).next().is_some() {
-            let width =
-                crate::transform::width_after(profile.transforms_of(c), ch.shape.iter().product());
-            channels[&ch.name]["transformed_shape"] = json!([width]);
+            channels[&ch.name]["transformed_shape"] = json!([profile.widths[c].after]);
         }
     }
     let normalization = normalization_json(profile, built.normalizers);

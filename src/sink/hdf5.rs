@@ -29,7 +29,7 @@ use crate::error::{Error, Result};
 use crate::source::block_map::{self, BlockMap};
 use crate::source::ChannelKind;
 use crate::spec::{Compression, ImageCompression, Layout, Padding};
-use crate::stats::normalize::{Normalizer, RowNormalizer};
+use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
 use crate::window::{EpisodeEnds, Window};
 
@@ -64,7 +64,7 @@ pub struct Hdf5Writer {
     padding: Padding,
     episode_ends: EpisodeEnds,
     /// Normalized low-dim values and normalizers, kept for `/chunks` (not for `index`).
-    kept: Vec<Option<(Vec<f32>, Normalizer)>>,
+    kept: Vec<Option<(Vec<f32>, RowNormalizer)>>,
     /// The row store's memory budget (exec's), which bounds the index blocks too.
     spill_budget: usize,
     /// Cameras stored as JPEG or video (`image_compression`).
@@ -489,10 +489,8 @@ impl Sink for Hdf5Writer {
             return Ok(());
         }
         // The windows of these layouts are materialized from the whole channel in memory.
-        // (One source only: a mixture's profiles use the index layout.)
-        let normalizer = normalizer.first();
         let mut values = raw.rows(0, raw.len())?.into_owned();
-        normalizer.apply(&mut values);
+        normalizer.apply_rows(0, &mut values);
         self.write_lowdim_rows(channel, 0, &values)?;
         // Kept for `/chunks` (materialized or virtual layouts).
         self.kept[channel] = Some((values, normalizer.clone()));

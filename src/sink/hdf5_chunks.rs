@@ -20,16 +20,17 @@ use hdf5_sys::h5i::hid_t;
 use super::hdf5_rows::write_rows;
 use crate::error::{Error, Result};
 use crate::spec::Padding;
-use crate::stats::normalize::Normalizer;
+use crate::stats::normalize::{Normalizer, RowNormalizer};
 use crate::window::{EpisodeEnds, Step, Window};
 
-/// A stored low-dimensional channel, normalized as in `/data`.
+/// A stored low-dimensional channel, normalized as in `/data` (each row with its source's
+/// normalizer, in a training mixture).
 pub struct Stored<'a> {
     pub name: &'a str,
     pub width: usize,
     pub shape: &'a [usize],
     pub values: &'a [f32],
-    pub normalizer: &'a Normalizer,
+    pub normalizer: &'a RowNormalizer,
 }
 
 pub struct Windows<'a> {
@@ -136,7 +137,8 @@ pub fn materialize(file: &File, w: &Windows, channels: &[Stored]) -> Result<()> 
                         match s {
                             Step::Row(i) => values.extend_from_slice(row(i)),
                             Step::Pad(i) => {
-                                values.extend(pad_row(w.padding, ch.normalizer, row(i)));
+                                let n = ch.normalizer.at(start + i);
+                                values.extend(pad_row(w.padding, n, row(i)));
                             }
                         }
                         pads.push(matches!(s, Step::Pad(_)));
@@ -256,7 +258,8 @@ pub fn virtual_action(file: &File, w: &Windows, action: &Stored) -> Result<()> {
                     Step::Pad(row) => {
                         extend_runs(&mut padded[step], i, pads[step].len() / a.max(1));
                         let edge = &action.values[(start + row) * a..(start + row + 1) * a];
-                        pads[step].extend(pad_row(w.padding, action.normalizer, edge));
+                        let n = action.normalizer.at(start + row);
+                        pads[step].extend(pad_row(w.padding, n, edge));
                         is_pad.push(true);
                     }
                 }

@@ -88,12 +88,22 @@ fn source_entry(
         .zip(&part.widths)
         .map(|(ch, w)| (ch.name.clone(), json!(w)))
         .collect();
+    // A channel whose transforms change this source's width: its own dimensions after them
+    // (the loader's dim mask and `to_source` need both).
+    let transformed: Map<String, Value> = plan
+        .source
+        .channels
+        .iter()
+        .enumerate()
+        .filter(|&(c, _)| profile.transforms_of(c).next().is_some())
+        .map(|(c, ch)| (ch.name.clone(), json!(profile.widths[c].own_after[s])))
+        .collect();
     let normalization = built
         .source_normalizers
         .get(s)
         .map(|n| normalization_json(profile, n))
         .unwrap_or_default();
-    json!({
+    let mut entry = json!({
         "index": s,
         "format": part.format.name(),
         "path": part.path,
@@ -111,5 +121,9 @@ fn source_entry(
         "widths": widths,
         "num_samples": { "train": counts.0, "val": counts.1 },
         "normalization": normalization,
-    })
+    });
+    if !transformed.is_empty() {
+        entry["transformed_widths"] = Value::Object(transformed);
+    }
+    entry
 }

@@ -41,6 +41,10 @@ pub struct RotationSpec {
     /// The 6D representation's rows (default, pytorch3d) or columns (Zhou et al.).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub layout: Option<Layout6d>,
+    /// The mixture's sources (`[sources.<name>]`) this transform applies to, for a transform
+    /// that fits one robot only (its mask, dims or reference); every source when left out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sources: Option<Vec<String>>,
 }
 
 /// `op = "delta"`.
@@ -55,6 +59,10 @@ pub struct DeltaSpec {
     /// openpi's `make_bool_mask` notation: `6` is six dimensions made relative, `-1` one left
     /// as it is; dimensions past the mask are left as they are.
     pub mask: Vec<i64>,
+    /// The mixture's sources (`[sources.<name>]`) this transform applies to, for a transform
+    /// that fits one robot only (its mask, dims or reference); every source when left out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sources: Option<Vec<String>>,
 }
 
 /// `op = "relative_pose"`.
@@ -84,6 +92,10 @@ pub struct RelativePoseSpec {
     /// The 6D representation's rows (default) or columns.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub layout: Option<Layout6d>,
+    /// The mixture's sources (`[sources.<name>]`) this transform applies to, for a transform
+    /// that fits one robot only (its mask, dims or reference); every source when left out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sources: Option<Vec<String>>,
 }
 
 impl TransformSpec {
@@ -104,6 +116,15 @@ impl TransformSpec {
     }
 
     /// Whether the transform needs the sample's current step (the loader applies it on read).
+    /// `sources = [...]`, when given.
+    pub fn sources(&self) -> Option<&[String]> {
+        match self {
+            TransformSpec::Rotation(r) => r.sources.as_deref(),
+            TransformSpec::Delta(d) => d.sources.as_deref(),
+            TransformSpec::RelativePose(r) => r.sources.as_deref(),
+        }
+    }
+
     pub fn per_window(&self) -> bool {
         !matches!(self, TransformSpec::Rotation(_))
     }

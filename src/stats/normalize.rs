@@ -189,6 +189,12 @@ impl RowNormalizer {
         &self.pieces[0].1
     }
 
+    /// The normalizer of stored row `row`.
+    pub fn at(&self, row: usize) -> &Normalizer {
+        let k = self.pieces.partition_point(|p| p.0 <= row);
+        &self.pieces[k.saturating_sub(1)].1
+    }
+
     /// Normalizes, in place, the rows of `values` (whole rows), the first of which is row `first`.
     pub fn apply_rows(&self, first: usize, values: &mut [f32]) {
         let width = self.first().center.len();

@@ -12,6 +12,9 @@ use serde_json::{json, Value};
 
 use crate::rotation::{self, Euler, Layout6d, RotationKind};
 
+mod widths;
+pub use widths::Widths;
+
 /// One transform of a profile, bound to the source's channels (manifest positions).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Transform {
@@ -20,6 +23,10 @@ pub struct Transform {
     #[serde(skip)]
     pub channel_index: usize,
     pub op: Op,
+    /// The sources of a training mixture it applies to, (position, name) in mixture order;
+    /// `None`: every source (always, for one source).
+    #[serde(skip)]
+    pub sources: Option<Vec<(usize, String)>>,
 }
 
 /// What a transform does.
@@ -61,6 +68,13 @@ pub enum Op {
 }
 
 impl Transform {
+    /// Whether it applies to source `s` (a mixture position; 0 for one source).
+    pub fn applies_to(&self, s: usize) -> bool {
+        self.sources
+            .as_ref()
+            .is_none_or(|sources| sources.iter().any(|(i, _)| *i == s))
+    }
+
     /// Whether the transform needs the sample's current step (a reference).
     pub fn per_window(&self) -> bool {
         !matches!(self.op, Op::Rotation { .. })
@@ -92,11 +106,24 @@ impl Transform {
     pub fn describe(&self) -> Value {
         let mut v = serde_json::to_value(&self.op).expect("a transform serializes");
         v["channel"] = json!(self.channel);
+        if let Some(sources) = &self.sources {
+            v["sources"] = json!(sources.iter().map(|(_, n)| n).collect::<Vec<_>>());
+        }
         v
     }
 
     /// One line for `chunkc plan` and the dataset card.
     pub fn summary(&self) -> String {
+        match &self.sources {
+            Some(sources) => {
+                let names: Vec<&str> = sources.iter().map(|(_, n)| n.as_str()).collect();
+                format!("{} (sources {})", self.summary_op(), names.join(", "))
+            }
+            None => self.summary_op(),
+        }
+    }
+
+    fn summary_op(&self) -> String {
         let c = &self.channel;
         match &self.op {
             Op::Rotation {

@@ -4,9 +4,8 @@
 
 use super::{is_profile_name, Checker};
 use crate::spec::diagnostic::did_you_mean;
-use crate::spec::model::{Layout, OutputFormat};
+use crate::spec::model::OutputFormat;
 use crate::spec::preset::Profile;
-use crate::spec::StatsPopulation;
 
 impl Checker<'_> {
     /// Exactly one of `[source]` and `[sources.<name>]`, each source's own rules, the weights
@@ -89,8 +88,7 @@ impl Checker<'_> {
         }
     }
 
-    /// What a profile of a mixture cannot do yet (each source would need its own transform
-    /// dimensions or padding values inside a window).
+    /// What a profile of a mixture cannot do yet.
     pub(super) fn mixture_profile(&mut self, name: &str, p: &Profile) {
         if !self.loaded.is_mixture() {
             return;
@@ -112,45 +110,6 @@ impl Checker<'_> {
                 message,
                 "one source only",
                 help,
-            );
-        }
-        if p.layout != Layout::Index {
-            let message = refuse(format!("`layout = \"{}\"`", p.layout.name()));
-            self.value(
-                &["profiles", name, "layout"],
-                message,
-                "one source only",
-                None,
-            );
-        }
-        if !p.transforms.is_empty() {
-            let message = refuse("`[[transforms]]`".to_string());
-            self.key(
-                &["profiles", name, "transforms"],
-                message,
-                "one source only",
-                None,
-            );
-        }
-        if p.stats_population == StatsPopulation::Windows {
-            let message = refuse("`stats_population = \"windows\"`".to_string());
-            let help = Some(format!(
-                "set `profiles.{name}.stats_population = \"frames\"` (statistics over every training step)"
-            ));
-            self.value(
-                &["profiles", name, "stats_population"],
-                message,
-                "one source only",
-                help,
-            );
-        }
-        if p.segment.is_some() {
-            let message = refuse("`segment`".to_string());
-            self.key(
-                &["profiles", name, "segment"],
-                message,
-                "one source only",
-                None,
             );
         }
     }
