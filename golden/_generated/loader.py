@@ -745,11 +745,18 @@ class ChunkedDataset(_DatasetBase):
                 np.array([bool(p["clip"]) for p in tables]),
             )
         # Channel in "pad_to" -> (S, W) bool: true on each source's own dims.
+        # Channel -> per source, (its own width, its own width after its transforms).
+        self._own_widths = {
+            name: [(int(sources[s].get("widths", {}).get(name, 0)),
+                    int(sources[s].get("transformed_widths", {}).get(name, sources[s].get("widths", {}).get(name, 0))))
+                   for s in self.source_names]
+            for name in self.channels
+        }
         pad_to = mixture.get("pad_to") or {}
         self._dim_masks = {}
         for name in self.channels:
             if name in pad_to:
-                widths = np.array([int(sources[s].get("widths", {}).get(name, 0)) for s in self.source_names])
+                widths = np.array([after for _, after in self._own_widths[name]])
                 self._dim_masks[name] = np.arange(int(pad_to[name]))[None, :] < widths[:, None]
         counts = np.bincount(self.window_sources, minlength=len(self.source_names))
         self.source_weights = balanced_weights(mixture.get("balance", "weights"),
@@ -810,8 +817,11 @@ class ChunkedDataset(_DatasetBase):
                     raise ValueError(f"{name}: its transforms depend on each sample's reference rows; "
                                      "read it from samples (ds[i]), not per stored row")
                 x = np.asarray(rows, dtype=np.float64).reshape(len(rows), 1, -1)
-                for op in self._transforms[name]:
-                    x = apply_transform(op, x)
+                if self.source_names is not None:
+                    x = self._source_transforms(name, x, self._row_sources if at is None else self._row_sources[at])
+                else:
+                    for op in self._transforms[name]:
+                        x = apply_transform(op, x)
                 rows = x.reshape((len(rows),) + self._shapes[name])
             if self.source_names is not None:
                 return self.normalize(name, rows, self._row_sources if at is None else self._row_sources[at]) \
@@ -862,14 +872,40 @@ class ChunkedDataset(_DatasetBase):
         """{reference channel: (B, R) float64}: its raw stored rows `rows` (B,)."""
         return {r: self._read_raw(r, rows).reshape(len(rows), -1).astype(np.float64) for r in self._refs}
 
-    def _transformed(self, name, rows, refs):
+    def _transformed(self, name, rows, refs, src=None):
         """Rows `rows` (B, N) of channel `name` (one of `_xform`) transformed with each
-        sample's references `refs` (`_references`), then normalized: (B, N, ...) float32."""
+        sample's references `refs` (`_references`), then normalized: (B, N, ...) float32.
+        `src`: a mixture's window sources (B,), each transformed and normalized as its own."""
         b, n = rows.shape
         x = self._read_raw(name, rows.reshape(-1)).astype(np.float64).reshape(b, n, -1)
+        if src is not None:
+            x = self._source_transforms(name, x, src, refs)
+            return self.normalize(name, x.reshape((b, n) + self._shapes[name]), src).astype(np.float32)
         for op in self._transforms[name]:
             x = apply_transform(op, x, refs.get(op.get("reference")))
         return self.normalize(name, x.reshape((b, n) + self._shapes[name])).astype(np.float32)
+
+    def _source_transforms(self, name, x, src, refs=None, inverse=False):
+        """A mixture's rows `x` (B, N, W) of channel `name`, sample b from source `src[b]`: each
+        source's own dims (its first `widths` values; `transformed_widths` after them) through
+        the transforms that apply to it (`sources` in meta.json, all when absent), zero-padded
+        to the channel's width after its transforms (inverse=True: the other way round, to the
+        stored width). `refs`: the samples' reference rows (B, R), when the transforms need them."""
+        stored = int(np.prod(self.meta["channels"][name]["shape"]))
+        after = int(np.prod(self._shapes[name]))
+        out = np.zeros(x.shape[:2] + ((stored,) if inverse else (after,)))
+        src = np.asarray(src, dtype=np.int64).reshape(-1)
+        for s in np.unique(src):
+            at = src == s
+            own, own_after = self._own_widths[name][s]
+            ops = [op for op in self._transforms[name]
+                   if op.get("sources") is None or self.source_names[s] in op["sources"]]
+            y = x[at][..., :own_after if inverse else own]
+            for op in (reversed(ops) if inverse else ops):
+                ref = refs.get(op.get("reference")) if refs is not None else None
+                y = apply_transform(op, y, None if ref is None else ref[at], inverse)
+            out[at, :, :y.shape[-1]] = y
+        return out
 
     def to_source(self, name, values, sample):
         """Normalized `values` of channel `name` as `sample[name]` holds them ((K, D') actions or
@@ -896,31 +932,45 @@ class ChunkedDataset(_DatasetBase):
         rows = self.episode_starts[[positions[int(e)] for e in eps]] + steps
         refs = self._references(rows) if channel in self._xform else {}
         x = x.reshape(len(eps), -1, int(np.prod(self._shapes[channel])))
+        if self.source_names is not None:
+            # Each sample's own source's transforms undone on its own dims: a sample comes back
+            # at its source's width, a batch at the stored (padded) width.
+            src = np.asarray(sample["source"], dtype=np.int64).reshape(-1)
+            x = self._source_transforms(channel, x, src, refs, inverse=True)
+            return x[0, :, :self._own_widths[channel][src[0]][0]] if single else x
         for op in reversed(ops):
             x = apply_transform(op, x, refs.get(op.get("reference")), inverse=True)
         shape = tuple(self.meta["channels"][channel]["shape"])
         return x.reshape((-1,) + shape) if single else x.reshape((len(eps), -1) + shape)
 
-    def _population(self, name, batch=1024):
+    def _population(self, name, batch=1024, sources=False):
         """The normalized rows (n, D') of low-dim channel `name` that stats.json describes for
         this split: with `stats_population` "windows", every sample's K action rows (edge rows
         repeated, whatever the padding) or its obs_history rows; otherwise every step of the
-        split's episodes once."""
+        split's episodes once. `sources=True` (a mixture): also each row's source (n,)."""
         if self.meta.get("stats_population", "frames") != "windows":
             wanted = set(int(e) for e in self.meta["split"][self.split])
             keep = [p for p, e in enumerate(self.episode_ids) if int(e) in wanted]
             rows = np.concatenate([np.arange(self.episode_starts[p], self.episode_ends[p]) for p in keep]) \
                 if keep else np.zeros(0, np.int64)
-            return np.asarray(self._read(name, rows)).reshape(len(rows), -1)
+            values = np.asarray(self._read(name, rows)).reshape(len(rows), -1)
+            return (values, self._row_sources[rows]) if sources else values
         import copy
 
         view = copy.copy(self)
         view.padding = "edge"
         view.channels = [name] if name != "action" else []
-        parts = [np.stack([s[name] for s in view.__getitems__(np.arange(i, min(i + batch, len(self))))])
-                 for i in range(0, len(self), batch)]
         width = int(np.prod(self._shapes[name]))
-        return np.concatenate(parts).reshape(-1, width) if parts else np.zeros((0, width), np.float32)
+        parts, owners = [], []
+        for i in range(0, len(self), batch):
+            samples = view.__getitems__(np.arange(i, min(i + batch, len(self))))
+            parts.append(np.stack([s[name] for s in samples]).reshape(-1, width))
+            if sources:
+                owners.append(np.repeat([s["source"] for s in samples], len(parts[-1]) // len(samples)))
+        values = np.concatenate(parts) if parts else np.zeros((0, width), np.float32)
+        if sources:
+            return values, np.concatenate(owners).astype(np.int64) if owners else np.zeros(0, np.int64)
+        return values
 
     def __getstate__(self):
         state = self.__dict__.copy()
@@ -1020,7 +1070,7 @@ class ChunkedDataset(_DatasetBase):
             if name == "action":
                 continue
             if refs is not None and name in self._xform:
-                obs = self._transformed(name, rows.reshape(steps.shape), refs)
+                obs = self._transformed(name, rows.reshape(steps.shape), refs, src)
             else:
                 obs = self._read(name, rows)
                 obs = obs.reshape(steps.shape + obs.shape[1:])
@@ -1054,7 +1104,7 @@ class ChunkedDataset(_DatasetBase):
         # Edge padding repeats the nearest valid row; the other modes overwrite the padded rows.
         rows = start[:, None] + np.clip(steps, lo[:, None], valid_end[:, None] - 1)
         if refs is not None and "action" in self._xform:
-            action = self._transformed("action", rows, refs)
+            action = self._transformed("action", rows, refs, src)
         else:
             action = self._read("action", rows.reshape(-1))
             action = action.reshape(rows.shape + action.shape[1:])

@@ -241,12 +241,16 @@ def split_checks(ds):
         norm = ds.meta["normalization"].get(name)
         if c["kind"] != "lowdim" or norm is None:
             continue
-        y = np.asarray(ds._population(name), dtype=np.float64)
+        if ds.source_names is not None:
+            y, src = ds._population(name, sources=True)
+        else:
+            y, src = ds._population(name), None
+        y = np.asarray(y, dtype=np.float64)
         if not len(y):
             continue
         per_source = ""
         if ds.source_names is not None:
-            found, per_source = mixture_split_problems(ds, name, norm, y, stats.get(name))
+            found, per_source = mixture_split_problems(ds, name, norm, y, src, stats.get(name))
         else:
             found = mode_problems(name, norm["mode"], y)
             if name in stats:
@@ -266,9 +270,9 @@ def _stats_slice(s, lo, hi, count):
     return out
 
 
-def mixture_split_problems(ds, name, norm, y, pooled):
+def mixture_split_problems(ds, name, norm, y, src, pooled):
     """Check 1 on a mixture's channel `name`, from the normalized training rows `y` (rows,
-    dims), each normalized with its source's table: per source on its own rows and dims (the
+    dims) of sources `src` (rows,), each normalized with its source's table: per source on its own rows and dims (the
     mode's guarantees when each source has its own fit, `stats = "per_source"`, and its
     `sources/<name>/stats.json`), then pooled (`stats.json`, and the mode's guarantees of a
     pooled fit) per dimension over the sources that have it (padding never enters a statistic).
@@ -277,11 +281,11 @@ def mixture_split_problems(ds, name, norm, y, pooled):
     sources = meta["sources"]
     own_fit = meta["mixture"].get("stats", "per_source") == "per_source"
     shape = tuple(meta["channels"][name].get("transformed_shape", meta["channels"][name]["shape"]))
-    rows = train_rows(ds)
-    src = np.repeat(ds.episode_sources, ds.episode_ends - ds.episode_starts)[rows]
     raw = _flat(ds.denormalize(name, y.reshape((len(y),) + shape), src), len(y))
     dims = y.shape[1]
-    widths = np.array([min(int(sources[n].get("widths", {}).get(name, dims)), dims) for n in ds.source_names])
+    # Each source's own dims (after its transforms, when they change its width).
+    widths = np.array([min(int(sources[n].get("transformed_widths", {}).get(name, sources[n].get("widths", {}).get(name, dims))),
+                           dims) for n in ds.source_names])
     problems = []
     held = " (" + "; ".join(f"{n} {int(widths[s])} dims, {int((src == s).sum())} steps"
                             for s, n in enumerate(ds.source_names)) + ")"

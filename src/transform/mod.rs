@@ -264,6 +264,7 @@ mod tests {
         let delta = Transform {
             channel: "action".into(),
             channel_index: 0,
+            sources: None,
             op: Op::Delta {
                 reference: "observation.state".into(),
                 reference_index: 1,
@@ -278,6 +279,7 @@ mod tests {
         let rel = Transform {
             channel: "action".into(),
             channel_index: 0,
+            sources: None,
             op: Op::RelativePose {
                 dims: [0, 6],
                 rotation: RotationKind::AxisAngle,

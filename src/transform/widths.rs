@@ -65,3 +65,50 @@ impl Widths {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rotation::{Layout6d, RotationKind};
+    use crate::transform::Op;
+
+    /// Axis-angle -> 6D on dims [3, 6) of channel 0, for the sources given.
+    fn to_6d(sources: Option<Vec<(usize, String)>>) -> Transform {
+        Transform {
+            channel: "action".into(),
+            channel_index: 0,
+            sources,
+            op: Op::Rotation {
+                dims: [3, 6],
+                from: RotationKind::AxisAngle,
+                to: RotationKind::Rotation6d,
+                euler: None,
+                convention: None,
+                layout: Layout6d::Rows,
+            },
+        }
+    }
+
+    #[test]
+    fn one_source_is_the_stored_width_through_its_transforms() {
+        let w = Widths::of(&[to_6d(None)], 0, 7, &[7]).unwrap();
+        assert_eq!((w.after, w.own_after.as_slice()), (10, &[10][..]));
+    }
+
+    #[test]
+    fn a_padded_channel_keeps_its_width_and_each_source_its_own() {
+        let t = to_6d(Some(vec![(0, "arm".into())]));
+        let w = Widths::of(&[t.clone()], 0, 32, &[7, 26, 0]).unwrap();
+        assert_eq!(w.after, 32);
+        assert_eq!(w.own_after, [10, 26, 0]);
+        // Wider than the padding: the source is named.
+        assert_eq!(Widths::of(&[t], 0, 8, &[7, 8]), Err((0, 10)));
+    }
+
+    #[test]
+    fn unpadded_sources_must_agree_after_their_transforms() {
+        let t = to_6d(Some(vec![(1, "b".into())]));
+        assert_eq!(Widths::of(&[t.clone()], 0, 7, &[7, 7]), Err((1, 10)));
+        assert_eq!(Widths::of(&[t], 1, 7, &[7, 7]).unwrap().after, 7);
+    }
+}
