@@ -17,8 +17,8 @@ use super::conversion::{conversion, Conversion};
 use super::{AuditReport, Verdict};
 use crate::error::Result;
 use crate::source::{
-    ChannelData, DecodeCounts, Episode, EpisodeInfo, Manifest, Source, SourcePart, SourceSplit,
-    VideoCheck,
+    ChannelData, ChannelInfo, DecodeCounts, Episode, EpisodeInfo, Manifest, Source, SourcePart,
+    SourceSplit, VideoCheck,
 };
 use crate::spec::{LoadedSpec, SourceView};
 
@@ -43,6 +43,19 @@ pub struct Mixture {
     channel_of: Vec<Vec<Option<usize>>>,
 }
 
+/// Each part's name and channels.
+fn listed(parts: &[Part]) -> Vec<(&str, &[ChannelInfo])> {
+    parts
+        .iter()
+        .map(|p| {
+            (
+                p.view.name.as_str(),
+                p.source.manifest().channels.as_slice(),
+            )
+        })
+        .collect()
+}
+
 /// The id offsets of sources whose opened manifests are `manifests`, in order.
 pub fn id_offsets<'a>(manifests: impl Iterator<Item = &'a Manifest>) -> Vec<u64> {
     let mut next = 0u64;
@@ -58,7 +71,7 @@ pub fn id_offsets<'a>(manifests: impl Iterator<Item = &'a Manifest>) -> Vec<u64>
 impl Mixture {
     /// Joins `parts` (in name order) at `fps`.
     pub fn new(spec: &LoadedSpec, parts: Vec<Part>, fps: f64) -> Result<Mixture> {
-        let channels = super::mixture_channels::joined(spec, &parts)?;
+        let channels = super::channel_union::joined(spec, &listed(&parts))?;
         let conversions = conversions(spec, &parts, fps)?;
         let mut manifest = Manifest {
             format: parts[0].source.manifest().format,

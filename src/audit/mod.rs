@@ -16,14 +16,14 @@
 //!   mixture.
 //! - `mixture`: the audited sources of a training mixture joined into one ([`Mixture`]): ids
 //!   made unique, every source at the mixture's rate, padded channels zero-filled;
-//!   `mixture_channels` decides its channels and widths.
+//!   `channel_union` decides its channels and widths.
 
 mod audited;
+mod channel_union;
 pub mod conversion;
 pub mod doctor;
 pub mod histogram;
 pub mod mixture;
-mod mixture_channels;
 pub mod repair;
 pub mod report;
 pub mod resample;

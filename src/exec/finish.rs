@@ -8,11 +8,12 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use super::rate::RateState;
+use super::shared::{Shared, Stats};
 use super::staging::Staging;
 use super::FileHashes;
 use crate::error::{Error, IoContext, Result};
 use crate::lock;
-use crate::plan::{Plan, ProfilePlan, META_FILE, STATS_FILE};
+use crate::plan::{ProfilePlan, META_FILE, STATS_FILE};
 use crate::render;
 use crate::sink::{self, documents, Sink};
 use crate::source::{self, ChannelKind, Manifest};
@@ -23,13 +24,6 @@ use crate::window::Sampling;
 
 /// Threads that fsync a profile's outputs while they are hashed (they mostly wait on the disk).
 const SYNC_THREADS: usize = 4;
-
-/// What every profile of a build shares.
-pub(super) struct Shared<'a> {
-    pub plan: &'a Plan,
-    pub manifest: &'a Manifest,
-    pub renderer: &'a render::Renderer,
-}
 
 /// A stale profile waiting for its rate's statistics: a position (of its rate when handed in,
 /// of the profile once grouped by rate), its sink and its staging directory.
@@ -61,8 +55,11 @@ pub(super) fn all(
         |(rate, profiles)| -> Result<Vec<_>> {
             let (stats, sources) = {
                 let _statistics = timings::phase("statistics");
-                let sources = super::mixture_stats::per_source(rate, manifest, &train_mask)?;
-                (rate.stats(manifest, &train_mask)?, sources)
+                let sources = super::rate_stats::per_source(rate, manifest, &train_mask)?;
+                (
+                    super::rate_stats::stats(rate, manifest, &train_mask)?,
+                    sources,
+                )
             };
             Ok(profiles
                 .into_par_iter()
@@ -99,17 +96,6 @@ pub(super) fn all(
         staging.files_synced(&p.name);
     }
     Ok(hashes)
-}
-
-/// A profile's statistics: its own (after its transforms, over its population), which it
-/// normalizes with, and the per-frame ones of the stored values (a LeRobot export's
-/// `meta/stats.json` describes the stored features).
-pub(super) struct Stats<'a> {
-    pub own: &'a BTreeMap<String, ChannelStats>,
-    pub stored: &'a BTreeMap<String, ChannelStats>,
-    /// A training mixture's own, per source (its own width, after its transforms); empty for
-    /// one source. `own` and `stored` are then the pooled ones.
-    pub sources: &'a [BTreeMap<String, ChannelStats>],
 }
 
 /// A profile's last writes, in order: the container (normalized low-dim values, window index),
@@ -154,7 +140,7 @@ fn write_data(
     let lowdim = timings::phase("write low-dim");
     let stats = all_stats.own;
     let mut normalizers = BTreeMap::new();
-    let mixture = super::mixture_stats::Normalizers::new(shared, p, all_stats);
+    let mixture = super::source_normalizers::Normalizers::new(shared, p, all_stats);
     // With transforms the loader transforms raw values on read and normalizes after: every
     // low-dim channel is stored raw (a reference is read raw too).
     let raw = !p.transforms.is_empty();
@@ -246,7 +232,7 @@ fn write_documents(
         ),
     )?;
     write(STATS_FILE, documents::stats_json(p, stats))?;
-    super::mixture_stats::write_source_stats(shared, p, all_stats.sources, dir)?;
+    super::source_files::write_source_stats(shared, p, all_stats.sources, dir)?;
     if p.values.format == crate::spec::OutputFormat::Parquet {
         // LeRobot v3.0 reads its statistics from `meta/stats.json`.
         let path = dir.join(sink::lerobot::STATS_PATH);

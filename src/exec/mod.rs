@@ -9,13 +9,17 @@
 //! episode ([`guard`]). The command drivers ([`crate::commands`]) decide what is stale, commit
 //! the staging directory and update the lock.
 //!
-//! - `rate`: what is kept per output rate while reading, and its statistics.
+//! - `rate`: what is kept per output rate while reading.
+//! - `rate_stats`: the statistics of every channel at a rate (a training mixture's per source,
+//!   and pooled over the union).
 //! - `process`: an episode converted to every rate and encoded for every sink (parallel).
 //! - `read`: the batched pass over the source.
 //! - `guard`: the panic-to-error wrapper of a per-episode job.
 //! - `finish`: a profile's last writes once the statistics are known.
-//! - `mixture_stats`: a training mixture's statistics (per source, and pooled over the union)
-//!   and its per-source normalizers.
+//! - `shared`: what every profile shares as it finishes, and a profile's statistics.
+//! - `window_stats`: a profile's own statistics (its transforms, windows), per source too.
+//! - `source_normalizers`: a training mixture's normalizers, per source.
+//! - `source_files`: a training mixture's statistics files per source.
 //! - `partial`: a shard's processed episodes on disk, and reading them back for the merge.
 //! - `shard`: one shard's part of the pass (`build --shard I/N`), written as a partial.
 //! - `staging`: the staging directory, the build lock and the final renames.
@@ -24,13 +28,16 @@
 mod doctor;
 mod finish;
 mod guard;
-mod mixture_stats;
 pub mod partial;
 mod process;
 mod progress;
 mod rate;
+mod rate_stats;
 mod read;
 mod shard;
+mod shared;
+mod source_files;
+mod source_normalizers;
 pub mod staging;
 mod window_stats;
 
@@ -209,7 +216,7 @@ pub fn execute(
             return Ok(Outcome::Exclude(excluded));
         }
     }
-    let shared = finish::Shared {
+    let shared = shared::Shared {
         plan,
         manifest,
         renderer: &renderer,

@@ -1,16 +1,14 @@
 //! What a build keeps per output rate while the source is read: each episode's end in the
 //! converted per-step arrays, every low-dim value (in a [`LowdimStore`]), and the statistics
-//! partials of the training episodes, merged in episode order; then the statistics of every
-//! channel at that rate, shared by all the profiles that use it.
+//! partials of the training episodes, merged in episode order (`rate_stats` reduces them to
+//! the statistics every profile at that rate shares).
 
-use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use super::staging::Staging;
-use crate::error::Result;
 use crate::plan::Conversion;
 use crate::source::{ChannelKind, Manifest};
-use crate::stats::{self, ChannelStats, HighCounts, ImagePartial};
+use crate::stats::{self, HighCounts, ImagePartial};
 use crate::store::LowdimStore;
 use crate::window::EpisodeEnds;
 
@@ -97,41 +95,6 @@ impl RateState {
     /// Where episode `e`'s rows start in the converted per-step arrays.
     pub fn start(&self, e: usize) -> usize {
         self.ends.start(e)
-    }
-
-    /// The statistics of every channel at this rate: low-dim percentiles from the store (moments
-    /// were merged while reading), image statistics from their partials; a mixture's pooled over
-    /// its sources.
-    pub fn stats(
-        &self,
-        manifest: &Manifest,
-        train_mask: &[bool],
-    ) -> Result<BTreeMap<String, ChannelStats>> {
-        if !manifest.parts.is_empty() {
-            return super::mixture_stats::pooled(self, manifest, train_mask);
-        }
-        let mut by_channel = BTreeMap::new();
-        for (c, ch) in manifest.channels.iter().enumerate() {
-            let s = match (&self.partials[c], ch.kind) {
-                (Partial::Lowdim(m), ChannelKind::Lowdim) => {
-                    let values = &self.lowdim[c];
-                    let train: Vec<(usize, usize)> = (0..self.ends.len())
-                        .filter(|&e| train_mask[e])
-                        .map(|e| (self.ends.start(e), self.ends.range(e).end))
-                        .collect();
-                    // The first percentile pass was counted as the rows arrived; the second
-                    // reads the training rows once, for every column.
-                    let high = self.high[c].as_deref();
-                    stats::lowdim_from_rows(m.clone(), ch.width(), high, |f| {
-                        values.for_rows(&train, f)
-                    })?
-                }
-                (Partial::Image(p), ChannelKind::Image) => p.clone().finish(),
-                _ => unreachable!("a channel's partial has its kind"),
-            };
-            by_channel.insert(ch.name.clone(), s);
-        }
-        Ok(by_channel)
     }
 }
 

@@ -20,6 +20,7 @@
 //!   to them (`abs_action` expanded).
 //! - `text`: the human-readable rendering of `chunkc plan`.
 
+mod abs_action;
 mod cameras;
 pub mod estimate;
 pub mod export;

@@ -3,11 +3,11 @@
 //! spec error naming its key, at `chunkc check`.
 
 use crate::error::{Error, Result};
-use crate::rotation::{Euler, Layout6d, RotationKind};
+use crate::rotation::{Euler, RotationKind};
 use crate::source::{ChannelKind, Manifest};
 use crate::spec::{
-    DeltaSpec, LoadedSpec, OutputFormat, Preset, Profile, RelativePoseSpec, RotationSpec,
-    StatsPopulation, TransformSpec,
+    DeltaSpec, LoadedSpec, OutputFormat, Profile, RelativePoseSpec, RotationSpec, StatsPopulation,
+    TransformSpec,
 };
 use crate::transform::{expand_mask, Op, Transform, Widths};
 use crate::window::Sampling;
@@ -51,7 +51,7 @@ pub(super) fn resolve(
         spec,
         profile: &profile.name,
     };
-    let mut out = abs_action(&at, manifest, profile)?;
+    let mut out = super::abs_action::transforms(&at, manifest, profile)?;
     // Each channel's width as the transforms so far leave it.
     let mut widths: Vec<usize> = manifest.channels.iter().map(|c| c.width()).collect();
     for t in &out {
@@ -345,64 +345,6 @@ fn mask(at: &At, i: usize, mask: &[i64]) -> Result<Vec<bool>> {
         return Err(at.field(i, "mask", "a mask is a list of nonzero counts, as openpi's make_bool_mask takes them: `6` for six dimensions made relative, `-1` for one left as it is".into()));
     }
     Ok(expand_mask(mask))
-}
-
-/// `abs_action = true`: Diffusion Policy's rotation per arm, axis-angle to rows 6D.
-fn abs_action(at: &At, manifest: &Manifest, profile: &Profile) -> Result<Vec<Transform>> {
-    if !profile.abs_action {
-        return Ok(Vec::new());
-    }
-    let dp = matches!(
-        profile.preset,
-        Some(Preset::DiffusionPolicy | Preset::DiffusionPolicyHighfreq | Preset::Dp3)
-    );
-    if !dp {
-        return Err(at.key(
-            &["abs_action"],
-            format!(
-                "profiles.{}.abs_action is Diffusion Policy's setting: it needs `preset = \"diffusion_policy\"` (or one of its variants)",
-                profile.name
-            ),
-            None,
-        ));
-    }
-    let c = manifest
-        .channels
-        .iter()
-        .position(|c| c.name == "action")
-        .expect("every source maps `action`");
-    let width = manifest.channels[c].width();
-    let arms: &[usize] = match width {
-        7 => &[3],
-        // The second arm first, so that the first arm's dims still hold.
-        14 => &[10, 3],
-        _ => {
-            return Err(at.key(
-                &["abs_action"],
-                format!(
-                    "profiles.{}.abs_action needs actions of [pos3, axis_angle3, gripper1] per arm, 7 or 14 wide; `action` has {width} values per step",
-                    profile.name
-                ),
-                None,
-            ))
-        }
-    };
-    Ok(arms
-        .iter()
-        .map(|&start| Transform {
-            channel: "action".into(),
-            channel_index: c,
-            sources: None,
-            op: Op::Rotation {
-                dims: [start, start + 3],
-                from: RotationKind::AxisAngle,
-                to: RotationKind::Rotation6d,
-                euler: None,
-                convention: None,
-                layout: Layout6d::Rows,
-            },
-        })
-        .collect())
 }
 
 /// `stats_population`: windows need fixed windows; a per-window transform needs windows.

@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 
 use serde_json::{json, Value};
 
+use super::shapes::{normalization_json, shape_of};
 use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
 use crate::source::ChannelKind;
 use crate::spec::{ImageCompression, OutputFormat, DEFAULT_IMAGE_QUALITY};
@@ -162,30 +163,9 @@ pub fn meta_json(
         map.insert("env".into(), json!(env));
     }
     if !plan.source.parts.is_empty() {
-        super::mixture_meta::add(&mut doc, plan, profile, built);
+        super::meta_sources::add(&mut doc, plan, profile, built.source_normalizers);
     }
     pretty(&doc)
-}
-
-/// `meta.json`'s `normalization`: per channel, laid out in its per-step shape.
-pub(super) fn normalization_json(
-    profile: &ProfilePlan,
-    normalizers: &BTreeMap<String, Normalizer>,
-) -> serde_json::Map<String, Value> {
-    let mut normalization = serde_json::Map::new();
-    for (name, n) in normalizers {
-        let shape = shape_of(profile, name);
-        normalization.insert(
-            name.clone(),
-            json!({
-                "mode": n.mode,
-                "center": shaped::nested(&n.center, shape),
-                "scale": shaped::nested(&n.scale, shape),
-                "clip": n.clip,
-            }),
-        );
-    }
-    normalization
 }
 
 /// How an image channel of chunkc's HDF5 layout stores its frames when not as pixels
@@ -212,21 +192,6 @@ fn frame_storage(profile: &ProfilePlan, kind: ChannelKind, name: &str) -> Option
         }),
         ImageCompression::None | ImageCompression::Gzip => None,
     }
-}
-
-/// The per-step shape of a low-dim channel of the profile (empty for images, whose statistics
-/// are per colour channel).
-fn shape_of<'p>(profile: &'p ProfilePlan, name: &str) -> &'p [usize] {
-    profile
-        .channels
-        .iter()
-        .enumerate()
-        .find(|(c, ch)| {
-            ch.name == name
-                && ch.kind == ChannelKind::Lowdim
-                && profile.transforms_of(*c).next().is_none()
-        })
-        .map_or(&[], |(_, c)| c.shape.as_slice())
 }
 
 /// `stats.json`: per channel, per dimension statistics of the training split in raw units, laid

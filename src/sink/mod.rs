@@ -22,7 +22,8 @@
 //!   `image_encoding = "video"` and `chunkc synth --format lerobot` writes.
 //! - `robomimic`: robomimic's `data.hdf5` with `data/demo_<i>` (raw values).
 //! - `documents`: `meta.json` and `stats.json`.
-//! - `mixture_meta`: a training mixture's fields of `meta.json` (each episode's source, the
+//! - `shapes`: a channel's per-step shape in the documents (normalization tables, statistics).
+//! - `meta_sources`: a training mixture's fields of `meta.json` (each episode's source, the
 //!   sampling probabilities, each source's split, widths and normalization).
 //! - `encoder_record`: the frame encoder (library, version, settings) `chunkc.lock` records.
 //! - `dump`: canonical text dumps of written files (golden tests).
@@ -43,9 +44,10 @@ pub mod lerobot;
 mod lerobot_columns;
 mod lerobot_spill;
 mod lerobot_tasks;
-mod mixture_meta;
+mod meta_sources;
 pub mod png;
 pub mod robomimic;
+mod shapes;
 pub mod video_copy;
 pub mod video_encode;
 pub mod zarr;

@@ -98,7 +98,7 @@ mod tests {
     #[test]
     fn a_padded_channel_keeps_its_width_and_each_source_its_own() {
         let t = to_6d(Some(vec![(0, "arm".into())]));
-        let w = Widths::of(&[t.clone()], 0, 32, &[7, 26, 0]).unwrap();
+        let w = Widths::of(std::slice::from_ref(&t), 0, 32, &[7, 26, 0]).unwrap();
         assert_eq!(w.after, 32);
         assert_eq!(w.own_after, [10, 26, 0]);
         // Wider than the padding: the source is named.
@@ -108,7 +108,10 @@ mod tests {
     #[test]
     fn unpadded_sources_must_agree_after_their_transforms() {
         let t = to_6d(Some(vec![(1, "b".into())]));
-        assert_eq!(Widths::of(&[t.clone()], 0, 7, &[7, 7]), Err((1, 10)));
+        assert_eq!(
+            Widths::of(std::slice::from_ref(&t), 0, 7, &[7, 7]),
+            Err((1, 10))
+        );
         assert_eq!(Widths::of(&[t], 1, 7, &[7, 7]).unwrap().after, 7);
     }
 }

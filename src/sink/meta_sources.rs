@@ -5,14 +5,22 @@
 
 use serde_json::{json, Map, Value};
 
-use super::documents::{normalization_json, Built};
+use std::collections::BTreeMap;
+
+use super::shapes::normalization_json;
 use crate::plan::mixture::{balanced, windows};
 use crate::plan::{conversion, Conversion, Plan, ProfilePlan};
 use crate::source::SourcePart;
 use crate::spec::ResampleMethod;
+use crate::stats::normalize::Normalizer;
 
 /// Adds the mixture's fields to `doc` (a one-source `meta.json` has none of them).
-pub fn add(doc: &mut Value, plan: &Plan, profile: &ProfilePlan, built: &Built) {
+pub fn add(
+    doc: &mut Value,
+    plan: &Plan,
+    profile: &ProfilePlan,
+    normalizers: &[BTreeMap<String, Normalizer>],
+) {
     let parts = &plan.source.parts;
     let mixture = plan.mixture.clone().unwrap_or_default();
     let episode_sources: Vec<usize> = profile
@@ -28,7 +36,7 @@ pub fn add(doc: &mut Value, plan: &Plan, profile: &ProfilePlan, built: &Built) {
     let mut sources = Map::new();
     for (s, part) in parts.iter().enumerate() {
         let counts = (train[s], val[s]);
-        let entry = source_entry(plan, profile, built, s, counts);
+        let entry = source_entry(plan, profile, normalizers, s, counts);
         sources.insert(part.name.clone(), entry);
     }
     let names: Vec<&str> = parts.iter().map(|p| p.name.as_str()).collect();
@@ -61,7 +69,7 @@ pub fn add(doc: &mut Value, plan: &Plan, profile: &ProfilePlan, built: &Built) {
 fn source_entry(
     plan: &Plan,
     profile: &ProfilePlan,
-    built: &Built,
+    normalizers: &[BTreeMap<String, Normalizer>],
     s: usize,
     counts: (usize, usize),
 ) -> Value {
@@ -98,8 +106,7 @@ fn source_entry(
         .filter(|&(c, _)| profile.transforms_of(c).next().is_some())
         .map(|(c, ch)| (ch.name.clone(), json!(profile.widths[c].own_after[s])))
         .collect();
-    let normalization = built
-        .source_normalizers
+    let normalization = normalizers
         .get(s)
         .map(|n| normalization_json(profile, n))
         .unwrap_or_default();

@@ -3,14 +3,17 @@
 
 use std::collections::BTreeMap;
 
-use super::mixture::Part;
 use crate::error::Result;
 use crate::source::{ChannelInfo, ChannelKind};
 use crate::spec::LoadedSpec;
 
 /// The mixture's channels: the union of the sources', in name order, with their widths checked
 /// against `[mixture] pad_to`.
-pub(super) fn joined(spec: &LoadedSpec, parts: &[Part]) -> Result<Vec<ChannelInfo>> {
+/// `parts`: each source's name and channels, in mixture order.
+pub(super) fn joined(
+    spec: &LoadedSpec,
+    parts: &[(&str, &[ChannelInfo])],
+) -> Result<Vec<ChannelInfo>> {
     let pad_to = spec
         .spec
         .mixture
@@ -18,14 +21,14 @@ pub(super) fn joined(spec: &LoadedSpec, parts: &[Part]) -> Result<Vec<ChannelInf
         .map(|m| m.pad_to.clone())
         .unwrap_or_default();
     let mut union: BTreeMap<&str, Vec<Option<&ChannelInfo>>> = BTreeMap::new();
-    for (s, part) in parts.iter().enumerate() {
-        for ch in &part.source.manifest().channels {
+    for (s, (_, channels)) in parts.iter().enumerate() {
+        for ch in channels.iter() {
             union
                 .entry(&ch.name)
                 .or_insert_with(|| vec![None; parts.len()])[s] = Some(ch);
         }
     }
-    let name_of = |s: usize| parts[s].view.name.as_str();
+    let name_of = |s: usize| parts[s].0;
     let mut out = Vec::new();
     for (name, per_source) in union {
         let (first, info) = per_source
