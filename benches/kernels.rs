@@ -214,6 +214,7 @@ fn writers(c: &mut Criterion) {
                 episode_ends: &ends,
                 episode_ids: &ids,
                 episode_sources: &[],
+                source_parts: &[],
                 tasks: &Default::default(),
                 spill_budget: chunkc::exec::spill_budget(),
             };
@@ -245,6 +246,7 @@ fn writers(c: &mut Criterion) {
                     episode_ends: &ends,
                     episode_ids: &ids,
                     episode_sources: &[],
+                source_parts: &[],
                     tasks: &Default::default(),
                     spill_budget: chunkc::exec::spill_budget(),
                 };

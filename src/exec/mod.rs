@@ -137,6 +137,7 @@ fn set_up(
             episode_ends: &rates[rate].ends,
             episode_ids: &ids,
             episode_sources: &sources,
+            source_parts: &manifest.parts,
             tasks: &manifest.tasks,
             spill_budget: budget,
         })?;

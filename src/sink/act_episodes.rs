@@ -67,7 +67,7 @@ impl ActEpisodesWriter {
             dir: ctx.dir.to_path_buf(),
             has_qvel: channels.iter().any(|c| c.array == QVEL),
         };
-        Ok(NativeHdf5Writer::new(layout, ctx.episode_ends, channels))
+        Ok(NativeHdf5Writer::new(layout, ctx, channels))
     }
 }
 
@@ -78,6 +78,10 @@ impl NativeLayout for ActEpisodes {
 
     fn file_of(&self, e: usize) -> PathBuf {
         episode_file(&self.dir, e)
+    }
+
+    fn episode_group(&self, _: usize) -> String {
+        "/".into()
     }
 
     fn frame_targets(&self, ch: &ProfileChannel, _: usize, run: Run) -> Vec<FrameTarget> {

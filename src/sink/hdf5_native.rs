@@ -15,7 +15,8 @@ use std::sync::Arc;
 use hdf5::{Dataset, File, Group};
 
 use super::hdf5_rows::write_rows;
-use super::{FrameEncoding, Frames, Sink, WindowIndex};
+use super::source_marks::SourceMarks;
+use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
 use crate::plan::ProfileChannel;
 use crate::source::ChannelKind;
@@ -53,20 +54,26 @@ pub(super) trait NativeLayout: Send {
     fn frame_targets(&self, ch: &ProfileChannel, e: usize, run: Run) -> Vec<FrameTarget>;
     /// Writes episode `e` (of `len` steps) once every value is in.
     fn finish_episode(&self, file: &File, e: usize, len: usize, lowdim: &[Rows]) -> Result<()>;
+    /// The group holding episode `e` (a training mixture's `source` attribute goes there).
+    fn episode_group(&self, e: usize) -> String;
 }
 
 /// A native HDF5 export being written: the shared [`Sink`] of every [`NativeLayout`].
 pub struct NativeHdf5Writer<L> {
     pub(super) layout: L,
+    /// A training mixture's source of each episode and its own dimensions.
+    pub(super) marks: Option<SourceMarks>,
     pub(super) ends: EpisodeEnds,
     pub(super) channels: Vec<ProfileChannel>,
     pub(super) raw: Vec<Option<Arc<LowdimStore>>>,
 }
 
 impl<L> NativeHdf5Writer<L> {
-    pub(super) fn new(layout: L, ends: &[u64], channels: Vec<ProfileChannel>) -> Self {
+    pub(super) fn new(layout: L, ctx: &SinkContext, channels: Vec<ProfileChannel>) -> Self {
+        let ends = ctx.episode_ends;
         NativeHdf5Writer {
             layout,
+            marks: SourceMarks::of(ctx),
             ends: EpisodeEnds::from(ends),
             raw: channels.iter().map(|_| None).collect(),
             channels,
@@ -194,6 +201,14 @@ impl<L: NativeLayout> Sink for NativeHdf5Writer<L> {
                 }
             }
             self.layout.finish_episode(file, e, hi - lo, &lowdim)?;
+            if let Some(marks) = &self.marks {
+                let group = self.layout.episode_group(e);
+                let channel_of = |ch: &ProfileChannel| {
+                    let found = self.channels.iter().position(|c| c.name == ch.name);
+                    found.expect("a profile channel")
+                };
+                marks.write(file, &group, e, &lowdim, |ch| ch.array_of(e), channel_of)?;
+            }
         }
         if let Some((_, file)) = open {
             file.close()?;

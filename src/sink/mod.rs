@@ -48,6 +48,7 @@ mod meta_sources;
 pub mod png;
 pub mod robomimic;
 mod shapes;
+mod source_marks;
 pub mod video_copy;
 pub mod video_encode;
 pub mod zarr;
@@ -216,6 +217,8 @@ pub struct SinkContext<'a> {
     pub episode_ids: &'a [u64],
     /// A training mixture's: each stored episode's source (its index); empty for one source.
     pub episode_sources: &'a [usize],
+    /// A training mixture's sources, in mixture order; empty for one source.
+    pub source_parts: &'a [crate::source::SourcePart],
     /// Each episode's task (a language instruction), by source id; episodes without one are
     /// absent (the LeRobot export gives them its default task).
     pub tasks: &'a BTreeMap<u64, String>,

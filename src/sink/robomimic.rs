@@ -104,11 +104,7 @@ impl RobomimicWriter {
             new_dataset(&mask, key, &[names.len()], names)?;
         }
         file.close()?;
-        Ok(NativeHdf5Writer::new(
-            Robomimic { path },
-            ctx.episode_ends,
-            channels,
-        ))
+        Ok(NativeHdf5Writer::new(Robomimic { path }, ctx, channels))
     }
 }
 
@@ -119,6 +115,10 @@ impl NativeLayout for Robomimic {
 
     fn file_of(&self, _: usize) -> PathBuf {
         self.path.clone()
+    }
+
+    fn episode_group(&self, e: usize) -> String {
+        format!("data/{}", demo(e))
     }
 
     /// `obs`, and `next_obs` one step earlier: step s is the next observation of step s - 1;

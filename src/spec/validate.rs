@@ -344,7 +344,6 @@ impl Checker<'_> {
             Ok(expanded) => {
                 self.output_options(name, &expanded);
                 self.export_keys(name, profile, &expanded);
-                self.mixture_profile(name, &expanded);
                 Some(expanded)
             }
             Err(ExpandError::Missing(missing)) => {

@@ -252,3 +252,52 @@ def test_a_mask_that_does_not_fit_a_source_is_refused_naming_mask_and_source(tmp
     done = run_chunkc("check", spec, check=False)
     assert done.returncode != 0 and "no source `arm`" in done.stderr and "own, sim" in done.stderr, done.stderr
     assert not (tmp_path / "out").exists()
+
+
+NATIVE = """
+[profiles.act_native]
+preset = "act"
+format = "act_episodes"
+fps = 10
+
+[profiles.rm]
+preset = "diffusion_policy"
+format = "robomimic_hdf5"
+fps = 10
+"""
+
+
+def padded(values, width=PAD):
+    out = np.zeros((len(values), width), values.dtype)
+    out[:, :values.shape[1]] = values
+    return out
+
+
+def test_native_exports_hold_each_source_episode_padded_with_its_dim_mask(tmp_path):
+    """ACT episodes and robomimic demos of a mixture: one file / demo per source episode at the
+    padded width, raw values as ACT's EpisodicDataset and robomimic's SequenceDataset read them
+    (`/action`, `/observations/qpos`; `data/demo_<i>/actions`, `obs/<key>`), the source named
+    beside them (`source`) and its own dimensions marked (`dim_mask`)."""
+    run_chunkc("build", "-q", mixture_spec(tmp_path, profiles=NATIVE))
+    out = tmp_path / "out"
+    raw = {s: (RAW[s]["action"](), RAW[s]["observation.state"]()) for s in ("own", "sim")}
+    for profile in ("act_native", "rm"):
+        meta = json.loads((out / profile / "meta.json").read_text())
+        names = meta["mixture"]["source_names"]
+        assert sorted(set(meta["episode_sources"])) == [0, 1]
+        for e, (episode, s) in enumerate(zip(meta["episodes"], meta["episode_sources"])):
+            source = names[s]
+            action, state = (v[episode - meta["sources"][source]["id_offset"]] for v in raw[source])
+            if profile == "act_native":
+                f = h5py.File(out / profile / f"episode_{e}.hdf5", "r")
+                group, arrays = f, {"action": "action", "state": "observations/qpos"}
+            else:
+                f = h5py.File(out / profile / "data.hdf5", "r")
+                group = f["data"][f"demo_{e}"]
+                arrays = {"action": f"data/demo_{e}/actions", "state": f"data/demo_{e}/obs/observation.state"}
+            with f:
+                assert group.attrs["source"] == source
+                for key, want, width in [("action", action, WIDTHS[source]), ("state", state, STATE_WIDTHS[source])]:
+                    got = f[arrays[key]]
+                    np.testing.assert_array_equal(got[()], padded(want).astype(got.dtype), err_msg=f"{profile} {e} {key}")
+                    np.testing.assert_array_equal(got.attrs["dim_mask"], np.arange(PAD) < width)

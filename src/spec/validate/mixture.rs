@@ -1,11 +1,9 @@
-//! `[source]` or `[sources.<name>]` (a training mixture), `[mixture]`, and what a profile of a
-//! mixture may not do yet. The rules that need the sources' data (widths, a channel a source
-//! lacks) are the mixture source's (`source::mixture`).
+//! `[source]` or `[sources.<name>]` (a training mixture), and `[mixture]`. The rules that need
+//! the sources' data (widths, a channel a source lacks) are the mixture source's
+//! (`source::mixture`).
 
 use super::{is_profile_name, Checker};
 use crate::spec::diagnostic::did_you_mean;
-use crate::spec::model::OutputFormat;
-use crate::spec::preset::Profile;
 
 impl Checker<'_> {
     /// Exactly one of `[source]` and `[sources.<name>]`, each source's own rules, the weights
@@ -85,32 +83,6 @@ impl Checker<'_> {
                 let message = format!("`mixture.pad_to.{channel}` must be at least 1");
                 self.value(&at, message, "must be at least 1", None);
             }
-        }
-    }
-
-    /// What a profile of a mixture cannot do yet.
-    pub(super) fn mixture_profile(&mut self, name: &str, p: &Profile) {
-        if !self.loaded.is_mixture() {
-            return;
-        }
-        let refuse = |what: String| {
-            format!(
-                "profile `{name}`: {what} is not supported for a mixture (`[sources.<name>]`) yet"
-            )
-        };
-        if matches!(
-            p.format,
-            OutputFormat::ActEpisodes | OutputFormat::RobomimicHdf5
-        ) {
-            let message = refuse(format!("`format = \"{}\"`", p.format.name()));
-            let help =
-                Some("use `hdf5`, `zarr` or `parquet`, which keep each episode's source".into());
-            self.value(
-                &["profiles", name, "format"],
-                message,
-                "one source only",
-                help,
-            );
         }
     }
 }
