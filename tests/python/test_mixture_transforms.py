@@ -301,3 +301,55 @@ def test_native_exports_hold_each_source_episode_padded_with_its_dim_mask(tmp_pa
                     got = f[arrays[key]]
                     np.testing.assert_array_equal(got[()], padded(want).astype(got.dtype), err_msg=f"{profile} {e} {key}")
                     np.testing.assert_array_equal(got.attrs["dim_mask"], np.arange(PAD) < width)
+
+
+SEGMENTS = """
+[profiles.seg]
+chunk = 40
+padding = "mask"
+fps = 10
+[profiles.seg.segment]
+method = "velocity"
+channel = "observation.state"
+dims = [3, 4]
+threshold = 0.0003
+"""
+
+
+def test_segments_are_cut_per_source_episode_as_each_source_alone(tmp_path):
+    """Segment sampling over a mixture: each source episode is cut exactly as the same profile
+    cuts it when that source is built alone (same rate, same watched dimension)."""
+    from conftest import G1, PUSHT
+    from conftest import write_spec as pusht_spec
+    from test_transforms import write_spec as lerobot_spec
+
+    for d in ("mix", "sim"):
+        (tmp_path / d).mkdir()
+    run_chunkc("build", "-q", mixture_spec(tmp_path / "mix", profiles=SEGMENTS))
+    mixed = json.loads((tmp_path / "mix" / "out" / "seg" / "meta.json").read_text())
+    alone = {
+        "sim": pusht_spec(tmp_path / "sim", SEGMENTS, source=PUSHT, fps=10,
+                          channels={"action": "action", "observation.state": "state"}),
+        "own": lerobot_spec(tmp_path / "own", "lerobot", G1, {"action": "action", "observation.state": "observation.state"},
+                            SEGMENTS),
+    }
+    names = mixed["mixture"]["source_names"]
+    got = {}
+    for e, (episode, s) in enumerate(zip(mixed["episodes"], mixed["episode_sources"])):
+        source = names[s]
+        got[(source, episode - mixed["sources"][source]["id_offset"])] = mixed["sampling"]["segments"][e]
+    for source, spec in alone.items():
+        run_chunkc("build", "-q", spec)
+        meta = json.loads((spec.parent / "out" / "seg" / "meta.json").read_text())
+        for e, episode in enumerate(meta["episodes"]):
+            assert got[(source, episode)] == meta["sampling"]["segments"][e], f"{source} episode {episode}"
+    assert len(got) == sum(len(json.loads((alone[s].parent / "out" / "seg" / "meta.json").read_text())["episodes"])
+                           for s in alone)
+    # The watched dimension moves: both sources' episodes are cut at breakpoints, not only at
+    # the 40-step maximum.
+    ends = np.asarray(mixed["episode_ends"])
+    lengths = np.diff(np.concatenate([[0], ends]))
+    for s in (0, 1):
+        cut = [len(mixed["sampling"]["segments"][e]) > -(-lengths[e] // 40)
+               for e in range(len(ends)) if mixed["episode_sources"][e] == s]
+        assert any(cut), names[s]
