@@ -95,3 +95,52 @@ fn extends_shows_resolved_values_and_origins_in_the_plan() {
         "{text}"
     );
 }
+
+/// A training mixture's sources are read once too: each source's dataset doctor rides on the
+/// build's read (at the source's own rate) instead of reading the source in a pass of its own,
+/// so every storage chunk of every source is decoded once.
+#[test]
+fn a_mixtures_doctor_rides_on_the_one_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let source =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/pusht_subset.zarr");
+    let source = source.to_string_lossy();
+    let text = format!(
+        r#"
+version = 1
+[sources.a]
+format = "diffusion_policy_zarr"
+path = "{source}"
+fps = 10
+[sources.a.channels]
+action = "action"
+"observation.state" = "state"
+[sources.b]
+format = "diffusion_policy_zarr"
+path = "{source}"
+fps = 10
+[sources.b.channels]
+action = "action"
+"observation.state" = "state"
+[output]
+dir = "out"
+[profiles.act]
+preset = "act"
+fps = 10
+chunk = 8
+"#
+    );
+    let spec_path = dir.path().join("spec.toml");
+    std::fs::write(&spec_path, &text).unwrap();
+    let spec = LoadedSpec::load(&spec_path).unwrap();
+    let report = commands::build(&spec, &BuildOptions::default()).unwrap();
+    assert!(report.doctor_seconds.is_some(), "the doctor ran");
+    assert!(!report.block_decodes.is_empty());
+    for (array, counts) in &report.block_decodes {
+        assert!(
+            counts.values().all(|&n| n == 1),
+            "{array}: blocks decoded {counts:?} times"
+        );
+    }
+    assert!(report.episode_reads.iter().all(|&n| n == 1));
+}

@@ -12,9 +12,11 @@
 //!   the same in every source.
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use super::conversion::{conversion, Conversion};
-use super::{AuditReport, Verdict};
+use super::sources_doctor::SourcesDoctor;
+
 use crate::error::Result;
 use crate::source::{
     ChannelData, ChannelInfo, DecodeCounts, Episode, EpisodeInfo, Manifest, Source, SourcePart,
@@ -41,6 +43,8 @@ pub struct Mixture {
     conversions: Vec<Conversion>,
     /// Per part, per mixture channel: the part's channel position, if it maps the channel.
     channel_of: Vec<Vec<Option<usize>>>,
+    /// The sources' dataset doctor, fed every episode as read (at its source's rate).
+    doctor: Option<Arc<SourcesDoctor>>,
 }
 
 /// Each part's name and channels.
@@ -143,7 +147,13 @@ impl Mixture {
             positions,
             conversions,
             channel_of,
+            doctor: None,
         })
+    }
+
+    /// Feeds `doctor` every episode as it is read, at its source's own rate and width.
+    pub fn ride(&mut self, doctor: Arc<SourcesDoctor>) {
+        self.doctor = Some(doctor);
     }
 
     /// `positions` (sorted) per part, translated to the part's own positions.
@@ -185,6 +195,9 @@ impl Source for Mixture {
     fn read_episode(&self, index: usize) -> Result<Episode> {
         let (s, j) = self.positions[index];
         let mut own = self.parts[s].read_episode(j)?;
+        if let Some(doctor) = &self.doctor {
+            doctor.take(index, s, &own);
+        }
         let conv = self.conversions[s];
         let same = conv == Conversion::Decimate { factor: 1 };
         let part = &self.manifest.parts[s];
@@ -252,45 +265,6 @@ impl Source for Mixture {
             source.only_reading(&own);
         }
     }
-}
-
-/// The audits of a mixture's sources as one report, with mixture ids: `reports` are each
-/// source's name, id offset and audit, in order. Rates, thresholds and the histogram are the
-/// first source's (each source's own report says more); warnings name their source.
-pub fn joined_report(reports: Vec<(String, u64, AuditReport)>) -> AuditReport {
-    let mut joined = reports[0].2.clone();
-    joined.episodes.clear();
-    joined.video.clear();
-    joined.warnings.clear();
-    joined.examples.clear();
-    joined.doctor = None;
-    joined.doctor_seconds = None;
-    for (name, offset, report) in reports {
-        joined.timestamps |= report.timestamps;
-        for mut e in report.episodes {
-            e.id += offset;
-            joined.episodes.push(e);
-        }
-        for mut v in report.video {
-            v.episode += offset;
-            joined.video.push(v);
-        }
-        let warnings = report
-            .warnings
-            .iter()
-            .map(|w| format!("sources.{name}: {w}"));
-        joined.warnings.extend(warnings);
-        if let Some(s) = report.doctor_seconds {
-            joined.doctor_seconds = Some(joined.doctor_seconds.unwrap_or(0.0) + s);
-        }
-    }
-    let n = joined.episodes.len().max(1) as f64;
-    let count = |f: fn(&Verdict) -> bool| {
-        joined.episodes.iter().filter(|e| f(&e.verdict)).count() as f64 / n
-    };
-    joined.repaired_fraction = count(|v| matches!(v, Verdict::Interpolate | Verdict::Resample));
-    joined.excluded_fraction = count(|v| *v == Verdict::Exclude);
-    joined
 }
 
 /// Rows of `own` values zero-filled to `width` values each.

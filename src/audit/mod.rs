@@ -16,17 +16,20 @@
 //!   mixture.
 //! - `mixture`: the audited sources of a training mixture joined into one ([`Mixture`]): ids
 //!   made unique, every source at the mixture's rate, padded channels zero-filled;
-//!   `channel_union` decides its channels and widths.
+//!   `channel_union` decides its channels and widths; `sources_doctor` runs each source's
+//!   dataset doctor on the build's read of it.
 
 mod audited;
 mod channel_union;
 pub mod conversion;
 pub mod doctor;
 pub mod histogram;
+pub mod joined_report;
 pub mod mixture;
 pub mod repair;
 pub mod report;
 pub mod resample;
+pub mod sources_doctor;
 pub mod spline;
 pub mod timing;
 

@@ -16,6 +16,7 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicUsize;
 
 use crate::audit::doctor::Probe;
+use crate::audit::sources_doctor::SourcesDoctor;
 use crate::audit::AuditReport;
 use crate::error::{Error, Result};
 use crate::exec::{self, BuildLock, Excluded, FileHashes, Outcome, Staging};
@@ -75,7 +76,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let mut build_lock = BuildLock::acquire(&out_dir)?;
     // Repair what an interrupted build left, before the plan compares outputs with the lock.
     Staging::recover(&out_dir)?;
-    let (source, plan, report) = super::plan::plan_audited(spec, false)?;
+    let (source, plan, report, riding) = super::plan::plan_audited(spec, false)?;
     let (stale, up_to_date): (Vec<&ProfilePlan>, Vec<&ProfilePlan>) = plan
         .profiles
         .iter()
@@ -108,15 +109,18 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         .map(|_| AtomicUsize::new(0))
         .collect();
     let names: Vec<String> = stale.iter().map(|p| p.name.clone()).collect();
-    // A mixture's doctor ran in each source's audit, at its own rate.
+    // A mixture's sources each have their own doctor, fed by the mixture as it is read.
     let probe = match spec.is_mixture() {
         true => None,
         false => Probe::of(spec, source.manifest()),
     };
+    let judging = match (&probe, &riding) {
+        (Some(p), _) => Some(Judging::Probe(p)),
+        (None, Some(d)) => Some(Judging::Sources(d)),
+        (None, None) => None,
+    };
     let mut judged = report.clone();
-    let mut doctor = probe
-        .as_ref()
-        .map(|p| doctor_for(spec, p, source.manifest(), &mut judged));
+    let mut doctor = judging.map(|j| doctor_for(spec, j, source.manifest(), &mut judged));
     let outcome = exec::execute(
         spec,
         &plan,
@@ -144,7 +148,7 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
         }
         Outcome::Exclude(excluded) => {
             // The doctor has not judged when the pass stopped at a non-finite value.
-            let pending = probe.as_ref().filter(|_| doctor_seconds.is_none());
+            let pending = judging.filter(|_| doctor_seconds.is_none());
             let again = (spec, &plan, names, opts);
             let (committed, seconds) = rebuild_without(
                 again,
@@ -215,23 +219,40 @@ fn doctor_warnings(timing: &AuditReport, judged: &AuditReport, ran: bool) -> Vec
         .collect()
 }
 
+/// Who judges a build's episodes: the source's doctor, or a mixture's sources' doctors.
+#[derive(Clone, Copy)]
+enum Judging<'a> {
+    Probe(&'a Probe),
+    Sources(&'a SourcesDoctor),
+}
+
 /// The dataset doctor of a pass over the episodes of `manifest`, judging into `report`.
 fn doctor_for<'a>(
     spec: &'a LoadedSpec,
-    probe: &'a Probe,
+    judging: Judging<'a>,
     manifest: &source::Manifest,
     report: &'a mut AuditReport,
 ) -> exec::Doctor<'a> {
     let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
     let fps = manifest.fps;
-    exec::Doctor::new(
-        probe,
-        ids.len(),
-        Box::new(move |feats| {
-            let excluded = probe.judge(spec, fps, &ids, feats, report)?;
-            Ok(excluded.into_iter().collect())
-        }),
-    )
+    match judging {
+        Judging::Probe(probe) => exec::Doctor::new(
+            probe,
+            ids.len(),
+            Box::new(move |feats| {
+                let excluded = probe.judge(spec, fps, &ids, feats, report)?;
+                Ok(excluded.into_iter().collect())
+            }),
+        ),
+        Judging::Sources(sources) => exec::Doctor::reading_elsewhere(
+            sources.busy(),
+            Box::new(move |_| {
+                let (joined, excluded) = sources.judge(&ids)?;
+                *report = joined;
+                Ok(excluded.into_iter().collect())
+            }),
+        ),
+    }
 }
 
 /// Plans again without the `excluded` episodes and builds the profiles `names` from that plan
@@ -243,7 +264,7 @@ fn rebuild_without(
     source: Box<dyn Source>,
     excluded: Excluded,
     build_lock: &mut BuildLock,
-    (mut doctor, judged): (Option<&Probe>, &mut AuditReport),
+    (mut doctor, judged): (Option<Judging>, &mut AuditReport),
 ) -> Result<(Committed, Option<f64>)> {
     let mut kept = source;
     let mut before = plan.clone();

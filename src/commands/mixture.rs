@@ -1,25 +1,37 @@
-//! Opening a training mixture (`[sources.<name>]`): each source opened, audited (its dataset
-//! doctor included, at its own rate) and repaired on its own, then joined into one source at the
-//! mixture's rate ([`crate::audit::Mixture`]).
+//! Opening a training mixture (`[sources.<name>]`): each source opened, audited and repaired on
+//! its own, then joined into one source at the mixture's rate ([`crate::audit::Mixture`]). Each
+//! source's dataset doctor runs at its own rate: in a pass of its own for `plan`, `check` and
+//! `audit`, on the build's one read for `build` ([`SourcesDoctor`]).
+
+use std::sync::Arc;
 
 use super::audit::audit;
-use crate::audit::mixture::{id_offsets, joined_report, Part};
+use crate::audit::doctor::Probe;
+use crate::audit::joined_report::joined_report;
+use crate::audit::mixture::{id_offsets, Part};
+use crate::audit::sources_doctor::{SourceDoctor, SourcesDoctor};
 use crate::audit::{AuditReport, Audited, Mixture};
 use crate::error::{Error, Result};
 use crate::source::Source;
 use crate::spec::LoadedSpec;
 
-/// The joined, audited sources of a mixture, and their audits as one report (mixture ids).
-pub(super) fn open(spec: &LoadedSpec) -> Result<(Box<dyn Source>, AuditReport)> {
+/// A mixture as `open` leaves it: the joined source, the sources' audits as one report (mixture
+/// ids), and the sources' doctor when it rides on the build's read.
+pub(super) type Opened = (Box<dyn Source>, AuditReport, Option<Arc<SourcesDoctor>>);
+
+/// The joined, audited sources of a mixture. `ride`: each source's doctor judges what the build
+/// reads (returned, still to judge) instead of reading the source in a pass of its own.
+pub(super) fn open(spec: &LoadedSpec, ride: bool) -> Result<Opened> {
     let mut opened = Vec::new();
     for view in spec.source_views() {
-        let audited = audit(&view.spec, true)?;
+        let audited = audit(&view.spec, !ride)?;
         opened.push((view, audited));
     }
     let offsets = id_offsets(opened.iter().map(|(_, a)| a.source.manifest()));
     let applied = spec.spec.audit.repair;
     let mut parts = Vec::new();
     let mut reports = Vec::new();
+    let mut doctors = Vec::new();
     for ((view, audited), id_offset) in opened.into_iter().zip(offsets) {
         let source_split = audited.source.manifest().source_split.clone();
         let report = audited.report;
@@ -31,6 +43,15 @@ pub(super) fn open(spec: &LoadedSpec) -> Result<(Box<dyn Source>, AuditReport)> 
                 view.spec.source().path
             )));
         }
+        if ride {
+            doctors.push(SourceDoctor {
+                probe: Probe::of(&view.spec, source.manifest()),
+                fps: source.manifest().fps,
+                view: view.clone(),
+                id_offset,
+                report: report.clone(),
+            });
+        }
         reports.push((view.name.clone(), id_offset, report));
         parts.push(Part {
             view,
@@ -40,11 +61,16 @@ pub(super) fn open(spec: &LoadedSpec) -> Result<(Box<dyn Source>, AuditReport)> 
         });
     }
     let fps = rate(spec, &parts)?;
-    let mixture = Mixture::new(spec, parts, fps)?;
+    let mut mixture = Mixture::new(spec, parts, fps)?;
     for warning in &mixture.manifest().warnings {
         eprintln!("warning: {warning}");
     }
-    Ok((Box::new(mixture), joined_report(reports)))
+    let doctor = (ride && doctors.iter().any(|d| d.probe.is_some()))
+        .then(|| Arc::new(SourcesDoctor::new(doctors, mixture.manifest())));
+    if let Some(d) = &doctor {
+        mixture.ride(Arc::clone(d));
+    }
+    Ok((Box::new(mixture), joined_report(reports), doctor))
 }
 
 /// The mixture's rate: the fastest profile's `fps`, or the sources' common rate when they share

@@ -2,6 +2,9 @@
 //! resolved against the lock.
 
 use super::audit::audit;
+use std::sync::Arc;
+
+use crate::audit::sources_doctor::SourcesDoctor;
 use crate::audit::{AuditReport, Audited};
 use crate::error::{Error, Result};
 use crate::lock::{self, Lock};
@@ -19,7 +22,7 @@ pub fn plan(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan)> {
 
 /// [`plan`], and the audit's report.
 pub fn plan_reported(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan, AuditReport)> {
-    let (source, mut plan, report) = plan_audited(spec, true)?;
+    let (source, mut plan, report, _) = plan_audited(spec, true)?;
     // Lossily stored frames: sizes from what is measured here (`build` does not need them; a
     // mixture's are estimated).
     if !spec.is_mixture() {
@@ -30,14 +33,23 @@ pub fn plan_reported(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan, AuditR
 }
 
 /// [`plan`], with the dataset doctor only when `doctor` is set (`build` folds it into its
-/// read), and the audit's report.
+/// read: a mixture's sources' doctor, still to judge, comes back with it), and the audit's
+/// report.
 pub fn plan_audited(
     spec: &LoadedSpec,
     doctor: bool,
-) -> Result<(Box<dyn Source>, Plan, AuditReport)> {
-    let (source, report) = match spec.is_mixture() {
-        true => super::mixture::open(spec)?,
-        false => audited_source(spec, doctor)?,
+) -> Result<(
+    Box<dyn Source>,
+    Plan,
+    AuditReport,
+    Option<Arc<SourcesDoctor>>,
+)> {
+    let (source, report, riding) = match spec.is_mixture() {
+        true => super::mixture::open(spec, !doctor)?,
+        false => {
+            let (source, report) = audited_source(spec, doctor)?;
+            (source, report, None)
+        }
     };
     let out_dir = spec.resolve(&spec.spec.output.dir);
     spec::check_output_location(spec, &out_dir)?;
@@ -47,7 +59,7 @@ pub fn plan_audited(
         .and_then(|l| l.specs.get(&lock::key_for(&spec.file)));
     let mut plan = plan::resolve(spec, source.manifest(), entry, &out_dir)?;
     plan::apply_audit(&mut plan, &report, spec.spec.audit.repair);
-    Ok((source, plan, report))
+    Ok((source, plan, report, riding))
 }
 
 /// The one source of `spec`, audited (the doctor too when `doctor` is set), and its report.

@@ -26,11 +26,15 @@ pub type Judge<'a> = Box<dyn FnMut(&[Features]) -> Result<Excluded> + Send + Syn
 
 /// The doctor riding on a pass: what it reads, the features gathered, and the judgement.
 pub struct Doctor<'a> {
-    probe: &'a Probe,
+    /// `None`: the source reduces its episodes itself as they are read (a training mixture's
+    /// sources, each at its own rate; see `audit::sources_doctor`).
+    probe: Option<&'a Probe>,
     judge: Judge<'a>,
     slots: Vec<OnceLock<Features>>,
     /// Nanoseconds spent computing features, over all threads.
     busy: AtomicU64,
+    /// Nanoseconds the source spent computing features, when it does.
+    elsewhere: Option<&'a AtomicU64>,
     /// The doctor's wall seconds, once judged.
     seconds: Option<f64>,
 }
@@ -38,12 +42,31 @@ pub struct Doctor<'a> {
 impl<'a> Doctor<'a> {
     pub fn new(probe: &'a Probe, episodes: usize, judge: Judge<'a>) -> Self {
         Doctor {
-            probe,
+            probe: Some(probe),
             judge,
             slots: (0..episodes).map(|_| OnceLock::new()).collect(),
             busy: AtomicU64::new(0),
+            elsewhere: None,
             seconds: None,
         }
+    }
+
+    /// A doctor whose features the source computes as the pass reads it (counting the time in
+    /// `busy`); the pass only judges.
+    pub fn reading_elsewhere(busy: &'a AtomicU64, judge: Judge<'a>) -> Self {
+        Doctor {
+            probe: None,
+            judge,
+            slots: Vec::new(),
+            busy: AtomicU64::new(0),
+            elsewhere: Some(busy),
+            seconds: None,
+        }
+    }
+
+    /// Whether the pass computes the features (else the source does).
+    pub(super) fn reads(&self) -> bool {
+        self.probe.is_some()
     }
 
     /// The doctor's wall seconds (its share of the pass at the pass's thread count, plus the
@@ -54,15 +77,20 @@ impl<'a> Doctor<'a> {
 
     /// Reduces episode `i` (manifest position) to its features, once.
     pub(super) fn take(&self, i: usize, episode: &Episode) {
-        self.keep(i, || self.probe.features(episode));
+        if let Some(probe) = self.probe {
+            self.keep(i, || probe.features(episode));
+        }
     }
 
     /// Reduces every episode to its features from the rows `rate` stored, in parallel: a rate
     /// that keeps the source's own steps stores the values as read, so the features are those
     /// [`Doctor::take`] computes. The build runs this beside its writes.
     pub(super) fn take_stored(&self, rate: &RateState) -> Result<()> {
-        let action = &rate.lowdim[self.probe.action_channel()];
-        let state = self.probe.state_channel().map(|c| &rate.lowdim[c]);
+        let Some(probe) = self.probe else {
+            return Ok(());
+        };
+        let action = &rate.lowdim[probe.action_channel()];
+        let state = probe.state_channel().map(|c| &rate.lowdim[c]);
         (0..self.slots.len()).into_par_iter().try_for_each(|i| {
             let rows = rate.ends.range(i);
             let a = action.rows(rows.start, rows.end)?;
@@ -70,7 +98,7 @@ impl<'a> Doctor<'a> {
                 Some(store) => Some(store.rows(rows.start, rows.end)?),
                 None => None,
             };
-            self.keep(i, || self.probe.reduce(&a, s.as_deref()));
+            self.keep(i, || probe.reduce(&a, s.as_deref()));
             Ok(())
         })
     }
@@ -96,7 +124,8 @@ impl<'a> Doctor<'a> {
             .collect();
         let excluded = (self.judge)(&feats)?;
         let threads = rayon::current_num_threads().max(1) as f64;
-        let busy = self.busy.load(Ordering::Relaxed) as f64 * 1e-9;
+        let elsewhere = self.elsewhere.map_or(0, |b| b.load(Ordering::Relaxed));
+        let busy = (self.busy.load(Ordering::Relaxed) + elsewhere) as f64 * 1e-9;
         self.seconds = Some(busy / threads + started.elapsed().as_secs_f64());
         Ok(excluded)
     }

@@ -193,7 +193,7 @@ pub fn execute(
         ),
     };
     // The rate whose store holds the source's own steps: the doctor reads it beside the writes.
-    let stored = doctor.as_ref().and_then(|_| {
+    let stored = doctor.as_ref().filter(|d| d.reads()).and_then(|_| {
         jobs.iter()
             .position(|j| j.conversion == Conversion::Decimate { factor: 1 })
     });
