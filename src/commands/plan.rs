@@ -32,18 +32,18 @@ pub fn plan_reported(spec: &LoadedSpec) -> Result<(Box<dyn Source>, Plan, AuditR
     Ok((source, plan, report))
 }
 
-/// [`plan`], with the dataset doctor only when `doctor` is set (`build` folds it into its
-/// read: a mixture's sources' doctor, still to judge, comes back with it), and the audit's
-/// report.
-pub fn plan_audited(
-    spec: &LoadedSpec,
-    doctor: bool,
-) -> Result<(
+/// A plan with its source, the audit's report and a mixture's sources' doctor still to judge.
+pub type Planned = (
     Box<dyn Source>,
     Plan,
     AuditReport,
     Option<Arc<SourcesDoctor>>,
-)> {
+);
+
+/// [`plan`], with the dataset doctor only when `doctor` is set (`build` folds it into its
+/// read: a mixture's sources' doctor, still to judge, comes back with it), and the audit's
+/// report.
+pub fn plan_audited(spec: &LoadedSpec, doctor: bool) -> Result<Planned> {
     let (source, report, riding) = match spec.is_mixture() {
         true => super::mixture::open(spec, !doctor)?,
         false => {
