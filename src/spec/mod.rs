@@ -1,8 +1,10 @@
 //! Stage 1, parse: TOML → typed [`Spec`] → fully explicit [`Profile`]s.
 //!
 //! - `model`: the serde/schemars types as written (no engine dependencies).
-//! - `load`: reads the file, keeps the spanned TOML document, turns serde errors into
-//!   `file:line:col` diagnostics with "did you mean".
+//! - `load`: [`LoadedSpec`], the typed spec with its expanded profiles and the spanned TOML
+//!   document, so that any stage can point at a key (`file:line:col`).
+//! - `parse`: reads the file (TOML → document → [`Spec`] → validated profiles); `serde_error`
+//!   turns serde's errors into diagnostics that name the key and say "did you mean".
 //! - `validate`: semantic checks that need no source (ranges, channel names, references).
 //! - `preset`: preset expansion into [`Profile`].
 //! - `image_storage`: how the HDF5 layout stores frames (`image_compression`) and its defaults.
@@ -28,8 +30,10 @@ mod load;
 pub mod model;
 mod observations;
 mod output_location;
+mod parse;
 mod preset;
 pub mod reference;
+mod serde_error;
 mod transform;
 mod validate;
 mod validate_camera;
