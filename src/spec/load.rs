@@ -12,7 +12,7 @@ use toml_edit::{Document, Item, TableLike};
 
 use super::diagnostic::Diagnostic;
 use super::model::{ChannelSpec, SourceSpec, Spec};
-use super::preset::Profile;
+use super::profile::Profile;
 use crate::error::Error;
 
 /// A parsed, validated spec with every profile expanded, and the text it came from.
