@@ -10,7 +10,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use super::roles::KeyRole;
+use super::key_role::KeyRole;
 use super::text::{self, Draft};
 use crate::audit;
 use crate::error::Result;

@@ -1,17 +1,19 @@
 //! `chunkc init` and `chunkc inspect`: from a dataset folder to a first spec.
 //!
 //! [`inspect`] detects the layout ([`crate::source::detect`]), lists every key the source offers
-//! and decides what each is for ([`roles`]; [`state`] picks the robot state, guessing when it
-//! must so that the spec observes something), finds the rate (stored, from timestamps, or a
-//! guess it says is one: [`propose::rate_guess`]), checks that each camera the spec would name
-//! can be read ([`cameras`]: a LeRobot camera whose videos are missing for some episodes is
-//! kept and those episodes excluded; one that cannot be read is left out, with the reason), runs
-//! the timing audit and the action's autocorrelation, and proposes a profile per target with
-//! the numbers behind each choice ([`propose`]). [`text`] writes that as a commented spec,
-//! [`summary`] as what both commands print. Nothing here writes a file: the `init` driver in
-//! `commands` checks the spec as `chunkc check` would and writes it.
+//! and decides what each is for ([`roles`], filling [`key_role`]'s rows; [`state`] picks the
+//! robot state, guessing when it must so that the spec observes something), finds the rate
+//! (stored, from timestamps, or a guess it says is one: [`propose::rate_guess`]), checks that
+//! each camera the spec would name can be read ([`cameras`]: a LeRobot camera whose videos are
+//! missing for some episodes is kept and those episodes excluded; one that cannot be read is
+//! left out, with the reason), runs the timing audit and the action's autocorrelation, and
+//! proposes a profile per target with the numbers behind each choice ([`propose`]). [`text`]
+//! writes that as a commented spec, [`summary`] as what both commands print. Nothing here
+//! writes a file: the `init` driver in `commands` checks the spec as `chunkc check` would and
+//! writes it.
 
 pub mod cameras;
+pub mod key_role;
 pub mod propose;
 pub mod roles;
 pub mod state;
@@ -29,8 +31,8 @@ use crate::source::{self, detect};
 use crate::spec::{LoadedSpec, SourceFormat};
 
 pub use cameras::MissingVideos;
+pub use key_role::{KeyRole, Role};
 pub use propose::{AcfSummary, ProposedProfile, Rate};
-pub use roles::{KeyRole, Role};
 
 /// What `init` needs besides the dataset's path.
 #[derive(Debug, Clone, Default)]

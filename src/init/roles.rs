@@ -1,6 +1,6 @@
-//! What each key a source offers is for, and the chunkc channel name it gets: the one `action`,
-//! the robot state the presets call `observation.state`, cameras, point clouds, other
-//! observations, and the bookkeeping columns a spec never maps.
+//! Decides what each key a source offers is for, and the chunkc channel name it gets: the one
+//! `action`, the robot state the presets call `observation.state`, cameras, point clouds, other
+//! observations, and the bookkeeping columns a spec never maps (the rows are [`super::key_role`]'s).
 //!
 //! Which key is the state is [`super::state`]'s to decide.
 //!
@@ -9,74 +9,10 @@
 //! name), several are `observation.images.<leaf>` (LeRobot's), the state is
 //! `observation.state`, any other observation `observation.<leaf>`.
 
-use serde::Serialize;
-
+use super::key_role::{leaf, KeyRole, Role};
 use crate::source::mapping::KeyInfo;
 use crate::source::{kind_for_shape, ChannelKind};
 use crate::spec::SourceFormat;
-
-/// What a key holds, as `chunkc inspect` lists it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Role {
-    Action,
-    State,
-    /// A camera: frames in the source (`image`) or in video files (`video`).
-    Image,
-    Video,
-    PointCloud,
-    /// Another low-dimensional observation (mapped).
-    Observation,
-    /// Low-dimensional, but not under an observation group: listed, commented out in the spec.
-    Unmapped,
-    /// Indices, timestamps, rewards, episode markers: never a channel.
-    Bookkeeping,
-    /// A shape chunkc cannot read as a channel.
-    Unusable,
-}
-
-impl Role {
-    pub fn word(self) -> &'static str {
-        match self {
-            Role::Action => "action",
-            Role::State => "state",
-            Role::Image => "image",
-            Role::Video => "video",
-            Role::PointCloud => "point cloud",
-            Role::Observation => "observation",
-            Role::Unmapped => "low-dim",
-            Role::Bookkeeping => "bookkeeping",
-            Role::Unusable => "unusable",
-        }
-    }
-
-    pub fn is_camera(self) -> bool {
-        matches!(self, Role::Image | Role::Video)
-    }
-}
-
-/// One key, what it is for, and how the spec maps it.
-#[derive(Debug, Clone, Serialize)]
-pub struct KeyRole {
-    pub key: String,
-    pub shape: Vec<usize>,
-    pub dtype: String,
-    pub role: Role,
-    /// The channel name it maps to (`None`: not mapped).
-    pub channel: Option<String>,
-    /// Not mapped, but offered as a commented line: the channel name that line gives it (what
-    /// `inspect` prints, and the spec's `# "name" = "key"`).
-    pub suggested: Option<String>,
-    /// Only some columns (`[start, end)`), when the key holds more than the channel.
-    pub columns: Option<[usize; 2]>,
-    /// Why it was mapped or left out, where that was a guess.
-    pub note: Option<String>,
-}
-
-/// The last path component: `observations/images/top` -> `top`, `observation.images.top` -> `top`.
-pub(super) fn leaf(key: &str) -> &str {
-    key.rsplit(['/', '.']).next().unwrap_or(key)
-}
 
 fn clean(name: &str) -> String {
     name.chars()
@@ -248,6 +184,7 @@ fn first_role(format: SourceFormat, k: &KeyInfo) -> Role {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::init::state::STATE;
 
     fn key(k: &str, shape: &[usize], dtype: &str) -> KeyInfo {
         KeyInfo {
@@ -352,5 +289,93 @@ mod tests {
         assert_eq!(s.columns, Some([1, 32]));
         assert_eq!(channel(&rows, "joint_torques"), None);
         assert_eq!(rows[2].role, Role::Unmapped);
+    }
+
+    // The robot state, as `assign` has `super::state` pick it.
+
+    fn row<'a>(rows: &'a [KeyRole], k: &str) -> &'a KeyRole {
+        rows.iter().find(|r| r.key == k).unwrap()
+    }
+
+    #[test]
+    fn a_state_outside_any_group_is_guessed_and_says_so() {
+        // The dexterous hand: LeRobot v3.0 with `actions` / `state` / `image`.
+        let rows = assign(
+            SourceFormat::Lerobot,
+            &[
+                key("actions", &[34], "float32"),
+                key("state", &[34], "float32"),
+                key("image", &[480, 640, 3], "video"),
+                key("timestamp", &[1], "float32"),
+            ],
+            false,
+        );
+        let s = row(&rows, "state");
+        assert_eq!(s.channel.as_deref(), Some(STATE));
+        assert_eq!(s.role, Role::State);
+        assert!(s.note.as_deref().unwrap().contains("GUESSED"));
+        assert_eq!(
+            row(&rows, "image").channel.as_deref(),
+            Some("observation.image")
+        );
+    }
+
+    #[test]
+    fn the_only_low_dim_key_becomes_the_state() {
+        let rows = assign(
+            SourceFormat::Lerobot,
+            &[
+                key("actions", &[6], "float32"),
+                key("joints", &[6], "float32"),
+                key("frame_index", &[1], "int64"),
+            ],
+            false,
+        );
+        let s = row(&rows, "joints");
+        assert_eq!(s.channel.as_deref(), Some(STATE));
+        assert!(s.note.as_deref().unwrap().contains("only low-dim key"));
+        assert_eq!(s.suggested, None);
+    }
+
+    #[test]
+    fn two_candidates_are_not_guessed_between() {
+        let rows = assign(
+            SourceFormat::Lerobot,
+            &[
+                key("actions", &[6], "float32"),
+                key("joints", &[6], "float32"),
+                key("velocities", &[6], "float32"),
+            ],
+            false,
+        );
+        assert!(rows.iter().all(|r| r.channel.as_deref() != Some(STATE)));
+        assert_eq!(
+            row(&rows, "joints").suggested.as_deref(),
+            Some("observation.joints")
+        );
+    }
+
+    #[test]
+    fn a_named_state_in_a_group_is_not_a_guess() {
+        let rows = assign(
+            SourceFormat::Lerobot,
+            &[
+                key("action", &[2], "float32"),
+                key("observation.state", &[2], "float32"),
+                key("observation.environment_state", &[16], "float32"),
+            ],
+            false,
+        );
+        let s = row(&rows, "observation.state");
+        assert_eq!(
+            (s.channel.as_deref(), s.note.as_deref()),
+            (Some(STATE), None)
+        );
+        assert_eq!(
+            row(&rows, "observation.environment_state")
+                .channel
+                .as_deref(),
+            Some("observation.environment_state")
+        );
     }
 }

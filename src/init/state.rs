@@ -12,7 +12,7 @@
 //! 4 and 5 are guesses, and the key's note says so (`GUESSED`): better a guess the spec points
 //! at than a spec without observations, which trains a policy on nothing but its own actions.
 
-use super::roles::{leaf, KeyRole, Role};
+use super::key_role::{leaf, KeyRole, Role};
 
 /// The presets' name of the robot state.
 pub const STATE: &str = "observation.state";
@@ -102,106 +102,4 @@ pub fn claim_the_only_one(rows: &mut [KeyRole]) {
         &mut rows[i],
         Some("GUESSED as the robot state: the only low-dim key besides the action"),
     );
-}
-
-#[cfg(test)]
-mod tests {
-    use super::super::roles::assign;
-    use super::*;
-    use crate::source::mapping::KeyInfo;
-    use crate::spec::SourceFormat;
-
-    fn key(k: &str, shape: &[usize], dtype: &str) -> KeyInfo {
-        KeyInfo {
-            key: k.into(),
-            shape: shape.to_vec(),
-            dtype: dtype.into(),
-        }
-    }
-
-    fn row<'a>(rows: &'a [KeyRole], k: &str) -> &'a KeyRole {
-        rows.iter().find(|r| r.key == k).unwrap()
-    }
-
-    #[test]
-    fn a_state_outside_any_group_is_guessed_and_says_so() {
-        // The dexterous hand: LeRobot v3.0 with `actions` / `state` / `image`.
-        let rows = assign(
-            SourceFormat::Lerobot,
-            &[
-                key("actions", &[34], "float32"),
-                key("state", &[34], "float32"),
-                key("image", &[480, 640, 3], "video"),
-                key("timestamp", &[1], "float32"),
-            ],
-            false,
-        );
-        let s = row(&rows, "state");
-        assert_eq!(s.channel.as_deref(), Some(STATE));
-        assert_eq!(s.role, Role::State);
-        assert!(s.note.as_deref().unwrap().contains("GUESSED"));
-        assert_eq!(
-            row(&rows, "image").channel.as_deref(),
-            Some("observation.image")
-        );
-    }
-
-    #[test]
-    fn the_only_low_dim_key_becomes_the_state() {
-        let rows = assign(
-            SourceFormat::Lerobot,
-            &[
-                key("actions", &[6], "float32"),
-                key("joints", &[6], "float32"),
-                key("frame_index", &[1], "int64"),
-            ],
-            false,
-        );
-        let s = row(&rows, "joints");
-        assert_eq!(s.channel.as_deref(), Some(STATE));
-        assert!(s.note.as_deref().unwrap().contains("only low-dim key"));
-        assert_eq!(s.suggested, None);
-    }
-
-    #[test]
-    fn two_candidates_are_not_guessed_between() {
-        let rows = assign(
-            SourceFormat::Lerobot,
-            &[
-                key("actions", &[6], "float32"),
-                key("joints", &[6], "float32"),
-                key("velocities", &[6], "float32"),
-            ],
-            false,
-        );
-        assert!(rows.iter().all(|r| r.channel.as_deref() != Some(STATE)));
-        assert_eq!(
-            row(&rows, "joints").suggested.as_deref(),
-            Some("observation.joints")
-        );
-    }
-
-    #[test]
-    fn a_named_state_in_a_group_is_not_a_guess() {
-        let rows = assign(
-            SourceFormat::Lerobot,
-            &[
-                key("action", &[2], "float32"),
-                key("observation.state", &[2], "float32"),
-                key("observation.environment_state", &[16], "float32"),
-            ],
-            false,
-        );
-        let s = row(&rows, "observation.state");
-        assert_eq!(
-            (s.channel.as_deref(), s.note.as_deref()),
-            (Some(STATE), None)
-        );
-        assert_eq!(
-            row(&rows, "observation.environment_state")
-                .channel
-                .as_deref(),
-            Some("observation.environment_state")
-        );
-    }
 }

@@ -3,7 +3,7 @@
 use std::fmt::Write;
 use std::path::{Component, Path, PathBuf};
 
-use super::roles::{KeyRole, Role};
+use super::key_role::{KeyRole, Role};
 use super::Inspection;
 use crate::spec::SourceFormat;
 

@@ -13,6 +13,7 @@ use hdf5::Dataset;
 use rayon::prelude::*;
 
 use super::block_cache::{self, BlockCache, DecodeCounts};
+use super::check::same_length;
 use super::mapping::{self, KeyInfo, Mapped, Raw};
 use super::{fingerprint, h5, h5meta, jpeg, Episode, EpisodeInfo, Manifest, Source};
 use crate::error::{Error, Result};
@@ -25,8 +26,7 @@ pub struct AlohaSource {
     files: Vec<PathBuf>,
     manifest: Manifest,
     mapped: Mapped,
-    /// Keys stored as JPEG rows, with the decoded frame's (height, width).
-    jpeg: Vec<(String, (usize, usize))>,
+    jpeg: JpegKeys,
     /// Per episode: where each mapped key's values lie in the file, when every one of them is
     /// stored contiguously or in unfiltered chunks of whole rows (see [`h5::direct`]); such an
     /// episode is read without HDF5.
@@ -59,229 +59,245 @@ fn jpeg_size(ds: &Dataset, t: usize, what: &str) -> Result<(usize, usize)> {
         .map_err(|e| Error::source(format!("{what} step {t}: {e}")))
 }
 
+/// Keys stored as JPEG rows, with the decoded frame's (height, width).
+type JpegKeys = Vec<(String, (usize, usize))>;
+
 /// Where each mapped key's values lie in an episode file, when every one can be read directly.
 type Located = Option<Vec<(String, h5::Direct)>>;
 
 impl AlohaSource {
-    // Long function: opening is one sequence of checks (files, keys, mapping, headers, rate), each with its own message, read top to bottom.
+    /// Opens the directory: its episode files, the first one's keys mapped to channels, and
+    /// every file's header checked against the first.
     pub fn open(spec: &LoadedSpec, dir: &Path) -> Result<Self> {
-        let shown = dir.display().to_string();
         if !dir.is_dir() {
             return Err(spec.error_at(
                 &["source", "path"],
-                format!("an aloha_hdf5 source is a directory of episode_<i>.hdf5 files; {shown} is not a directory"),
+                format!("an aloha_hdf5 source is a directory of episode_<i>.hdf5 files; {} is not a directory", dir.display()),
                 None,
             ));
         }
-        let mut found: Vec<(u64, String)> = std::fs::read_dir(dir)
-            .map_err(|e| Error::source(format!("{shown}: cannot list: {e}")))?
-            .filter_map(|e| e.ok())
-            .filter_map(|e| {
-                let name = e.file_name().to_string_lossy().into_owned();
-                episode_id(&name).map(|id| (id, name))
-            })
-            .collect();
-        found.sort();
-        if found.is_empty() {
-            return Err(Error::source(format!("{shown}: no episode_<i>.hdf5 files")));
-        }
-        if let Some(w) = found.windows(2).find(|w| w[0].0 == w[1].0) {
-            return Err(Error::source(format!(
-                "{shown}: {} and {} have the same episode number",
-                w[0].1, w[1].1
-            )));
-        }
-        let mut warnings = Vec::new();
-        let missing: Vec<String> = found
-            .windows(2)
-            .filter(|w| w[1].0 > w[0].0 + 1)
-            .map(|w| {
-                if w[1].0 == w[0].0 + 2 {
-                    format!("{}", w[0].0 + 1)
-                } else {
-                    format!("{}..={}", w[0].0 + 1, w[1].0 - 1)
-                }
-            })
-            .collect();
-        if !missing.is_empty() || found[0].0 != 0 {
-            let mut gaps = missing;
-            if found[0].0 != 0 {
-                gaps.insert(0, format!("0..={}", found[0].0 - 1));
-            }
-            warnings.push(format!(
-                "{shown}: no episode file for ids {} (the original ACT code needs contiguous ids from 0)",
-                gaps.join(", ")
-            ));
-        }
-
+        let found = episode_files(dir)?;
+        let mut warnings: Vec<String> = missing_ids(&found, dir).into_iter().collect();
         let files: Vec<PathBuf> = found.iter().map(|(_, n)| dir.join(n)).collect();
-        let first = h5::open(&files[0])?;
-        let mut keys = Vec::new();
-        let mut jpeg_keys = Vec::new();
-        for (key, ds) in h5::datasets(&first, &files[0])? {
-            if !h5::is_numeric(&ds) || ds.ndim() == 0 {
-                continue;
-            }
-            if is_jpeg_rows(&key, &ds) {
-                let what = format!("{}: {key}", files[0].display());
-                let (h, w) = jpeg_size(&ds, 0, &what)?;
-                keys.push(KeyInfo {
-                    key: key.clone(),
-                    shape: vec![h, w, 3],
-                    dtype: "jpeg".into(),
-                });
-                jpeg_keys.push((key, (h, w)));
-            } else {
-                keys.push(KeyInfo {
-                    key,
-                    shape: h5::step_shape(&ds),
-                    dtype: h5::dtype_name(&ds),
-                });
-            }
-        }
-        drop(first);
+        let (keys, mut jpeg) = first_file_keys(&files[0])?;
         let mapped = mapping::resolve(spec, &files[0].display().to_string(), &keys)?;
         warnings.extend(mapped.warnings.iter().cloned());
         let wanted = mapped.keys();
-        jpeg_keys.retain(|(k, _)| wanted.contains(k));
-
+        jpeg.retain(|(k, _)| wanted.contains(k));
+        let headers = Headers {
+            files: &files,
+            keys: &keys,
+            jpeg: &jpeg,
+            wanted: &wanted,
+        };
         // Each file's header is read through HDF5, one file at a time (its lock); the content
         // hashes of the fingerprint run on the other threads meanwhile.
         let names: Vec<PathBuf> = found.iter().map(|(_, n)| PathBuf::from(n)).collect();
-        let (headers, fingerprint) = rayon::join(
-            || -> Result<(Vec<EpisodeInfo>, Vec<Located>)> {
-                let _headers = crate::timings::phase("episode headers");
-                // Files whose datasets are all contiguous are understood without HDF5 (and so
-                // in parallel); the others are read through it below.
-                let fast: Vec<Option<Vec<h5meta::Located>>> = if jpeg_keys.is_empty() {
-                    files
-                        .par_iter()
-                        .map(|p| h5meta::locate(p, &wanted))
-                        .collect()
-                } else {
-                    vec![None; files.len()]
-                };
-                let mut episodes = Vec::with_capacity(files.len());
-                let mut direct = Vec::with_capacity(files.len());
-                for (((id, _), path), fast) in found.iter().zip(&files).zip(fast) {
-                    let here = path.display().to_string();
-                    if let Some(found) = fast {
-                        let mut located = Vec::with_capacity(wanted.len());
-                        let mut len: Option<(usize, &str)> = None;
-                        for (key, l) in wanted.iter().zip(found) {
-                            let reference = keys.iter().find(|k| &k.key == key).expect("resolved");
-                            let step: Vec<usize> = if l.shape.len() <= 1 {
-                                vec![1]
-                            } else {
-                                l.shape[1..].to_vec()
-                            };
-                            if step != reference.shape {
-                                return Err(Error::source(format!(
-                                    "{here}: `{key}` has shape {:?}, unlike {} ({:?} per step, {})",
-                                    l.shape,
-                                    files[0].display(),
-                                    reference.shape,
-                                    reference.dtype
-                                )));
-                            }
-                            let steps = l.shape.first().copied().unwrap_or(0);
-                            same_length(&mut len, &here, key, steps)?;
-                            located.push((key.clone(), l.direct));
-                        }
-                        let len = len.map(|(n, _)| n).unwrap_or(0);
-                        if len == 0 {
-                            return Err(Error::source(format!("{here}: the episode is empty")));
-                        }
-                        episodes.push(EpisodeInfo { id: *id, len });
-                        direct.push(Some(located));
-                        continue;
-                    }
-                    let file = h5::open(path)?;
-                    let mut len: Option<(usize, &str)> = None;
-                    let mut located = Some(Vec::with_capacity(wanted.len()));
-                    for key in &wanted {
-                        let ds = h5::dataset(&file, key, path)?;
-                        let is_jpeg = jpeg_keys.iter().any(|(k, _)| k == key);
-                        located = match (located, h5::direct(&ds)) {
-                            (Some(mut v), Some(d)) if !is_jpeg => {
-                                v.push((key.clone(), d));
-                                Some(v)
-                            }
-                            _ => None,
-                        };
-                        let reference = keys.iter().find(|k| &k.key == key).expect("resolved");
-                        let jpeg = jpeg_keys.iter().find(|(k, _)| k == key);
-                        let shape_ok = match jpeg {
-                            Some(_) => is_jpeg_rows(key, &ds),
-                            None => h5::step_shape(&ds) == reference.shape,
-                        };
-                        if !shape_ok {
-                            return Err(Error::source(format!(
-                                "{here}: `{key}` has shape {:?}, unlike {} ({:?} per step, {})",
-                                ds.shape(),
-                                files[0].display(),
-                                reference.shape,
-                                reference.dtype
-                            )));
-                        }
-                        same_length(&mut len, &here, key, h5::steps(&ds))?;
-                    }
-                    let len = len.map(|(n, _)| n).unwrap_or(0);
-                    if len == 0 {
-                        return Err(Error::source(format!("{here}: the episode is empty")));
-                    }
-                    episodes.push(EpisodeInfo { id: *id, len });
-                    direct.push(located);
-                }
-                Ok((episodes, direct))
-            },
+        let (listed, fingerprint) = rayon::join(
+            || headers.read(&found),
             || {
                 let _fingerprint = crate::timings::phase("fingerprint source");
                 fingerprint::of_files(dir, &names)
             },
         );
-        let (episodes, direct) = headers?;
-        let fingerprint = fingerprint?;
+        let (episodes, direct) = listed?;
+        let fps = spec.source().fps.unwrap_or(DEFAULT_FPS);
+        let format = SourceFormat::AlohaHdf5;
+        let manifest = Manifest::one_source(format, fps, episodes, &mapped, fingerprint?, warnings);
         Ok(AlohaSource {
             files,
-            manifest: Manifest {
-                parts: Vec::new(),
-                format: SourceFormat::AlohaHdf5,
-                fps: spec.source().fps.unwrap_or(DEFAULT_FPS),
-                episodes,
-                channels: mapped.channels.clone(),
-                fingerprint: fingerprint.hash,
-                files: fingerprint.files,
-                timestamps: false,
-                source_split: None,
-                warnings,
-                tasks: Default::default(),
-            },
+            manifest,
             mapped,
-            jpeg: jpeg_keys,
+            jpeg,
             direct,
             decodes: BlockCache::new(0),
         })
     }
 }
 
-/// Records the first key's number of steps in `len`; an error when a later key has another.
-fn same_length<'a>(
-    len: &mut Option<(usize, &'a str)>,
-    here: &str,
-    key: &'a str,
-    steps: usize,
-) -> Result<()> {
-    match *len {
-        None => *len = Some((steps, key)),
-        Some((n, first_key)) if n != steps => {
-            return Err(Error::source(format!(
-                "{here}: `{first_key}` has {n} steps but `{key}` has {steps}"
-            )))
-        }
-        Some(_) => {}
+/// The directory's `episode_<i>.hdf5` files, by id: at least one, no id twice.
+fn episode_files(dir: &Path) -> Result<Vec<(u64, String)>> {
+    let shown = dir.display().to_string();
+    let mut found: Vec<(u64, String)> = std::fs::read_dir(dir)
+        .map_err(|e| Error::source(format!("{shown}: cannot list: {e}")))?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            episode_id(&name).map(|id| (id, name))
+        })
+        .collect();
+    found.sort();
+    if found.is_empty() {
+        return Err(Error::source(format!("{shown}: no episode_<i>.hdf5 files")));
     }
-    Ok(())
+    if let Some(w) = found.windows(2).find(|w| w[0].0 == w[1].0) {
+        return Err(Error::source(format!(
+            "{shown}: {} and {} have the same episode number",
+            w[0].1, w[1].1
+        )));
+    }
+    Ok(found)
+}
+
+/// The warning for ids without a file (the original ACT code needs contiguous ids from 0).
+fn missing_ids(found: &[(u64, String)], dir: &Path) -> Option<String> {
+    let mut gaps: Vec<String> = found
+        .windows(2)
+        .filter(|w| w[1].0 > w[0].0 + 1)
+        .map(|w| {
+            if w[1].0 == w[0].0 + 2 {
+                format!("{}", w[0].0 + 1)
+            } else {
+                format!("{}..={}", w[0].0 + 1, w[1].0 - 1)
+            }
+        })
+        .collect();
+    if found[0].0 != 0 {
+        gaps.insert(0, format!("0..={}", found[0].0 - 1));
+    }
+    (!gaps.is_empty()).then(|| {
+        format!(
+            "{}: no episode file for ids {} (the original ACT code needs contiguous ids from 0)",
+            dir.display(),
+            gaps.join(", ")
+        )
+    })
+}
+
+/// The keys of the first episode file, and those that hold JPEG rows with their frame size.
+fn first_file_keys(path: &Path) -> Result<(Vec<KeyInfo>, JpegKeys)> {
+    let first = h5::open(path)?;
+    let mut keys = Vec::new();
+    let mut jpeg = Vec::new();
+    for (key, ds) in h5::datasets(&first, path)? {
+        if !h5::is_numeric(&ds) || ds.ndim() == 0 {
+            continue;
+        }
+        if is_jpeg_rows(&key, &ds) {
+            let what = format!("{}: {key}", path.display());
+            let (h, w) = jpeg_size(&ds, 0, &what)?;
+            keys.push(KeyInfo {
+                key: key.clone(),
+                shape: vec![h, w, 3],
+                dtype: "jpeg".into(),
+            });
+            jpeg.push((key, (h, w)));
+        } else {
+            keys.push(KeyInfo {
+                key,
+                shape: h5::step_shape(&ds),
+                dtype: h5::dtype_name(&ds),
+            });
+        }
+    }
+    Ok((keys, jpeg))
+}
+
+/// What every episode file's header is checked against: the first file's keys, the mapped ones
+/// (`wanted`) and those of them that hold JPEG rows.
+struct Headers<'a> {
+    files: &'a [PathBuf],
+    keys: &'a [KeyInfo],
+    jpeg: &'a JpegKeys,
+    wanted: &'a [String],
+}
+
+impl Headers<'_> {
+    /// Each file's episode (`found`'s id, the length its datasets agree on) and where its
+    /// datasets lie, when every one can be read directly.
+    fn read(&self, found: &[(u64, String)]) -> Result<(Vec<EpisodeInfo>, Vec<Located>)> {
+        let _headers = crate::timings::phase("episode headers");
+        // Files whose datasets are all contiguous are understood without HDF5 (and so in
+        // parallel); the others are read through it.
+        let fast: Vec<Option<Vec<h5meta::Located>>> = if self.jpeg.is_empty() {
+            let files = self.files.par_iter();
+            files.map(|p| h5meta::locate(p, self.wanted)).collect()
+        } else {
+            vec![None; self.files.len()]
+        };
+        let mut episodes = Vec::with_capacity(self.files.len());
+        let mut direct = Vec::with_capacity(self.files.len());
+        for (((id, _), path), fast) in found.iter().zip(self.files).zip(fast) {
+            let (len, located) = match fast {
+                Some(found) => self.located(path, found)?,
+                None => self.through_hdf5(path)?,
+            };
+            if len == 0 {
+                let here = path.display();
+                return Err(Error::source(format!("{here}: the episode is empty")));
+            }
+            episodes.push(EpisodeInfo { id: *id, len });
+            direct.push(located);
+        }
+        Ok((episodes, direct))
+    }
+
+    /// A file whose mapped datasets lie where `found` says: their shapes checked, the length.
+    fn located(&self, path: &Path, found: Vec<h5meta::Located>) -> Result<(usize, Located)> {
+        let here = path.display().to_string();
+        let mut located = Vec::with_capacity(self.wanted.len());
+        let mut len = None;
+        for (key, l) in self.wanted.iter().zip(found) {
+            let step: Vec<usize> = if l.shape.len() <= 1 {
+                vec![1]
+            } else {
+                l.shape[1..].to_vec()
+            };
+            if step != self.reference(key).shape {
+                return Err(self.unlike(&here, key, &l.shape));
+            }
+            let steps = l.shape.first().copied().unwrap_or(0);
+            same_length(&mut len, &here, key, steps)?;
+            located.push((key.clone(), l.direct));
+        }
+        Ok((len.map_or(0, |(n, _)| n), Some(located)))
+    }
+
+    /// A file read through HDF5: its mapped datasets' shapes checked, the length, and where
+    /// they lie when every one can be read directly.
+    fn through_hdf5(&self, path: &Path) -> Result<(usize, Located)> {
+        let here = path.display().to_string();
+        let file = h5::open(path)?;
+        let mut len = None;
+        let mut located = Some(Vec::with_capacity(self.wanted.len()));
+        for key in self.wanted {
+            let ds = h5::dataset(&file, key, path)?;
+            let is_jpeg = self.jpeg.iter().any(|(k, _)| k == key);
+            located = match (located, h5::direct(&ds)) {
+                (Some(mut v), Some(d)) if !is_jpeg => {
+                    v.push((key.clone(), d));
+                    Some(v)
+                }
+                _ => None,
+            };
+            let shape_ok = if is_jpeg {
+                is_jpeg_rows(key, &ds)
+            } else {
+                h5::step_shape(&ds) == self.reference(key).shape
+            };
+            if !shape_ok {
+                return Err(self.unlike(&here, key, &ds.shape()));
+            }
+            same_length(&mut len, &here, key, h5::steps(&ds))?;
+        }
+        Ok((len.map_or(0, |(n, _)| n), located))
+    }
+
+    /// The first file's `key`.
+    fn reference(&self, key: &str) -> &KeyInfo {
+        self.keys.iter().find(|k| k.key == key).expect("resolved")
+    }
+
+    /// `here`'s `key` has `shape`, unlike the first file's.
+    fn unlike(&self, here: &str, key: &str, shape: &[usize]) -> Error {
+        let reference = self.reference(key);
+        Error::source(format!(
+            "{here}: `{key}` has shape {shape:?}, unlike {} ({:?} per step, {})",
+            self.files[0].display(),
+            reference.shape,
+            reference.dtype
+        ))
+    }
 }
 
 /// Decodes every row of a (T, max_len) JPEG array into (T, H, W, 3) frames.

@@ -1,6 +1,9 @@
 //! Checks every episode passes whatever adapter read it: channels as long as the episode,
 //! finite values in low-dimensional channels, and finite timestamps, one per step. Runs inside the
 //! episode jobs, so a bad step is found during the one read of the source.
+//!
+//! At open, the adapters that read an episode's keys' lengths from their headers check that
+//! they agree ([`same_length`]).
 
 use super::{ChannelData, Episode, Manifest};
 use crate::error::{Error, Result};
@@ -72,4 +75,23 @@ pub fn episode(
         // Repeated or decreasing timestamps are the audit's business (`[audit] non_monotonic`).
     }
     Ok(Verdict::Keep)
+}
+
+/// Records the first key's number of steps in `len`; an error when a later key has another.
+pub fn same_length<'a>(
+    len: &mut Option<(usize, &'a str)>,
+    here: &str,
+    key: &'a str,
+    steps: usize,
+) -> Result<()> {
+    match *len {
+        None => *len = Some((steps, key)),
+        Some((n, first_key)) if n != steps => {
+            return Err(Error::source(format!(
+                "{here}: `{first_key}` has {n} steps but `{key}` has {steps}"
+            )))
+        }
+        Some(_) => {}
+    }
+    Ok(())
 }

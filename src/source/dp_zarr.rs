@@ -7,6 +7,7 @@
 //! splits the columns) is decoded once, by the first episode that needs it, and each episode
 //! copies its rows out of the decoded chunks.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -27,7 +28,7 @@ pub struct DpZarrSource {
     /// Cumulative episode starts (len = episodes + 1).
     bounds: Vec<u64>,
     /// The arrays the channels read, by key, with their chunk grids.
-    arrays: std::collections::BTreeMap<String, Chunked>,
+    arrays: BTreeMap<String, Chunked>,
     mapped: Mapped,
     /// Decoded chunks, keyed by (array position in `arrays`, chunk grid index).
     cache: BlockCache<(usize, Vec<u64>), Decoded>,
@@ -261,7 +262,8 @@ fn dtype_name(array: &ZArray) -> String {
 }
 
 impl DpZarrSource {
-    // Long function: opening is one sequence of checks (arrays, episode_ends, mapping, chunks, rate), each with its own message, read top to bottom.
+    /// Opens the store: the episodes (`meta/episode_ends`), the arrays under `data/` mapped to
+    /// channels, each as long as the episodes together, and their chunk grids.
     pub fn open(spec: &LoadedSpec, root: &Path) -> Result<Self> {
         let store = Arc::new(FilesystemStore::new(root).map_err(|e| {
             Error::source(format!("{}: cannot open zarr store: {e}", root.display()))
@@ -273,124 +275,151 @@ impl DpZarrSource {
                 Some("Push-T is recorded at 10 Hz".into()),
             )
         })?;
-
-        let ends_array = open_array(&store, root, "meta/episode_ends")?;
-        let n = ends_array.shape().first().copied().unwrap_or(0);
-        // Every episode has a step, so there are no more ends than steps in the longest array;
-        // checked on the metadata, before a corrupt shape makes the read allocate for it.
-        let longest = data_keys(root)
-            .iter()
-            .filter_map(|key| open_array(&store, root, &format!("data/{key}")).ok())
-            .map(|array| (array.shape().first().copied().unwrap_or(0), array))
-            .max_by_key(|(steps, _)| *steps);
-        let longest_steps = longest.as_ref().map_or(0, |(steps, _)| *steps);
-        let longest = match &longest {
-            Some((steps, array)) => format!(
-                "the longest array, {}, has {steps} steps",
-                array.path().as_str().trim_start_matches('/')
-            ),
-            None => "there are no arrays under data/".into(),
-        };
-        if n > longest_steps {
-            return Err(Error::source(format!(
-                "{}: meta/episode_ends has {n} entries, but {longest}; every episode has at least one step",
-                root.display(),
-            )));
-        }
-        let ends = read_f32_exact_i64(&ends_array, n)
-            .map_err(|e| Error::source(format!("{}: meta/episode_ends: {e}", root.display())))?;
-        let mut bounds = vec![0u64];
-        let mut episodes = Vec::with_capacity(ends.len());
-        for (i, &end) in ends.iter().enumerate() {
-            let start = *bounds.last().unwrap();
-            if end < 0 || (end as u64) <= start {
-                return Err(Error::source(format!(
-                    "{}: meta/episode_ends[{i}] = {end} does not exceed the previous end {start}: episode {i} is empty or the ends are not increasing",
-                    root.display()
-                )));
-            }
-            episodes.push(EpisodeInfo {
-                id: i as u64,
-                len: (end as u64 - start) as usize,
-            });
-            bounds.push(end as u64);
-        }
-        let total = *bounds.last().unwrap();
-
-        let mut keys = Vec::new();
-        let mut arrays = std::collections::BTreeMap::new();
-        for key in data_keys(root) {
-            let array = open_array(&store, root, &format!("data/{key}"))?;
-            let shape: Vec<usize> = array.shape().iter().map(|&d| d as usize).collect();
-            keys.push(KeyInfo {
-                key: key.clone(),
-                shape: if shape.len() <= 1 {
-                    vec![1]
-                } else {
-                    shape[1..].to_vec()
-                },
-                dtype: dtype_name(&array),
-            });
-            arrays.insert(key, array);
-        }
+        let (episodes, bounds) = list_episodes(&store, root)?;
+        let (keys, mut arrays) = data_arrays(&store, root)?;
         let place = root.join("data").display().to_string();
         let mapped = mapping::resolve(spec, &place, &keys)?;
-        for key in mapped.keys() {
-            let steps = arrays[&key].shape().first().copied().unwrap_or(0);
-            if steps != total {
-                return Err(Error::source(format!(
-                    "{}: data/{key} has {steps} steps but meta/episode_ends ends at {total}",
-                    root.display(),
-                )));
-            }
-        }
         arrays.retain(|k, _| mapped.keys().contains(k));
-        let everyone: Vec<usize> = (0..episodes.len()).collect();
-        let mut chunked = std::collections::BTreeMap::new();
-        for (index, (key, array)) in arrays.into_iter().enumerate() {
-            let mut c = Chunked::new(array, index).map_err(|e| {
-                Error::source(format!("{}: data/{key}: chunk grid: {e}", root.display()))
-            })?;
-            c.count_users(&bounds, &everyone);
-            chunked.insert(key, c);
-        }
-
-        let mut files = fingerprint::list_files(&root.join("meta"))?
-            .into_iter()
-            .map(|p| Path::new("meta").join(p))
-            .collect::<Vec<_>>();
-        for key in mapped.keys() {
-            let dir = Path::new("data").join(key);
-            files.extend(
-                fingerprint::list_files(&root.join(&dir))?
-                    .into_iter()
-                    .map(|p| dir.join(p)),
-            );
-        }
-        files.sort();
-        let fingerprint = fingerprint::of_files(root, &files)?;
-
+        let arrays = check_arrays(root, arrays, &bounds)?;
+        let fingerprint = fingerprint::of_files(root, &read_files(root, &mapped)?)?;
+        let manifest = Manifest::one_source(
+            SourceFormat::DiffusionPolicyZarr,
+            fps,
+            episodes,
+            &mapped,
+            fingerprint,
+            mapped.warnings.clone(),
+        );
         Ok(DpZarrSource {
             root: root.to_path_buf(),
-            manifest: Manifest {
-                parts: Vec::new(),
-                format: SourceFormat::DiffusionPolicyZarr,
-                fps,
-                episodes,
-                channels: mapped.channels.clone(),
-                fingerprint: fingerprint.hash,
-                files: fingerprint.files,
-                timestamps: false,
-                source_split: None,
-                warnings: mapped.warnings.clone(),
-                tasks: Default::default(),
-            },
+            manifest,
             bounds,
-            arrays: chunked,
+            arrays,
             mapped,
             cache: BlockCache::new(block_cache::budget_from_env()),
         })
     }
+}
+
+/// The episodes `meta/episode_ends` lists, and their cumulative starts (one more than
+/// episodes).
+fn list_episodes(
+    store: &Arc<FilesystemStore>,
+    root: &Path,
+) -> Result<(Vec<EpisodeInfo>, Vec<u64>)> {
+    let ends_array = open_array(store, root, "meta/episode_ends")?;
+    let n = ends_array.shape().first().copied().unwrap_or(0);
+    // Every episode has a step, so there are no more ends than steps in the longest array;
+    // checked on the metadata, before a corrupt shape makes the read allocate for it.
+    let longest = data_keys(root)
+        .iter()
+        .filter_map(|key| open_array(store, root, &format!("data/{key}")).ok())
+        .map(|array| (array.shape().first().copied().unwrap_or(0), array))
+        .max_by_key(|(steps, _)| *steps);
+    let longest_steps = longest.as_ref().map_or(0, |(steps, _)| *steps);
+    let longest = match &longest {
+        Some((steps, array)) => format!(
+            "the longest array, {}, has {steps} steps",
+            array.path().as_str().trim_start_matches('/')
+        ),
+        None => "there are no arrays under data/".into(),
+    };
+    if n > longest_steps {
+        return Err(Error::source(format!(
+            "{}: meta/episode_ends has {n} entries, but {longest}; every episode has at least one step",
+            root.display(),
+        )));
+    }
+    let ends = read_f32_exact_i64(&ends_array, n)
+        .map_err(|e| Error::source(format!("{}: meta/episode_ends: {e}", root.display())))?;
+    let mut bounds = vec![0u64];
+    let mut episodes = Vec::with_capacity(ends.len());
+    for (i, &end) in ends.iter().enumerate() {
+        let start = *bounds.last().unwrap();
+        if end < 0 || (end as u64) <= start {
+            return Err(Error::source(format!(
+                "{}: meta/episode_ends[{i}] = {end} does not exceed the previous end {start}: episode {i} is empty or the ends are not increasing",
+                root.display()
+            )));
+        }
+        episodes.push(EpisodeInfo {
+            id: i as u64,
+            len: (end as u64 - start) as usize,
+        });
+        bounds.push(end as u64);
+    }
+    Ok((episodes, bounds))
+}
+
+/// The arrays under `data/`, by key, and the keys they offer.
+fn data_arrays(
+    store: &Arc<FilesystemStore>,
+    root: &Path,
+) -> Result<(Vec<KeyInfo>, BTreeMap<String, ZArray>)> {
+    let mut keys = Vec::new();
+    let mut arrays = BTreeMap::new();
+    for key in data_keys(root) {
+        let array = open_array(store, root, &format!("data/{key}"))?;
+        let shape: Vec<usize> = array.shape().iter().map(|&d| d as usize).collect();
+        keys.push(KeyInfo {
+            key: key.clone(),
+            shape: if shape.len() <= 1 {
+                vec![1]
+            } else {
+                shape[1..].to_vec()
+            },
+            dtype: dtype_name(&array),
+        });
+        arrays.insert(key, array);
+    }
+    Ok((keys, arrays))
+}
+
+/// The mapped arrays, each checked to end where the last episode ends, with their chunk grids
+/// and the episodes that read each chunk.
+fn check_arrays(
+    root: &Path,
+    arrays: BTreeMap<String, ZArray>,
+    bounds: &[u64],
+) -> Result<BTreeMap<String, Chunked>> {
+    let total = *bounds.last().unwrap();
+    for (key, array) in &arrays {
+        let steps = array.shape().first().copied().unwrap_or(0);
+        if steps != total {
+            return Err(Error::source(format!(
+                "{}: data/{key} has {steps} steps but meta/episode_ends ends at {total}",
+                root.display(),
+            )));
+        }
+    }
+    let everyone: Vec<usize> = (0..bounds.len() - 1).collect();
+    let mut chunked = BTreeMap::new();
+    for (index, (key, array)) in arrays.into_iter().enumerate() {
+        let mut c = Chunked::new(array, index).map_err(|e| {
+            Error::source(format!("{}: data/{key}: chunk grid: {e}", root.display()))
+        })?;
+        c.count_users(bounds, &everyone);
+        chunked.insert(key, c);
+    }
+    Ok(chunked)
+}
+
+/// The files the fingerprint covers: everything under `meta/` and under the mapped arrays.
+fn read_files(root: &Path, mapped: &Mapped) -> Result<Vec<PathBuf>> {
+    let mut files = fingerprint::list_files(&root.join("meta"))?
+        .into_iter()
+        .map(|p| Path::new("meta").join(p))
+        .collect::<Vec<_>>();
+    for key in mapped.keys() {
+        let dir = Path::new("data").join(key);
+        files.extend(
+            fingerprint::list_files(&root.join(&dir))?
+                .into_iter()
+                .map(|p| dir.join(p)),
+        );
+    }
+    files.sort();
+    Ok(files)
 }
 
 /// `episode_ends` is int64 in every replay buffer seen so far; read it without a float detour.

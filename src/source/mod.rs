@@ -161,6 +161,32 @@ impl SourcePart {
 }
 
 impl Manifest {
+    /// What every adapter's opening ends with: the manifest of one source, its episodes, the
+    /// channels `mapped` resolved and the fingerprint of the files read, with no timestamps,
+    /// stored split or tasks (an adapter that has them sets them).
+    pub fn one_source(
+        format: SourceFormat,
+        fps: f64,
+        episodes: Vec<EpisodeInfo>,
+        mapped: &mapping::Mapped,
+        fingerprint: fingerprint::Fingerprint,
+        warnings: Vec<String>,
+    ) -> Manifest {
+        Manifest {
+            format,
+            fps,
+            episodes,
+            channels: mapped.channels.clone(),
+            fingerprint: fingerprint.hash,
+            files: fingerprint.files,
+            timestamps: false,
+            source_split: None,
+            warnings,
+            tasks: BTreeMap::new(),
+            parts: Vec::new(),
+        }
+    }
+
     /// The index of the mixture source episode `id` belongs to (0 for one source).
     pub fn source_of(&self, id: u64) -> usize {
         SourcePart::index_of(&self.parts, id)

@@ -1,10 +1,15 @@
 //! Stage 1, parse: TOML → typed [`Spec`] → fully explicit [`Profile`]s.
 //!
 //! - `model`: the serde/schemars types as written (no engine dependencies).
-//! - `load`: reads the file, keeps the spanned TOML document, turns serde errors into
-//!   `file:line:col` diagnostics with "did you mean".
+//! - `load`: [`LoadedSpec`], the typed spec with its expanded profiles and the spanned TOML
+//!   document, so that any stage can point at a key (`file:line:col`).
+//! - `parse`: reads the file (TOML → document → [`Spec`] → validated profiles); `serde_error`
+//!   turns serde's errors into diagnostics that name the key and say "did you mean".
 //! - `validate`: semantic checks that need no source (ranges, channel names, references).
-//! - `preset`: preset expansion into [`Profile`].
+//! - `preset`: preset expansion into [`Profile`] (`profile`), over each preset's table of values
+//!   (`preset_values`).
+//! - `video_settings`: the encoder settings of a profile that stores frames as video, and their
+//!   defaults.
 //! - `image_storage`: how the HDF5 layout stores frames (`image_compression`) and its defaults.
 //! - `export_keys`: the names native exports give their arrays (default rule and overrides).
 //! - `camera`: `[profiles.<name>.cameras.<channel>]`, a camera's stored size, as written and
@@ -28,11 +33,16 @@ mod load;
 pub mod model;
 mod observations;
 mod output_location;
+mod parse;
 mod preset;
+mod preset_values;
+mod profile;
 pub mod reference;
+mod serde_error;
 mod transform;
 mod validate;
 mod validate_camera;
+mod video_settings;
 
 pub use camera::{Camera, CameraSpec};
 pub(crate) use diagnostic::suggest as suggest_name;
@@ -43,11 +53,11 @@ pub use load::{LoadedSpec, SourceView};
 pub use model::*;
 pub use observations::missing_observations;
 pub use output_location::check_output_location;
-pub use preset::{
-    Profile, StreamCopy, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP, HAS_X264,
-    STORAGE_VIDEO,
-};
+pub use profile::Profile;
 pub use transform::{DeltaSpec, Layout6d, RelativePoseSpec, RotationKind, RotationSpec};
+pub use video_settings::{
+    StreamCopy, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP, HAS_X264, STORAGE_VIDEO,
+};
 
 /// The JSON Schema of the spec, pretty-printed with a trailing newline (`chunkc schema`).
 pub fn json_schema() -> String {

@@ -9,7 +9,8 @@
 //! (`frozen`, `clip`, `duplicate`) change the command the simulated robot follows, so the state
 //! follows them; recording faults (`jump`, `lag`, `delta`, `scale`) change only what was logged.
 
-use super::trajectory::{Injected, Rng};
+use super::injected::Injected;
+use super::rng::Rng;
 use super::{Fault, SynthOptions};
 
 const STREAM_ASSIGN: u64 = 5;

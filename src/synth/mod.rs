@@ -14,8 +14,10 @@
 pub mod aloha;
 pub mod data_faults;
 pub mod dp_zarr;
+pub mod injected;
 pub mod lerobot;
 pub mod rlds;
+pub mod rng;
 pub mod robomimic;
 pub mod trajectory;
 
@@ -28,7 +30,7 @@ use crate::error::{Error, IoContext, Result};
 use crate::spec::SourceFormat;
 pub use trajectory::SynthEpisode;
 
-/// A fault to inject into the affected episodes (see [`trajectory::Injected`]): timing faults
+/// A fault to inject into the affected episodes (see [`injected::Injected`]): timing faults
 /// (`drop`, `rate`, `jitter`, `dup`) change the timestamps of one `fault_fraction` of the
 /// episodes; data faults (the rest) change the recorded actions, each in its own disjoint
 /// `fault_fraction` of the episodes, so that every episode has at most one data fault.

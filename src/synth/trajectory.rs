@@ -4,40 +4,9 @@
 //! Everything comes from one seeded SplitMix64 stream per (seed, episode, purpose), so an
 //! episode's values do not depend on how many episodes are written or in which order.
 
+use super::injected::Injected;
+use super::rng::Rng;
 use super::{data_faults, Fault, SynthOptions};
-
-/// SplitMix64: tiny, fast, and the same on every platform.
-pub struct Rng(u64);
-
-impl Rng {
-    pub fn new(seed: u64, episode: u64, stream: u64) -> Self {
-        let mut r = Rng(seed ^ 0x9E37_79B9_7F4A_7C15);
-        r.0 =
-            r.0.wrapping_add(episode.wrapping_mul(0xBF58_476D_1CE4_E5B9));
-        r.next_u64();
-        r.0 = r.0.wrapping_add(stream.wrapping_mul(0x94D0_49BB_1331_11EB));
-        r.next_u64();
-        r
-    }
-
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    pub fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in [lo, hi).
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-}
 
 const STREAM_ACTION: u64 = 1;
 const STREAM_FRAMES: u64 = 2;
@@ -61,44 +30,6 @@ pub struct SynthEpisode {
     pub timestamps: Vec<f64>,
     /// What was injected, for `faults.json`.
     pub injected: Vec<Injected>,
-}
-
-/// One injected timing fault, as recorded in `faults.json`.
-#[derive(Debug, Clone, serde::Serialize)]
-#[serde(tag = "fault", rename_all = "snake_case")]
-pub enum Injected {
-    /// These steps (of the generated episode, before dropping) were removed, data and time.
-    Drop { steps: Vec<usize> },
-    /// Timestamps advance by `1 / actual_fps` while the dataset claims its nominal rate.
-    Rate { actual_fps: f64 },
-    /// Each timestamp moved by a uniform offset in `[-fraction, fraction] / fps` (the first
-    /// stays at 0).
-    Jitter { fraction: f64 },
-    /// These steps (of the stored episode) repeat the previous step's timestamp.
-    Duplicate { steps: Vec<usize> },
-    /// Action dimension `dim` holds its value from step `from` on.
-    Frozen { dim: usize, from: usize },
-    /// Action dimension `dim` saturates at `bound` (its `side`, "max" or "min"); `steps` were cut.
-    Clip {
-        dim: usize,
-        bound: f64,
-        side: &'static str,
-        steps: usize,
-    },
-    /// One-step spikes of `sizes` added to action dimension `dim` at `steps`.
-    Jump {
-        dim: usize,
-        steps: Vec<usize>,
-        sizes: Vec<f64>,
-    },
-    /// The actions are recorded `steps` late against the state.
-    Lag { steps: i32 },
-    /// The actions are recorded as target minus current state.
-    Delta,
-    /// The actions are multiplied by `factor` (other units).
-    Scale { factor: f64 },
-    /// The episode is a near-copy of episode `of`.
-    DuplicateEpisode { of: u64 },
 }
 
 /// Smooth, bounded joint targets: a sum of three slow sines per joint.

@@ -212,7 +212,7 @@ impl Info {
 
 #[cfg(test)]
 mod tests {
-    use super::frame_shape;
+    use super::{fill, frame_shape, split_range, Info};
     use serde_json::json;
 
     #[test]
@@ -230,5 +230,65 @@ mod tests {
         // Names that do not say channels-first: left as written, for the shape check to judge.
         assert_eq!(named(json!([3, 224, 224]), hwc), [3, 224, 224]);
         assert_eq!(named(json!([4, 4, 224]), chw), [4, 224, 4]);
+    }
+
+    #[test]
+    fn fills_python_templates() {
+        let t = "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet";
+        let v = [
+            ("episode_chunk", "0".into()),
+            ("episode_index", "42".into()),
+        ];
+        assert_eq!(fill(t, &v), "data/chunk-000/episode_000042.parquet");
+        // A v2.1 template naming the chunk `chunk_index` (as a real SO-101 set's does).
+        let t = "data/chunk-{chunk_index:03d}/episode_{episode_index:06d}.parquet";
+        let v = [
+            ("episode_chunk", "0".into()),
+            ("chunk_index", "0".into()),
+            ("episode_index", "7".into()),
+        ];
+        assert_eq!(fill(t, &v), "data/chunk-000/episode_000007.parquet");
+        let t = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4";
+        let v = [
+            ("video_key", "observation.images.top".into()),
+            ("chunk_index", "1".into()),
+            ("file_index", "12".into()),
+        ];
+        assert_eq!(
+            fill(t, &v),
+            "videos/observation.images.top/chunk-001/file-012.mp4"
+        );
+    }
+
+    #[test]
+    fn fills_in_one_pass() {
+        // A value that looks like a field is not filled again (this looped forever).
+        let v = [("video_key", "{video_key:3}".into())];
+        assert_eq!(fill("v/{video_key:3}/x", &v), "v/{video_key:3}/x");
+        // Unknown fields and a lone brace stay as written.
+        let v = [("episode_index", "7".into())];
+        assert_eq!(fill("{other}/{episode_index:03d}/{", &v), "{other}/007/{");
+    }
+
+    #[test]
+    fn refuses_absurd_widths() {
+        // Found while writing the `lerobot_info` fuzz target: a 12-digit width made `fill`
+        // build a 100 GB path.
+        let json = br#"{"codebase_version": "v2.1", "features": {},
+            "data_path": "data/episode_{episode_index:999999999999d}.parquet"}"#;
+        let err = Info::parse(json, "info.json").unwrap_err().to_string();
+        assert!(
+            err.contains("`data_path` pads `{episode_index:999999999999d}`"),
+            "{err}"
+        );
+        let json = br#"{"codebase_version": "v2.1", "features": {},
+            "data_path": "data/episode_{episode_index:020d}.parquet"}"#;
+        assert!(Info::parse(json, "info.json").is_ok());
+    }
+
+    #[test]
+    fn split_ranges() {
+        assert_eq!(split_range("0:100"), Some(0..100));
+        assert_eq!(split_range("x"), None);
     }
 }

@@ -200,6 +200,11 @@ impl Feature {
         self.shape.iter().map(|d| d.unwrap_or(0)).product()
     }
 
+    /// Values per row of a ragged feature (the product of its known dimensions after the rows).
+    pub fn row_width(&self) -> usize {
+        self.shape.iter().skip(1).map(|d| d.unwrap_or(1)).product()
+    }
+
     /// The Example keys this feature is stored under.
     pub fn stored_keys(&self) -> Vec<String> {
         match self.kind {

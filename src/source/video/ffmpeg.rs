@@ -138,7 +138,6 @@ pub fn timeline(path: &Path) -> Result<Timeline, String> {
 
 /// Decodes the frames rows `targets` (seconds, one per row) select into `out`
 /// (`rows × h × w × 3` bytes), streaming: two RGB frames held at a time.
-// Long function: FFmpeg's demux-decode-convert loop with LeRobot's frame selection streaming through it.
 pub fn decode_rows(
     path: &Path,
     targets: &[f64],
@@ -160,97 +159,28 @@ pub fn decode_rows(
             o.probe.width, o.probe.height
         )));
     }
-    let mut ctx = ff::codec::context::Context::from_parameters(o.params.clone())
-        .map_err(|e| bad(format!("no decoder for codec `{}`: {e}", o.probe.codec)))?;
-    ctx.set_threading(ff::codec::threading::Config {
-        kind: ff::codec::threading::Type::Frame,
-        count: 1,
-        ..Default::default()
-    });
-    let mut decoder = ctx
-        .decoder()
-        .video()
-        .map_err(|e| bad(format!("cannot open the `{}` decoder: {e}", o.probe.codec)))?;
+    let mut decoder = open_decoder(&o).map_err(bad)?;
     let mut selector = Selector::new(targets);
     if let Some(first) = selector.first_target().filter(|&t| t > 0.0) {
-        let (num, den) = o.time_base;
-        let offset = (first * f64::from(den) / f64::from(num)).round_ties_even() as i64;
-        let ret = unsafe {
-            ff::ffi::av_seek_frame(
-                o.input.as_mut_ptr(),
-                o.stream as i32,
-                offset,
-                ff::ffi::AVSEEK_FLAG_BACKWARD,
-            )
-        };
-        if ret < 0 {
-            return Err(bad(format!(
-                "seeking to {first} s failed: {}",
-                ff::Error::from(ret)
-            )));
-        }
+        seek(&mut o, first).map_err(bad)?;
     }
-
-    let mut state = Convert {
-        scaler: None,
-        previous: vec![0u8; frame_bytes],
-        current: vec![0u8; frame_bytes],
-        rgb: ff::frame::Video::empty(),
-        frame: ff::frame::Video::empty(),
-        shape: (w, h),
-    };
+    let mut state = Convert::new(w, h);
     let mut packets = 0usize;
     let mut ended = false;
     while !selector.done() {
         if !ended {
-            let mut packet = ff::Packet::empty();
-            match packet.read(&mut o.input) {
-                Ok(()) if packet.stream() != o.stream => continue,
-                Ok(()) => {
-                    packets += 1;
-                    decoder.send_packet(&packet).map_err(|e| {
-                        bad(format!("decoding failed at packet {packets}: {e}"))
-                    })?;
-                }
-                Err(ff::Error::Eof) => {
-                    ended = true;
-                    let _ = decoder.send_eof();
-                }
-                Err(e) => {
-                    return Err(bad(format!(
-                        "reading stopped after {packets} packets ({e}): the file is truncated or damaged"
-                    )))
-                }
+            match feed(&mut o, &mut decoder, &mut packets).map_err(bad)? {
+                Fed::Packet => {}
+                Fed::OtherStream => continue,
+                Fed::End => ended = true,
             }
         }
-        let mut got = false;
-        loop {
-            match decoder.receive_frame(&mut state.frame) {
-                Ok(()) => {
-                    got = true;
-                    let pts = state.frame.pts().or(state.frame.timestamp());
-                    let Some(pts) = pts else { continue };
-                    let time = seconds(pts, o.time_base);
-                    state.convert().map_err(bad)?;
-                    let frame_bytes = state.current.len();
-                    let (prev, cur) = (&state.previous, &state.current);
-                    selector.push(time, |row, pick| {
-                        let src = match pick {
-                            Pick::Previous => prev,
-                            Pick::Current => cur,
-                        };
-                        out[row * frame_bytes..(row + 1) * frame_bytes].copy_from_slice(src);
-                    });
-                    std::mem::swap(&mut state.previous, &mut state.current);
-                    if selector.done() {
-                        break;
-                    }
-                }
-                Err(ff::Error::Other { errno }) if errno == ff::util::error::EAGAIN => break,
-                Err(ff::Error::Eof) => break,
-                Err(e) => return Err(bad(format!("decoding failed after packet {packets}: {e}"))),
-            }
-        }
+        let mut rows = Rows {
+            selector: &mut selector,
+            out: &mut *out,
+            time_base: o.time_base,
+        };
+        let got = rows.take(&mut decoder, &mut state, packets).map_err(bad)?;
         if ended && !got {
             break;
         }
@@ -262,6 +192,128 @@ pub fn decode_rows(
     match selector.first_miss() {
         Some(miss) => Err(DecodeFailure::Miss(miss)),
         None => Ok(()),
+    }
+}
+
+/// The stream's decoder, on one thread.
+fn open_decoder(o: &Opened) -> Result<ff::codec::decoder::Video, String> {
+    let mut ctx = ff::codec::context::Context::from_parameters(o.params.clone())
+        .map_err(|e| format!("no decoder for codec `{}`: {e}", o.probe.codec))?;
+    ctx.set_threading(ff::codec::threading::Config {
+        kind: ff::codec::threading::Type::Frame,
+        count: 1,
+        ..Default::default()
+    });
+    ctx.decoder()
+        .video()
+        .map_err(|e| format!("cannot open the `{}` decoder: {e}", o.probe.codec))
+}
+
+/// Seeks to the keyframe at or before `first` seconds, as PyAV's `container.seek` does.
+fn seek(o: &mut Opened, first: f64) -> Result<(), String> {
+    let (num, den) = o.time_base;
+    let offset = (first * f64::from(den) / f64::from(num)).round_ties_even() as i64;
+    let ret = unsafe {
+        ff::ffi::av_seek_frame(
+            o.input.as_mut_ptr(),
+            o.stream as i32,
+            offset,
+            ff::ffi::AVSEEK_FLAG_BACKWARD,
+        )
+    };
+    if ret < 0 {
+        return Err(format!(
+            "seeking to {first} s failed: {}",
+            ff::Error::from(ret)
+        ));
+    }
+    Ok(())
+}
+
+/// What [`feed`] did with the next packet of the file.
+enum Fed {
+    /// A packet of the video stream went to the decoder.
+    Packet,
+    /// A packet of another stream, skipped.
+    OtherStream,
+    /// The file ended: the decoder was told to give back what it holds.
+    End,
+}
+
+/// Reads the next packet and sends it to the decoder when it is the video stream's; `packets`
+/// counts those sent.
+fn feed(
+    o: &mut Opened,
+    decoder: &mut ff::codec::decoder::Video,
+    packets: &mut usize,
+) -> Result<Fed, String> {
+    let mut packet = ff::Packet::empty();
+    match packet.read(&mut o.input) {
+        Ok(()) if packet.stream() != o.stream => Ok(Fed::OtherStream),
+        Ok(()) => {
+            *packets += 1;
+            decoder
+                .send_packet(&packet)
+                .map_err(|e| format!("decoding failed at packet {packets}: {e}"))?;
+            Ok(Fed::Packet)
+        }
+        Err(ff::Error::Eof) => {
+            let _ = decoder.send_eof();
+            Ok(Fed::End)
+        }
+        Err(e) => Err(format!(
+            "reading stopped after {packets} packets ({e}): the file is truncated or damaged"
+        )),
+    }
+}
+
+/// The rows being filled: each decoded frame, converted, goes to the rows LeRobot's frame
+/// selection gives it.
+struct Rows<'a> {
+    selector: &'a mut Selector,
+    out: &'a mut [u8],
+    time_base: (i32, i32),
+}
+
+impl Rows<'_> {
+    /// Takes every frame the decoder has ready (until the selection is done); whether there was
+    /// one. `packets` (sent so far) is for messages.
+    fn take(
+        &mut self,
+        decoder: &mut ff::codec::decoder::Video,
+        state: &mut Convert,
+        packets: usize,
+    ) -> Result<bool, String> {
+        let mut got = false;
+        loop {
+            match decoder.receive_frame(&mut state.frame) {
+                Ok(()) => {
+                    got = true;
+                    let pts = state.frame.pts().or(state.frame.timestamp());
+                    let Some(pts) = pts else { continue };
+                    let time = seconds(pts, self.time_base);
+                    state.convert()?;
+                    let frame_bytes = state.current.len();
+                    let (prev, cur) = (&state.previous, &state.current);
+                    let out = &mut *self.out;
+                    self.selector.push(time, |row, pick| {
+                        let src = match pick {
+                            Pick::Previous => prev,
+                            Pick::Current => cur,
+                        };
+                        out[row * frame_bytes..(row + 1) * frame_bytes].copy_from_slice(src);
+                    });
+                    std::mem::swap(&mut state.previous, &mut state.current);
+                    if self.selector.done() {
+                        break;
+                    }
+                }
+                Err(ff::Error::Other { errno }) if errno == ff::util::error::EAGAIN => break,
+                Err(ff::Error::Eof) => break,
+                Err(e) => return Err(format!("decoding failed after packet {packets}: {e}")),
+            }
+        }
+        Ok(got)
     }
 }
 
@@ -277,6 +329,17 @@ struct Convert {
 }
 
 impl Convert {
+    fn new(w: usize, h: usize) -> Convert {
+        Convert {
+            scaler: None,
+            previous: vec![0u8; w * h * 3],
+            current: vec![0u8; w * h * 3],
+            rgb: ff::frame::Video::empty(),
+            frame: ff::frame::Video::empty(),
+            shape: (w, h),
+        }
+    }
+
     fn convert(&mut self) -> Result<(), String> {
         let (fmt, fw, fh) = (self.frame.format(), self.frame.width(), self.frame.height());
         if (fw as usize, fh as usize) != self.shape {

@@ -5,13 +5,18 @@
 //! against them once, at open time, and gives the manifest's channels plus a [`Recipe`] per
 //! channel. For each episode the adapter reads the keys the recipes name ([`Raw`]) and
 //! [`assemble`] turns them into the channels' data.
+//!
+//! - `channel`: one channel of the spec checked against the keys (the keys it names, its
+//!   columns, its kind and shape).
 
 use std::collections::BTreeMap;
 use std::ops::Range;
 
-use super::{image_to_u8, kind_for_shape, ChannelData, ChannelInfo, ChannelKind};
+use super::{image_to_u8, ChannelData, ChannelInfo, ChannelKind};
 use crate::error::{Error, Result};
-use crate::spec::{ChannelKindSpec, ChannelSpec, LoadedSpec};
+use crate::spec::LoadedSpec;
+
+mod channel;
 
 /// A key a source offers, with its per-step shape (everything after the time axis; a 1-D array
 /// has shape `[1]`).
@@ -95,7 +100,6 @@ impl Raw {
 ///
 /// An empty mapping (a valid spec always maps `action`; `chunkc init` and `inspect` open a
 /// source so to learn what it holds) stops here with `Error::Offered` and every key.
-// Long function: one arm per mapping form (rename, columns, concat, kind), each with its own messages.
 pub fn resolve(spec: &LoadedSpec, place: &str, available: &[KeyInfo]) -> Result<Mapped> {
     if spec.source().channels.is_empty() {
         return Err(Error::Offered(Box::new(crate::error::Offer {
@@ -112,161 +116,18 @@ pub fn resolve(spec: &LoadedSpec, place: &str, available: &[KeyInfo]) -> Result<
         warnings: Vec::new(),
     };
     for (name, channel) in &spec.source().channels {
-        let at = ["source", "channels", name.as_str()];
-        let mut parts = Vec::new();
-        let mut infos = Vec::new();
-        for key in channel.keys() {
-            let Some(info) = available.iter().find(|k| k.key == key) else {
-                let names: Vec<&str> = available.iter().map(|k| k.key.as_str()).collect();
-                let close =
-                    crate::spec::suggest_name(key, &names).map(|s| format!("did you mean `{s}`?"));
-                return Err(spec.error_at(
-                    &at,
-                    format!(
-                        "channel `{name}` maps to `{key}`, which is not in {place}; the source has: {}",
-                        names.join(", ")
-                    ),
-                    close,
-                ));
-            };
-            infos.push(info);
-            if info.width() == 0 {
-                if channel.keys().len() > 1 {
-                    mapped.warnings.push(format!(
-                        "channel `{name}`: `{key}` in {place} has zero width {:?}; it is skipped",
-                        info.shape
-                    ));
-                }
-                continue;
-            }
-            parts.push(Part {
-                key: key.to_string(),
-                width: info.width(),
-                columns: 0..info.width(),
-            });
-        }
-        let table = match channel {
-            ChannelSpec::Table(t) => Some(t),
-            ChannelSpec::Key(_) => None,
+        let one = channel::OneChannel {
+            spec,
+            place,
+            name,
+            channel,
         };
-        let total: usize = parts.iter().map(|p| p.width).sum();
-        if let Some([a, b]) = table.and_then(|t| t.columns) {
-            if b > total {
-                return Err(spec.error_at(
-                    &[&at[..], &["columns"]].concat(),
-                    format!(
-                        "channel `{name}` selects columns {a}..{b} of `{}`, which has {total} per step",
-                        channel.keys().join(" + ")
-                    ),
-                    Some(format!("columns are `[start, end)` with end at most {total}")),
-                ));
-            }
-            parts = select(&parts, a..b);
+        if let Some((info, recipe)) = one.resolve(available, &mut mapped.warnings)? {
+            mapped.channels.push(info);
+            mapped.recipes.push(recipe);
         }
-        let width: usize = parts.iter().map(|p| p.columns.len()).sum();
-        if width == 0 {
-            if name == "action" {
-                return Err(spec.error_at(
-                    &at,
-                    format!(
-                        "`action` maps to `{}`, which has no values per step",
-                        channel.describe()
-                    ),
-                    None,
-                ));
-            }
-            mapped.warnings.push(format!(
-                "channel `{name}` maps to `{}` in {place}, which has zero width; the channel is skipped",
-                channel.describe()
-            ));
-            continue;
-        }
-
-        let whole_single_key = infos.len() == 1 && table.is_none_or(|t| t.columns.is_none());
-        let declared = table.and_then(|t| t.kind);
-        let (kind, shape) = if whole_single_key {
-            let shape = infos[0].shape.clone();
-            match declared {
-                Some(ChannelKindSpec::Lowdim) => (ChannelKind::Lowdim, vec![width]),
-                Some(ChannelKindSpec::Image) | None => {
-                    let kind = kind_for_shape(&shape)
-                        .map_err(|e| Error::source(format!("{place}: `{}`: {e}", infos[0].key)))?;
-                    if declared == Some(ChannelKindSpec::Image) && kind != ChannelKind::Image {
-                        return Err(spec.error_at(
-                            &[&at[..], &["kind"]].concat(),
-                            format!(
-                                "channel `{name}` is declared an image, but `{}` has per-step shape {shape:?}, not (H, W, C)",
-                                infos[0].key
-                            ),
-                            None,
-                        ));
-                    }
-                    (kind, shape)
-                }
-            }
-        } else {
-            if declared == Some(ChannelKindSpec::Image) {
-                return Err(spec.error_at(
-                    &[&at[..], &["kind"]].concat(),
-                    format!("channel `{name}` selects columns or concatenates keys, so it cannot be an image"),
-                    None,
-                ));
-            }
-            if let Some(image) = infos.iter().find(|k| k.shape.len() == 3 && k.width() > 0) {
-                return Err(spec.error_at(
-                    &at,
-                    format!(
-                        "channel `{name}` slices or concatenates `{}`, an image of shape {:?}; only vectors can be",
-                        image.key, image.shape
-                    ),
-                    None,
-                ));
-            }
-            (ChannelKind::Lowdim, vec![width])
-        };
-        if name == "action" && kind != ChannelKind::Lowdim {
-            return Err(spec.error_at(
-                &at,
-                format!(
-                    "`action` must be a vector per step, but `{}` is {shape:?}",
-                    channel.describe()
-                ),
-                None,
-            ));
-        }
-        let mut dtypes: Vec<&str> = infos.iter().map(|k| k.dtype.as_str()).collect();
-        dtypes.dedup();
-        mapped.channels.push(ChannelInfo {
-            name: name.clone(),
-            key: channel.describe(),
-            kind,
-            shape,
-            source_dtype: dtypes.join("+"),
-        });
-        mapped.recipes.push(Recipe { parts });
     }
     Ok(mapped)
-}
-
-/// The parts restricted to `range` of their concatenated columns.
-fn select(parts: &[Part], range: Range<usize>) -> Vec<Part> {
-    let mut out = Vec::new();
-    let mut offset = 0;
-    for p in parts {
-        let n = p.columns.len();
-        let lo = range.start.max(offset);
-        let hi = range.end.min(offset + n);
-        if lo < hi {
-            let start = p.columns.start + (lo - offset);
-            out.push(Part {
-                key: p.key.clone(),
-                width: p.width,
-                columns: start..start + (hi - lo),
-            });
-        }
-        offset += n;
-    }
-    out
 }
 
 /// Builds one episode's channels from the keys read for it. `read` is called once per key;
@@ -357,27 +218,4 @@ pub fn assemble(
         out.push(data);
     }
     Ok(out)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn part(key: &str, width: usize) -> Part {
-        Part {
-            key: key.into(),
-            width,
-            columns: 0..width,
-        }
-    }
-
-    #[test]
-    fn select_spans_parts() {
-        let parts = [part("a", 3), part("b", 2)];
-        let got = select(&parts, 2..4);
-        assert_eq!(got.len(), 2);
-        assert_eq!((got[0].key.as_str(), got[0].columns.clone()), ("a", 2..3));
-        assert_eq!((got[1].key.as_str(), got[1].columns.clone()), ("b", 0..1));
-        assert!(select(&parts, 3..3).is_empty());
-    }
 }

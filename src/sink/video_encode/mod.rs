@@ -1,4 +1,3 @@
-// Long file: one encoder: FFmpeg's set-up, the frame conversion and the muxer, behind the feature and its stub.
 //! Video encoding of camera frames: RGB24 frames → yuv420p (libswscale) → AV1 (SVT-AV1) or
 //! H.264 (x264) in an mp4 (libavformat), one file per camera, as LeRobot records its datasets.
 //!
@@ -28,60 +27,26 @@
 //! episodes locates episode `e` at `from_timestamp = first row of e / fps`.
 //!
 //! Without the `video` cargo feature, creating a stream is an error that names the feature.
+//!
+//! - `settings`: what every stream is encoded with (pixel format, codec options, the muxer's
+//!   flags) and what the documents say of it.
+//! - `ffmpeg`: the encode loop on FFmpeg's side (set-up, frame conversion, packets to the mp4).
+//! - here: a stream on the calling thread ([`VideoStream`]) or on its own ([`Background`]).
 
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 
 use crate::error::{Error, Result};
-use crate::spec::{VideoCodec, VideoSettings};
+use crate::spec::VideoSettings;
 
-/// What LeRobot's `get_video_info` reports of a stream chunkc wrote.
-pub fn codec_name(codec: VideoCodec) -> &'static str {
-    match codec {
-        VideoCodec::Libsvtav1 => "av1",
-        VideoCodec::Libx264 => "h264",
-    }
-}
+#[cfg(feature = "video")]
+mod ffmpeg;
+mod settings;
 
-/// The pixel format every stream is encoded in.
-pub const PIX_FMT: &str = "yuv420p";
-
-/// SVT-AV1's preset (speed) as LeRobot sets it.
-pub const SVTAV1_PRESET: u32 = 12;
-
-/// x264's own options (FFmpeg's `x264-params`): the same algorithms on every CPU, so the bytes
-/// depend on neither the machine's instruction sets nor what its heap held before.
-pub const X264_PARAMS: &str = "cpu-independent=1";
-
-/// The libavcodec the encoders run in (`major.minor.micro`), or why there is none.
-pub fn library_version() -> String {
-    #[cfg(feature = "video")]
-    {
-        let v = ffmpeg_next::codec::version();
-        format!("libavcodec {}.{}.{}", v >> 16, (v >> 8) & 0xff, v & 0xff)
-    }
-    #[cfg(not(feature = "video"))]
-    {
-        "none (built without the `video` feature)".to_string()
-    }
-}
+pub use settings::{codec_name, library_version, StreamShape, PIX_FMT, SVTAV1_PRESET, X264_PARAMS};
 
 /// Frames (episodes) queued for a [`Background`] encoder before `push` waits.
 const QUEUE: usize = 2;
-
-/// The geometry and rate of a stream.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StreamShape {
-    pub height: usize,
-    pub width: usize,
-    pub fps: f64,
-}
-
-impl StreamShape {
-    fn frame_bytes(&self) -> usize {
-        self.height * self.width * 3
-    }
-}
 
 /// One mp4 being written, frame by frame, on the calling thread.
 pub struct VideoStream {
@@ -89,7 +54,7 @@ pub struct VideoStream {
     shape: StreamShape,
     frames: u64,
     #[cfg(feature = "video")]
-    inner: imp::Inner,
+    inner: ffmpeg::Inner,
 }
 
 impl VideoStream {
@@ -130,7 +95,7 @@ impl VideoStream {
         }
         #[cfg(feature = "video")]
         {
-            let inner = imp::Inner::create(path, shape, settings, asm).map_err(fail)?;
+            let inner = ffmpeg::Inner::create(path, shape, settings, asm).map_err(fail)?;
             Ok(VideoStream {
                 path: path.to_path_buf(),
                 shape,
@@ -242,221 +207,10 @@ impl Drop for Background {
     }
 }
 
-#[cfg(feature = "video")]
-mod imp {
-    //! The FFmpeg side: one output context, one encoder, one scaler per stream.
-
-    use std::path::Path;
-    use std::sync::Once;
-
-    use ff::{codec, encoder, format, frame, software::scaling, Dictionary, Packet, Rational};
-    use ffmpeg_next as ff;
-
-    use super::StreamShape;
-    use crate::spec::{VideoCodec, VideoSettings};
-
-    use super::{SVTAV1_PRESET, X264_PARAMS};
-
-    pub struct Inner {
-        octx: format::context::Output,
-        encoder: encoder::Video,
-        scaler: scaling::Context,
-        rgb: frame::Video,
-        yuv: frame::Video,
-        time_base: Rational,
-        stream_time_base: Rational,
-    }
-
-    // The contexts are used by one thread at a time (moved into the encoder thread whole).
-    unsafe impl Send for Inner {}
-
-    fn init() -> Result<(), String> {
-        static INIT: Once = Once::new();
-        let mut failed = None;
-        INIT.call_once(|| {
-            // SVT-AV1 prints a banner per encoder unless told to keep to warnings.
-            if std::env::var_os("SVT_LOG").is_none() {
-                std::env::set_var("SVT_LOG", "2");
-            }
-            if let Err(e) = ff::init() {
-                failed = Some(e.to_string());
-            }
-            ff::log::set_level(ff::log::Level::Error);
-        });
-        failed.map_or(Ok(()), Err)
-    }
-
-    fn rate(fps: f64) -> Rational {
-        let r = Rational::from(fps);
-        if r.numerator() > 0 && r.denominator() > 0 {
-            r
-        } else {
-            Rational(fps.round().max(1.0) as i32, 1)
-        }
-    }
-
-    impl Inner {
-        // Long function: FFmpeg's set-up sequence (format, stream, codec options, scaler), each step with its own error.
-        pub fn create(
-            path: &Path,
-            shape: StreamShape,
-            s: VideoSettings,
-            asm: Option<&str>,
-        ) -> Result<Self, String> {
-            init()?;
-            fn e(what: &str) -> impl Fn(ff::Error) -> String + '_ {
-                move |err| format!("{what}: {err}")
-            }
-            let mut octx = format::output_as(path, "mp4").map_err(e("cannot create the mp4"))?;
-            let global_header = octx.format().flags().contains(format::Flags::GLOBAL_HEADER);
-            let name = s.codec.name();
-            let codec = encoder::find_by_name(name).ok_or_else(|| {
-                format!("this FFmpeg has no `{name}` encoder (`ffmpeg -encoders` lists them)")
-            })?;
-            let frame_rate = rate(shape.fps);
-            let time_base = frame_rate.invert();
-            let mut ctx = codec::context::Context::new_with_codec(codec);
-            ctx.set_threading(codec::threading::Config {
-                kind: codec::threading::Type::None,
-                count: 1,
-                ..Default::default()
-            });
-            let mut enc = ctx.encoder().video().map_err(e("video encoder"))?;
-            enc.set_width(shape.width as u32);
-            enc.set_height(shape.height as u32);
-            enc.set_format(format::Pixel::YUV420P);
-            enc.set_time_base(time_base);
-            enc.set_frame_rate(Some(frame_rate));
-            enc.set_gop(s.gop);
-            enc.set_color_range(ff::color::Range::MPEG);
-            let mut flags = codec::Flags::BITEXACT;
-            if global_header {
-                flags |= codec::Flags::GLOBAL_HEADER;
-            }
-            // Closed GOPs when asked: libavcodec's SVT-AV1 and x264 wrappers otherwise ask for
-            // open ones (SVT-AV1's intra frames are then not keyframes: a file's only
-            // random-access point is its first frame; x264's frames shown before a keyframe
-            // refer to the GOP before it, so decoding from there reports missing references).
-            if s.closed_gop {
-                flags |= codec::Flags::CLOSED_GOP;
-            }
-            enc.set_flags(flags);
-            let mut opts = Dictionary::new();
-            opts.set("crf", &s.crf.to_string());
-            match s.codec {
-                VideoCodec::Libsvtav1 => {
-                    opts.set("preset", &SVTAV1_PRESET.to_string());
-                    // One thread, no core pinning: the same decisions on every run.
-                    opts.set("svtav1-params", "lp=1");
-                }
-                VideoCodec::Libx264 => {
-                    opts.set("threads", "1");
-                    let params = match asm {
-                        Some(asm) => format!("{X264_PARAMS}:asm={asm}"),
-                        None => X264_PARAMS.to_string(),
-                    };
-                    opts.set("x264-params", &params);
-                }
-            }
-            let encoder = enc.open_with(opts).map_err(|err| {
-                // SVT-AV1 before 2.0 (Debian 12 has 1.4) takes nothing under 64x64.
-                let small =
-                    s.codec == VideoCodec::Libsvtav1 && (shape.height < 64 || shape.width < 64);
-                let hint = if small {
-                    let instead = if crate::spec::HAS_X264 {
-                        "`video_codec = \"libx264\"` takes them"
-                    } else {
-                        "resize them with `cameras`, or store them as `jpeg` or `png`"
-                    };
-                    format!(
-                        " ({}x{} frames: this SVT-AV1 may need at least 64x64; {instead})",
-                        shape.height, shape.width
-                    )
-                } else {
-                    String::new()
-                };
-                format!("cannot open the {name} encoder: {err}{hint}")
-            })?;
-            {
-                let mut ost = octx.add_stream(codec).map_err(e("cannot add the stream"))?;
-                ost.set_parameters(&encoder);
-                ost.set_time_base(time_base);
-                ost.set_rate(frame_rate);
-                ost.set_avg_frame_rate(frame_rate);
-            }
-            let mut header = Dictionary::new();
-            header.set("fflags", "+bitexact");
-            // The index first, so that players (and the Hub's viewer) start without a seek.
-            header.set("movflags", "+faststart");
-            octx.write_header_with(header)
-                .map_err(e("cannot write the mp4 header"))?;
-            let stream_time_base = octx.stream(0).expect("added").time_base();
-            let (w, h) = (shape.width as u32, shape.height as u32);
-            let scaler = scaling::Context::get(
-                format::Pixel::RGB24,
-                w,
-                h,
-                format::Pixel::YUV420P,
-                w,
-                h,
-                scaling::Flags::BILINEAR,
-            )
-            .map_err(e("cannot convert RGB24 to yuv420p"))?;
-            Ok(Inner {
-                octx,
-                encoder,
-                scaler,
-                rgb: frame::Video::new(format::Pixel::RGB24, w, h),
-                yuv: frame::Video::new(format::Pixel::YUV420P, w, h),
-                time_base,
-                stream_time_base,
-            })
-        }
-
-        pub fn push(&mut self, pixels: &[u8], pts: i64) -> Result<(), String> {
-            let row = self.rgb.width() as usize * 3;
-            let stride = self.rgb.stride(0);
-            let data = self.rgb.data_mut(0);
-            for (y, src) in pixels.chunks(row).enumerate() {
-                data[y * stride..y * stride + row].copy_from_slice(src);
-            }
-            self.scaler
-                .run(&self.rgb, &mut self.yuv)
-                .map_err(|e| format!("converting a frame to yuv420p: {e}"))?;
-            self.yuv.set_pts(Some(pts));
-            self.encoder
-                .send_frame(&self.yuv)
-                .map_err(|e| format!("encoding frame {pts}: {e}"))?;
-            self.drain()
-        }
-
-        fn drain(&mut self) -> Result<(), String> {
-            let mut packet = Packet::empty();
-            while self.encoder.receive_packet(&mut packet).is_ok() {
-                packet.set_stream(0);
-                packet.rescale_ts(self.time_base, self.stream_time_base);
-                packet
-                    .write_interleaved(&mut self.octx)
-                    .map_err(|e| format!("writing a packet: {e}"))?;
-            }
-            Ok(())
-        }
-
-        pub fn finish(mut self) -> Result<(), String> {
-            self.encoder
-                .send_eof()
-                .map_err(|e| format!("flushing the encoder: {e}"))?;
-            self.drain()?;
-            self.octx
-                .write_trailer()
-                .map_err(|e| format!("writing the mp4 index: {e}"))
-        }
-    }
-}
-
 #[cfg(all(test, feature = "video"))]
 mod tests {
     use super::*;
+    use crate::spec::VideoCodec;
 
     fn settings() -> VideoSettings {
         VideoSettings {

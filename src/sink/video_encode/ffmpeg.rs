@@ -1,0 +1,195 @@
+//! The encode loop on FFmpeg's side: one output context, one encoder, one scaler per stream;
+//! frames converted and encoded as they come, packets written as the encoder gives them back.
+
+use std::path::Path;
+use std::sync::Once;
+
+use ff::{codec, encoder, format, frame, software::scaling, Dictionary, Packet, Rational};
+use ffmpeg_next as ff;
+
+use super::settings::{encoder_options, refusal_hint, StreamShape, MUXER_OPTIONS};
+use crate::spec::VideoSettings;
+
+pub struct Inner {
+    octx: format::context::Output,
+    encoder: encoder::Video,
+    scaler: scaling::Context,
+    rgb: frame::Video,
+    yuv: frame::Video,
+    time_base: Rational,
+    stream_time_base: Rational,
+}
+
+// The contexts are used by one thread at a time (moved into the encoder thread whole).
+unsafe impl Send for Inner {}
+
+fn init() -> Result<(), String> {
+    static INIT: Once = Once::new();
+    let mut failed = None;
+    INIT.call_once(|| {
+        // SVT-AV1 prints a banner per encoder unless told to keep to warnings.
+        if std::env::var_os("SVT_LOG").is_none() {
+            std::env::set_var("SVT_LOG", "2");
+        }
+        if let Err(e) = ff::init() {
+            failed = Some(e.to_string());
+        }
+        ff::log::set_level(ff::log::Level::Error);
+    });
+    failed.map_or(Ok(()), Err)
+}
+
+fn rate(fps: f64) -> Rational {
+    let r = Rational::from(fps);
+    if r.numerator() > 0 && r.denominator() > 0 {
+        r
+    } else {
+        Rational(fps.round().max(1.0) as i32, 1)
+    }
+}
+
+impl Inner {
+    /// Creates the mp4, its encoder and its RGB24 → yuv420p scaler, and writes the header.
+    pub fn create(
+        path: &Path,
+        shape: StreamShape,
+        s: VideoSettings,
+        asm: Option<&str>,
+    ) -> Result<Self, String> {
+        init()?;
+        let mut octx = format::output_as(path, "mp4").map_err(e("cannot create the mp4"))?;
+        let global_header = octx.format().flags().contains(format::Flags::GLOBAL_HEADER);
+        let name = s.codec.name();
+        let codec = encoder::find_by_name(name).ok_or_else(|| {
+            format!("this FFmpeg has no `{name}` encoder (`ffmpeg -encoders` lists them)")
+        })?;
+        let frame_rate = rate(shape.fps);
+        let time_base = frame_rate.invert();
+        let encoder = open_encoder(codec, shape, &s, asm, global_header)?;
+        {
+            let mut ost = octx.add_stream(codec).map_err(e("cannot add the stream"))?;
+            ost.set_parameters(&encoder);
+            ost.set_time_base(time_base);
+            ost.set_rate(frame_rate);
+            ost.set_avg_frame_rate(frame_rate);
+        }
+        let mut header = Dictionary::new();
+        for (key, value) in MUXER_OPTIONS {
+            header.set(key, value);
+        }
+        octx.write_header_with(header)
+            .map_err(e("cannot write the mp4 header"))?;
+        let stream_time_base = octx.stream(0).expect("added").time_base();
+        let (w, h) = (shape.width as u32, shape.height as u32);
+        let scaler = scaling::Context::get(
+            format::Pixel::RGB24,
+            w,
+            h,
+            format::Pixel::YUV420P,
+            w,
+            h,
+            scaling::Flags::BILINEAR,
+        )
+        .map_err(e("cannot convert RGB24 to yuv420p"))?;
+        Ok(Inner {
+            octx,
+            encoder,
+            scaler,
+            rgb: frame::Video::new(format::Pixel::RGB24, w, h),
+            yuv: frame::Video::new(format::Pixel::YUV420P, w, h),
+            time_base,
+            stream_time_base,
+        })
+    }
+
+    pub fn push(&mut self, pixels: &[u8], pts: i64) -> Result<(), String> {
+        let row = self.rgb.width() as usize * 3;
+        let stride = self.rgb.stride(0);
+        let data = self.rgb.data_mut(0);
+        for (y, src) in pixels.chunks(row).enumerate() {
+            data[y * stride..y * stride + row].copy_from_slice(src);
+        }
+        self.scaler
+            .run(&self.rgb, &mut self.yuv)
+            .map_err(|e| format!("converting a frame to yuv420p: {e}"))?;
+        self.yuv.set_pts(Some(pts));
+        self.encoder
+            .send_frame(&self.yuv)
+            .map_err(|e| format!("encoding frame {pts}: {e}"))?;
+        self.drain()
+    }
+
+    fn drain(&mut self) -> Result<(), String> {
+        let mut packet = Packet::empty();
+        while self.encoder.receive_packet(&mut packet).is_ok() {
+            packet.set_stream(0);
+            packet.rescale_ts(self.time_base, self.stream_time_base);
+            packet
+                .write_interleaved(&mut self.octx)
+                .map_err(|e| format!("writing a packet: {e}"))?;
+        }
+        Ok(())
+    }
+
+    pub fn finish(mut self) -> Result<(), String> {
+        self.encoder
+            .send_eof()
+            .map_err(|e| format!("flushing the encoder: {e}"))?;
+        self.drain()?;
+        self.octx
+            .write_trailer()
+            .map_err(|e| format!("writing the mp4 index: {e}"))
+    }
+}
+
+/// An FFmpeg error as a message that says what failed.
+fn e(what: &str) -> impl Fn(ff::Error) -> String + '_ {
+    move |err| format!("{what}: {err}")
+}
+
+/// The encoder of one stream, opened: one thread, yuv420p in `tv` range, the settings' GOP and
+/// options ([`encoder_options`]), bit-exact.
+fn open_encoder(
+    codec: ff::Codec,
+    shape: StreamShape,
+    s: &VideoSettings,
+    asm: Option<&str>,
+    global_header: bool,
+) -> Result<encoder::Video, String> {
+    let frame_rate = rate(shape.fps);
+    let mut ctx = codec::context::Context::new_with_codec(codec);
+    ctx.set_threading(codec::threading::Config {
+        kind: codec::threading::Type::None,
+        count: 1,
+        ..Default::default()
+    });
+    let mut enc = ctx.encoder().video().map_err(e("video encoder"))?;
+    enc.set_width(shape.width as u32);
+    enc.set_height(shape.height as u32);
+    enc.set_format(format::Pixel::YUV420P);
+    enc.set_time_base(frame_rate.invert());
+    enc.set_frame_rate(Some(frame_rate));
+    enc.set_gop(s.gop);
+    enc.set_color_range(ff::color::Range::MPEG);
+    let mut flags = codec::Flags::BITEXACT;
+    if global_header {
+        flags |= codec::Flags::GLOBAL_HEADER;
+    }
+    // Closed GOPs when asked: libavcodec's SVT-AV1 and x264 wrappers otherwise ask for open ones
+    // (SVT-AV1's intra frames are then not keyframes: a file's only random-access point is its
+    // first frame; x264's frames shown before a keyframe refer to the GOP before it, so decoding
+    // from there reports missing references).
+    if s.closed_gop {
+        flags |= codec::Flags::CLOSED_GOP;
+    }
+    enc.set_flags(flags);
+    let mut opts = Dictionary::new();
+    for (key, value) in encoder_options(s, asm) {
+        opts.set(key, &value);
+    }
+    let name = s.codec.name();
+    enc.open_with(opts).map_err(|err| {
+        let hint = refusal_hint(s, shape);
+        format!("cannot open the {name} encoder: {err}{hint}")
+    })
+}
