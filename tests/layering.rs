@@ -246,20 +246,6 @@ fn the_books_architecture_page_names_every_module() {
 
 use std::collections::{BTreeMap, BTreeSet};
 
-/// Circles tolerated for now, each a set of files (relative to `src/`): a circle whose files are
-/// all in one set passes. Any other circle fails. Remove an entry with its circle.
-const KNOWN_CIRCLES: &[&[&str]] = &[
-    // removed by the issue "Every build is a mixture"
-    &["audit/mixture.rs", "audit/mixture_channels.rs"],
-    &[
-        "exec/finish.rs",
-        "exec/mixture_stats.rs",
-        "exec/rate.rs",
-        "exec/window_stats.rs",
-    ],
-    &["sink/documents.rs", "sink/mixture_meta.rs"],
-];
-
 /// The text with every comment, string and character literal blanked (newlines kept), so that
 /// only code is searched for paths.
 fn code_only(text: &str) -> String {
@@ -662,19 +648,12 @@ fn circles<'a>(graph: &BTreeMap<&'a str, BTreeMap<&'a str, usize>>) -> Vec<Vec<&
     walk.found
 }
 
-/// Every circle not in [`KNOWN_CIRCLES`]: its files, and the imports between them with their
-/// lines.
-fn new_circles(src: &Path, known: &[&[&str]]) -> Vec<String> {
+/// Every circle: its files, and the imports between them with their lines.
+fn new_circles(src: &Path) -> Vec<String> {
     let files = Files::read(src);
     let graph = files.imports();
     let mut found = Vec::new();
     for circle in circles(&graph) {
-        if known
-            .iter()
-            .any(|set| circle.iter().all(|f| set.contains(f)))
-        {
-            continue;
-        }
         let members: BTreeSet<&str> = circle.iter().copied().collect();
         let edges: Vec<String> = circle
             .iter()
@@ -701,7 +680,7 @@ fn new_circles(src: &Path, known: &[&[&str]]) -> Vec<String> {
 #[test]
 fn no_file_imports_in_a_circle() {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let found = new_circles(&src, KNOWN_CIRCLES);
+    let found = new_circles(&src);
     assert!(
         found.is_empty(),
         "files that import each other are one concept split in two, or two tangled: move what \
@@ -739,7 +718,7 @@ fn a_new_circle_is_caught_and_named() {
     );
     // b → a/x one way: no circle.
     write("b.rs", "use crate::a::x;\n");
-    let found = new_circles(src, &[]);
+    let found = new_circles(src);
     assert_eq!(found.len(), 1, "{found:?}");
     assert!(
         found[0].starts_with("an import circle between src/a/y.rs, src/a/z.rs:"),
@@ -753,14 +732,13 @@ fn a_new_circle_is_caught_and_named() {
         found[0].contains("src/a/z.rs:4 imports src/a/y.rs"),
         "{found:?}"
     );
-    // A known circle passes; a file of it in another circle does not hide that one.
-    assert!(new_circles(src, &[&["a/y.rs", "a/z.rs"]]).is_empty());
+    // A third file in the loop: one circle of three.
     write("b.rs", "use crate::a::{x, z};\n");
     write(
         "a/z.rs",
         "use crate::b;\npub struct Z;\nfn g() { super::y::f(); }\n",
     );
-    let found = new_circles(src, &[&["a/y.rs", "a/z.rs"]]);
+    let found = new_circles(src);
     assert_eq!(found.len(), 1, "{found:?}");
     assert!(
         found[0].starts_with("an import circle between src/a/y.rs, src/a/z.rs, src/b.rs:"),

@@ -1,7 +1,7 @@
 //! `abs_action = true` on a Diffusion Policy profile: the rotation of each arm's axis-angle to
 //! 6D rows, as Diffusion Policy's robomimic datasets convert their absolute actions.
 
-use super::transforms::At;
+use super::transform_errors::At;
 use crate::error::Result;
 use crate::rotation::{Layout6d, RotationKind};
 use crate::source::Manifest;

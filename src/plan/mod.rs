@@ -31,6 +31,7 @@ mod sampling;
 pub mod shards;
 pub mod split;
 mod text;
+mod transform_errors;
 mod transform_fit;
 mod transforms;
 mod types;

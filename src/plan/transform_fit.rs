@@ -3,7 +3,7 @@
 //! on each of its sources' own widths (as the transforms before it leave them), and each
 //! channel's widths through the transforms are settled here ([`Widths`]).
 
-use super::transforms::At;
+use super::transform_errors::At;
 use crate::error::{Error, Result};
 use crate::source::{ChannelKind, Manifest};
 use crate::transform::{Op, Transform, Widths};

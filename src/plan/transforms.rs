@@ -2,7 +2,8 @@
 //! (`[[profiles.<name>.transforms]]`, `abs_action`, `stats_population`): every bad value is a
 //! spec error naming its key, at `chunkc check`.
 
-use crate::error::{Error, Result};
+use super::transform_errors::At;
+use crate::error::Result;
 use crate::rotation::{Euler, RotationKind};
 use crate::source::{ChannelKind, Manifest};
 use crate::spec::{
@@ -11,33 +12,6 @@ use crate::spec::{
 };
 use crate::transform::{expand_mask, Op, Transform, Widths};
 use crate::window::Sampling;
-
-/// Where the errors of one profile's transforms point.
-pub(super) struct At<'a> {
-    spec: &'a LoadedSpec,
-    pub profile: &'a str,
-}
-
-impl At<'_> {
-    pub fn key(&self, path: &[&str], message: String, help: Option<String>) -> Error {
-        let mut key = vec!["profiles", self.profile];
-        key.extend_from_slice(path);
-        self.spec.error_at(&key, message, help)
-    }
-
-    /// An error at `transforms[i].<field>`, whose message starts with the dotted key.
-    pub fn field(&self, i: usize, field: &str, message: String) -> Error {
-        let index = i.to_string();
-        self.key(
-            &["transforms", &index, field],
-            format!(
-                "profiles.{}.transforms[{i}].{field}: {message}",
-                self.profile
-            ),
-            None,
-        )
-    }
-}
 
 /// The profile's transforms (those of `abs_action` first), bound to the manifest's channels and
 /// to the sources they apply to, and every channel's widths through them.

@@ -207,7 +207,8 @@ impl<L: NativeLayout> Sink for NativeHdf5Writer<L> {
                     let found = self.channels.iter().position(|c| c.name == ch.name);
                     found.expect("a profile channel")
                 };
-                marks.write(file, &group, e, &lowdim, |ch| ch.array_of(e), channel_of)?;
+                let channels: Vec<&ProfileChannel> = lowdim.iter().map(|(ch, _)| *ch).collect();
+                marks.write(file, &group, e, &channels, |ch| ch.array_of(e), channel_of)?;
             }
         }
         if let Some((_, file)) = open {

@@ -7,7 +7,6 @@
 use hdf5::types::VarLenUnicode;
 use hdf5::File;
 
-use super::hdf5_native::Rows;
 use super::SinkContext;
 use crate::error::{Error, Result};
 use crate::plan::ProfileChannel;
@@ -40,7 +39,7 @@ impl SourceMarks {
         file: &File,
         group: &str,
         e: usize,
-        lowdim: &[Rows],
+        lowdim: &[&ProfileChannel],
         array: impl Fn(&ProfileChannel) -> String,
         channel_of: impl Fn(&ProfileChannel) -> usize,
     ) -> Result<()> {
@@ -52,7 +51,7 @@ impl SourceMarks {
             .new_attr::<VarLenUnicode>()
             .create("source")?
             .write_scalar(&name)?;
-        for (ch, _) in lowdim {
+        for ch in lowdim {
             let width: usize = ch.shape.iter().product();
             let own = self.widths[s][channel_of(ch)];
             let mask: Vec<bool> = (0..width).map(|d| d < own).collect();
