@@ -67,7 +67,7 @@ impl RateState {
                 .collect()
         };
         // A mixture's padded rows hold zeros that no statistic counts: its percentiles take both
-        // passes over each source's rows (`mixture_stats`).
+        // passes over each source's rows (`rate_stats`).
         let mixture = !manifest.parts.is_empty();
         RateState {
             ends,
