@@ -170,3 +170,49 @@ def test_non_finite_and_doctor_exclusions_together(tmp_path):
     meta = json.loads((spec.parent / "out" / "act" / "meta.json").read_text())
     assert sorted(e["id"] for e in meta["excluded"]) == sorted(units + [nan_episode])
     assert sorted(set(range(80)) - set(meta["episodes"])) == sorted(units + [nan_episode])
+
+
+def mixture_of(tmp: Path, extra: str = "") -> Path:
+    """Two synthetic sources with planted faults as one training mixture (`a`: the faults above,
+    `b`: units scaled by 100), each 80 episodes at 10 Hz."""
+    a, b = synth(tmp, "a"), synth(tmp, "b", faults="scale:100,jump")
+    sources = []
+    for name, spec in (("a", a), ("b", b)):
+        path = next(p for p in spec.parent.iterdir() if p.suffix == ".zarr")
+        sources.append(f'[sources.{name}]\nformat = "diffusion_policy_zarr"\npath = "{path}"\nfps = 10\n'
+                       f'[sources.{name}.channels]\naction = "action"\n"observation.state" = "state"\n')
+    spec = tmp / "mixture.toml"
+    spec.write_text("version = 1\n" + "".join(sources) + '[output]\ndir = "mix"\n'
+                    '[profiles.act]\npreset = "act"\nfps = 10\nchunk = 8\n' + extra)
+    return spec
+
+
+def test_a_mixtures_build_judges_each_source_as_its_audit_does(tmp_path):
+    """The doctor of each source of a mixture rides on the build's read; its findings are the
+    ones `chunkc audit` finds reading that source in a pass of its own, and its exclusions act
+    the same, in mixture ids."""
+    spec = mixture_of(tmp_path)
+    run_chunkc("audit", spec)
+    expected, flagged = [], {}
+    for name in ("a", "b"):
+        audit = json.loads((tmp_path / "mix" / "audit" / name / "audit.json").read_text())
+        expected += [f"sources.{name}: {l}" for l in doctor_lines("\n".join(audit["warnings"]))]
+        flagged[name] = audit["doctor"]["flagged"]
+    assert flagged["a"] and "units" in flagged["b"], flagged
+    build = run_chunkc("build", spec)
+    got = sorted(l.strip().removeprefix("warning: ") for l in build.stderr.splitlines()
+                 if ": dataset doctor: `" in l)
+    assert got == sorted(expected), build.stderr
+    assert "the dataset doctor took" in build.stderr
+    # Exclusions: `b`'s scaled episodes leave the mixture, by their mixture ids.
+    spec.write_text(spec.read_text().replace('dir = "mix"', 'dir = "excl"') + '\n[audit.doctor]\nunits = "exclude"\n')
+    run_chunkc("audit", spec)
+    audit = json.loads((tmp_path / "excl" / "audit" / "b" / "audit.json").read_text())
+    units = sorted(e["id"] for e in audit["episodes"] if "units" in e["flags"])
+    assert len(units) == 8
+    run_chunkc("build", spec)
+    meta = json.loads((tmp_path / "excl" / "act" / "meta.json").read_text())
+    offset = meta["sources"]["b"]["id_offset"]
+    excluded = sorted(e["id"] for e in meta["excluded"])
+    assert [i - offset for i in excluded if i >= offset] == units, meta["excluded"]
+    assert all(e["reason"].startswith("dataset doctor: units: ") for e in meta["excluded"])
