@@ -18,16 +18,26 @@
 #   3. put .venv/bin first on PATH: the bundled HDF5 build needs cmake >= 3.26, which comes from
 #      the venv;
 #   4. build chunkc with `cargo build --release --locked --features video` (the first build
-#      compiles HDF5).
+#      compiles HDF5);
+#   5. install mdBook, pinned ($CHUNKC_MDBOOK_VERSION), into cargo's bin directory with
+#      `cargo install mdbook --locked`, only when `mdbook --version` does not print that version,
+#      for test.sh's `book` check; after the chunkc build, so it never delays it. Where it cannot
+#      be installed (offline) it warns, and the check is skipped, naming why (kept in
+#      .venv/.chunkc-mdbook).
 #
 # Environment: PYTHON (the interpreter that creates the venv; default python3),
 # CHUNKC_VERBOSE=1 (show pip's and cargo's full output), CHUNKC_PY_TIER=core|models (the Python
-# tier; default: models where the disk has room), CHUNKC_VIDEO=0 (build without the
+# tier; default: models where the disk has room), CHUNKC_MDBOOK=0 (do not install mdBook: the
+# book check then skips building the book), CHUNKC_VIDEO=0 (build without the
 # `video` feature: no FFmpeg needed, LeRobot videos cannot be read; see book/src/video.md for
 # why the feature is off by default: Debian's libavcodec is GPL).
 #
 # Every script builds with the same features ($CHUNKC_FEATURES, exported when sourced), so
 # that `cargo test` never rebuilds target/release/chunkc without them.
+
+# The mdBook the book is built with (test.sh's `book` check): the newest 0.4.x, which builds with
+# Rust >= 1.82. Exported, so that test.sh checks for the same version.
+export CHUNKC_MDBOOK_VERSION=0.4.52
 
 if [[ "${BASH_SOURCE[0]}" != "$0" ]]; then
     # Sourced. Do the work in a child bash, so that strict mode and helper variables never leak
@@ -210,3 +220,26 @@ if [ ! -d target/release/build ]; then
 fi
 cargo build --release --locked "${features[@]}" "${quiet[@]}"
 say "ready: $(target/release/chunkc --version) at target/release/chunkc"
+
+# 5. mdBook, pinned, for the book check. Only the `search` feature: `serve` and `watch` (tokio,
+#    axum, notify) are for writers, not for CI, and would double the install's compile time.
+mdbook_note=$venv/.chunkc-mdbook
+mdbook_bin=${CARGO_HOME:-$HOME/.cargo}/bin/mdbook
+mdbook_ok() { "$1" --version 2>/dev/null | grep -qx "mdbook v$CHUNKC_MDBOOK_VERSION"; }
+if mdbook_ok mdbook || mdbook_ok "$mdbook_bin"; then
+    rm -f "$mdbook_note"
+elif [ "${CHUNKC_MDBOOK:-1}" = 0 ]; then
+    echo "CHUNKC_MDBOOK=0: mdBook $CHUNKC_MDBOOK_VERSION not installed" >"$mdbook_note"
+else
+    say "installing mdBook $CHUNKC_MDBOOK_VERSION for the book check (cargo install mdbook --locked; a few minutes, once)"
+    mdbook_log=$venv/.chunkc-mdbook.log
+    if cargo install mdbook --version "$CHUNKC_MDBOOK_VERSION" --locked --no-default-features \
+        --features search "${quiet[@]}" >"$mdbook_log" 2>&1; then
+        rm -f "$mdbook_note" "$mdbook_log"
+    else
+        cat "$mdbook_log" >&2
+        why=$(grep -m1 -i 'error' "$mdbook_log" || true)
+        echo "cargo install mdbook --version $CHUNKC_MDBOOK_VERSION failed (offline?): ${why:-see the output above}" >"$mdbook_note"
+        say "warning: $(cat "$mdbook_note"); the book check will skip building the book"
+    fi
+fi

@@ -7,7 +7,9 @@
 # check failed: cargo fmt --check, cargo clippy (-D warnings), cargo test --release (all with
 # the `video` feature, as setup.sh builds; CHUNKC_VIDEO=0: without), a check that chunkc still
 # builds without the feature, the wheel (scripts/wheel.sh), the Python suite in tests/python
-# against target/release/chunkc and the installed wheel, and a 10 s run of each fuzz target when
+# against target/release/chunkc and the installed wheel, the book (book-links: every internal link,
+# anchor and page of book/src, scripts/book_links.py; book: `mdbook build` with the pinned mdBook
+# that setup.sh installs, skipped where it could not), and a 10 s run of each fuzz target when
 # cargo-fuzz is installed (CHUNKC_FUZZ=1: install it if needed; CHUNKC_FUZZ=0: skip;
 # CHUNKC_FUZZ_SECONDS: another length).
 #
@@ -99,6 +101,38 @@ else
     echo "test: wheel build skipped (CHUNKC_WHEEL_BUILD=0)"
 fi
 check pytest pytest_run
+
+# The book (book/src): its internal links, anchors and pages (scripts/book_links.py, standard
+# library only, after its own self-test), then a build with the pinned mdBook into a temporary
+# folder (book.toml's build-dir, book/build, is left alone). mdBook fails on a missing SUMMARY
+# entry or a bad book.toml; it only warns on a broken link, which the link check fails on.
+book_links_run() {
+    echo "python3 scripts/book_links.py --self-test && python3 scripts/book_links.py book/src"
+    python3 scripts/book_links.py --self-test && python3 scripts/book_links.py book/src
+}
+mdbook=''
+for candidate in mdbook "${CARGO_HOME:-$HOME/.cargo}/bin/mdbook"; do
+    if "$candidate" --version 2>/dev/null | grep -qx "mdbook v$CHUNKC_MDBOOK_VERSION"; then
+        mdbook=$candidate
+        break
+    fi
+done
+book_run() {
+    local out rc=0
+    out=$(mktemp -d)
+    echo "$mdbook build book -d $out"
+    "$mdbook" build book -d "$out" || rc=$?
+    [ "$rc" -eq 0 ] && [ ! -f "$out/index.html" ] && echo "mdbook wrote no index.html" && rc=1
+    rm -rf "$out"
+    return "$rc"
+}
+check book-links book_links_run
+if [ -n "$mdbook" ]; then
+    check book book_run
+else
+    echo
+    echo "test: book build skipped: mdBook $CHUNKC_MDBOOK_VERSION is not installed ($(cat .venv/.chunkc-mdbook 2>/dev/null || echo 'scripts/setup.sh did not install it'))"
+fi
 
 # A short bounded fuzz run (book/src/fuzzing.md). CHUNKC_FUZZ=1 runs it, installing cargo-fuzz
 # if needed; CHUNKC_FUZZ=0 skips it; unset, it runs only where `cargo fuzz` is already installed.
