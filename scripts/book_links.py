@@ -69,11 +69,16 @@ def slug(heading):
     """mdBook 0.4's id for a heading's text (utils::id_from_content over the rendered HTML):
     tags and the entities &lt; &gt; &amp; &#39; &quot; removed, then each alphanumeric character
     kept (ASCII lowercased), `_` and `-` kept, whitespace becomes `-`, everything else dropped."""
-    text = heading
-    text = re.sub(r"!?\[([^\]]*)\]\([^)]*\)", r"\1", text)  # a link renders as its text
-    text = re.sub(r"<[^>]*>", "", text)  # inline HTML
-    text = re.sub(r"\\(.)", r"\1", text)  # backslash escapes
-    text = text.replace("&", "")  # rendered as &amp;, which mdBook removes
+    parts = re.split(r"((?<!`)`+(?!`).*?(?<!`)`+(?!`))", heading)
+    text = ""
+    for i, part in enumerate(parts):
+        if i % 2:  # inline code: its text is kept as is (`<name>` becomes &lt;name&gt;: `name`)
+            text += part
+            continue
+        part = re.sub(r"!?\[([^\]]*)\]\([^)]*\)", r"\1", part)  # a link renders as its text
+        part = re.sub(r"<[^>]*>", "", part)  # inline HTML
+        text += re.sub(r"\\(.)", r"\1", part)  # backslash escapes
+    # The entities mdBook removes (&amp; &lt; &gt; &#39; &quot;) leave no alphanumeric behind.
     text = text.strip().lstrip("#").strip()
     out = []
     for ch in text:
@@ -208,16 +213,18 @@ def self_test():
             "## Statistics & `stats.json`: what's in it?\n\n"
             "Setext heading\n--------------\n\n"
             "## A heading {#custom}\n\n"
+            "### `sources.<name>.fps` <em>and</em> [x](guide/page.md)\n\n"
             "[ok](guide/page.md) [ok](guide/page.md#deep-section) ![ok](img/a.png)\n"
             "[ok](#statistics--statsjson-whats-in-it) [ok](#statistics--statsjson-whats-in-it-1)\n"
             "[ok](#setext-heading) [ok](#custom) [ok](https://example.com/x.md)\n"
+            "[ok](#sourcesnamefps-and-x)\n"
             "[ok, inline code](`not/a.md`) `[ok](in/code.md)`\n"
-            "[bad](missing.md)\n"  # line 16
-            "[bad](guide/page.md#nope)\n"  # line 17
-            "[bad](#nope)\n"  # line 18
+            "[bad](missing.md)\n"  # line 19
+            "[bad](guide/page.md#nope)\n"  # line 20
+            "[bad](#nope)\n"  # line 21
             "```md\n[ok](in/fence.md)\n```\n"
-            "[a multi-line\nlink](../outside.md)\n"  # target on line 23
-            "[ref]: gone-too.md\n"  # line 24
+            "[a multi-line\nlink](../outside.md)\n"  # target on line 26
+            "[ref]: gone-too.md\n"  # line 27
         ),
         "guide/page.md": "# Page\n\n### Deep section\n\n[ok](../intro.md#intro)\n",
         "orphan.md": "# Orphan\n",
@@ -225,12 +232,12 @@ def self_test():
     }
     expected = [
         "B/SUMMARY.md:6: entry 'gone.md': no page B/gone.md",
-        "B/intro.md:16: broken link 'missing.md': no file B/missing.md",
-        "B/intro.md:17: broken anchor 'guide/page.md#nope': B/guide/page.md has no heading with"
+        "B/intro.md:19: broken link 'missing.md': no file B/missing.md",
+        "B/intro.md:20: broken anchor 'guide/page.md#nope': B/guide/page.md has no heading with"
         " the id 'nope'",
-        "B/intro.md:18: broken anchor '#nope': B/intro.md has no heading with the id 'nope'",
-        "B/intro.md:23: link '../outside.md' points outside B (mdBook does not copy it)",
-        "B/intro.md:24: broken link 'gone-too.md': no file B/gone-too.md",
+        "B/intro.md:21: broken anchor '#nope': B/intro.md has no heading with the id 'nope'",
+        "B/intro.md:26: link '../outside.md' points outside B (mdBook does not copy it)",
+        "B/intro.md:27: broken link 'gone-too.md': no file B/gone-too.md",
         "B/orphan.md:1: page is not listed in B/SUMMARY.md",
     ]
     with tempfile.TemporaryDirectory() as tmp:
