@@ -117,7 +117,8 @@ impl Transform {
         match &self.sources {
             Some(sources) => {
                 let names: Vec<&str> = sources.iter().map(|(_, n)| n.as_str()).collect();
-                format!("{} (sources {})", self.summary_op(), names.join(", "))
+                let which = if names.len() == 1 { "source" } else { "sources" };
+                format!("{}, for {which} {}", self.summary_op(), names.join(", "))
             }
             None => self.summary_op(),
         }
