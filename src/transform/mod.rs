@@ -117,7 +117,11 @@ impl Transform {
         match &self.sources {
             Some(sources) => {
                 let names: Vec<&str> = sources.iter().map(|(_, n)| n.as_str()).collect();
-                let which = if names.len() == 1 { "source" } else { "sources" };
+                let which = if names.len() == 1 {
+                    "source"
+                } else {
+                    "sources"
+                };
                 format!("{}, for {which} {}", self.summary_op(), names.join(", "))
             }
             None => self.summary_op(),
