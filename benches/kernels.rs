@@ -246,7 +246,7 @@ fn writers(c: &mut Criterion) {
                     episode_ends: &ends,
                     episode_ids: &ids,
                     episode_sources: &[],
-                source_parts: &[],
+                    source_parts: &[],
                     tasks: &Default::default(),
                     spill_budget: chunkc::exec::spill_budget(),
                 };

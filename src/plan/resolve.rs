@@ -216,8 +216,9 @@ fn resolve_profile(
     }
     let used = episodes_of(spec, manifest, split, profile, fps, conv, &sampling)?;
 
-    let fingerprint = freshness::profile_fingerprint(spec, manifest, profile);
-    let inputs = freshness::inputs(spec, profile);
+    let lerobot_version = crate::spec::lerobot_version::resolve(name, &spec.spec.profiles);
+    let fingerprint = freshness::profile_fingerprint(spec, manifest, profile, lerobot_version);
+    let inputs = freshness::inputs(spec, profile, lerobot_version);
     let current = freshness::Current {
         name,
         fingerprint: &fingerprint,
@@ -229,6 +230,7 @@ fn resolve_profile(
     Ok(ProfilePlan {
         name: name.clone(),
         values: profile.clone(),
+        lerobot_version,
         fps,
         conversion: conv,
         rate: rate_text(manifest.fps, fps, conv),

@@ -18,6 +18,8 @@
 //! - `png`: the PNG encoding of frames that `lerobot` stores.
 //! - `video_copy`: a source video's packets copied as an episode's file (`hdf5_video`), where
 //!   the frames are the video's own.
+//! - `video_episodes`: one video per episode and camera, copied or encoded (`hdf5_video`, the
+//!   LeRobot v2.1 export).
 //! - `video_encode`: camera frames as mp4 video (SVT-AV1/x264), what `lerobot` stores with
 //!   `image_encoding = "video"` and `chunkc synth --format lerobot` writes.
 //! - `robomimic`: robomimic's `data.hdf5` with `data/demo_<i>` (raw values).
@@ -51,6 +53,7 @@ mod shapes;
 mod source_marks;
 pub mod video_copy;
 pub mod video_encode;
+mod video_episodes;
 pub mod zarr;
 mod zarr_store;
 

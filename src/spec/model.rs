@@ -730,6 +730,14 @@ pub struct ProfileSpec {
     /// `ReplayBuffer` opens) or 3.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub zarr_version: Option<u32>,
+    /// LeRobot dataset version of `format = "parquet"`: `"v3.0"` (default; what LeRobot >= 0.4
+    /// reads: one data file of every episode) or `"v2.1"` (what openpi's pinned lerobot, PyPI
+    /// lerobot <= 0.3.3, GR00T and most VLA repositories read: one parquet file and one mp4 per
+    /// episode, `meta/*.jsonl`). A v2.1 profile folder is the dataset root and holds the training
+    /// episodes; the validation episodes are a second v2.1 dataset in its `val/` folder. See
+    /// `formats.md`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lerobot_version: Option<LerobotVersion>,
     /// Statistics files in target codebases' own formats, written beside `stats.json`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stats_formats: Option<Vec<StatsFormat>>,
@@ -1140,6 +1148,29 @@ impl ImageEncoding {
         match self {
             ImageEncoding::Png => "png",
             ImageEncoding::Video => "video",
+        }
+    }
+}
+
+/// The LeRobot dataset layout `format = "parquet"` writes (see `lerobot_version`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+pub enum LerobotVersion {
+    /// One parquet file and one mp4 per camera per episode, `meta/*.jsonl` (LeRobot <= 0.3.3,
+    /// openpi, GR00T).
+    #[serde(rename = "v2.1")]
+    V21,
+    /// Many episodes per file, `meta/episodes/*.parquet` (LeRobot >= 0.4).
+    #[default]
+    #[serde(rename = "v3.0")]
+    V30,
+}
+
+impl LerobotVersion {
+    /// As written in the spec and in `meta/info.json`'s `codebase_version`.
+    pub fn name(self) -> &'static str {
+        match self {
+            LerobotVersion::V21 => "v2.1",
+            LerobotVersion::V30 => "v3.0",
         }
     }
 }

@@ -14,6 +14,7 @@ use super::preset::{self, ExpandError, Profile};
 
 mod export_names;
 mod frames;
+mod lerobot_version;
 mod mixture;
 
 /// Checks the spec and expands its profiles (in name order).
@@ -344,6 +345,7 @@ impl Checker<'_> {
             Ok(expanded) => {
                 self.output_options(name, &expanded);
                 self.export_keys(name, profile, &expanded);
+                self.lerobot_version(name, profile, &expanded);
                 Some(expanded)
             }
             Err(ExpandError::Missing(missing)) => {
@@ -441,7 +443,8 @@ impl Checker<'_> {
             }
         }
         self.image_options(name, p);
-        self.video_options(name, p);
+        let version = super::lerobot_version::resolve(name, &self.loaded.spec.profiles);
+        self.video_options(name, p, version);
         if !matches!(p.zarr_version, 2 | 3) {
             let message = format!("`zarr_version` must be 2 or 3, not {}", p.zarr_version);
             self.value(&key("zarr_version"), message, "expected 2 or 3", None);
