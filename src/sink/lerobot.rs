@@ -34,21 +34,17 @@
 //! (`videos/<channel>/{chunk_index, file_index, from_timestamp, to_timestamp}`), as LeRobot's
 //! own writer does.
 
-use std::fs::File;
-use std::path::PathBuf;
 use std::sync::Arc;
 
 use arrow_array::builder::{ListBuilder, StringBuilder};
-use arrow_array::{ArrayRef, Float32Array, RecordBatch, StringArray};
+use arrow_array::{ArrayRef, RecordBatch, StringArray};
 use arrow_schema::{DataType, Field, Schema};
-use parquet::arrow::ArrowWriter;
-use parquet::basic::{Compression as PqCompression, ZstdLevel};
-use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use serde_json::{json, Value};
 
-use super::lerobot_columns::{
-    err, i64_col, image_fields, lowdim_column, lowdim_type, video_shape, CREATED_BY,
-};
+use super::lerobot_columns::{err, i64_col, video_shape, Channel};
+use super::lerobot_features::features;
+use super::lerobot_files::DatasetFiles;
+use super::lerobot_rows::{DataTable, EpisodeRows};
 use super::lerobot_spill::{FrameSpill, SpillReader};
 pub use super::lerobot_tasks::tasks_table;
 use super::lerobot_tasks::Tasks;
@@ -56,14 +52,13 @@ use super::video_encode::{self, Background};
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
 use crate::error::{Error, IoContext, Result};
 use crate::source::ChannelKind;
-use crate::spec::{Compression, VideoSettings};
+use crate::spec::VideoSettings;
 use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
 
 pub const DATA_PATH: &str = crate::spec::OutputFormat::Parquet.files().data;
 pub const INDEX_FILE: &str = "chunkc_index.parquet";
 pub const STATS_PATH: &str = "meta/stats.json";
-const DEFAULT_ZSTD_LEVEL: u32 = 3;
 /// LeRobot's `video_path` template (v3.0).
 pub const VIDEO_PATH: &str = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4";
 
@@ -73,9 +68,8 @@ pub fn video_file(name: &str) -> String {
 }
 
 pub struct LerobotWriter {
-    dir: PathBuf,
+    files: DatasetFiles,
     fps: f64,
-    props: WriterProperties,
     ends: Vec<u64>,
     ids: Vec<u64>,
     /// A mixture's: each stored episode's source, the `source_index` column (empty: none).
@@ -83,7 +77,7 @@ pub struct LerobotWriter {
     /// The tasks, in the order their first episode is stored, and each stored episode's.
     tasks: Tasks,
     /// Per channel: the name, its shape, its kind.
-    channels: Vec<(String, Vec<usize>, ChannelKind)>,
+    channels: Vec<Channel>,
     raw: Vec<Option<Arc<LowdimStore>>>,
     /// Per channel: its PNG frames by stored row (images stored as PNG only).
     frames: Vec<Option<FrameSpill>>,
@@ -111,22 +105,8 @@ impl LerobotWriter {
 
     pub fn create(ctx: &SinkContext) -> Result<Self> {
         let v = &ctx.profile.values;
-        let compression = match v.compression {
-            Compression::None => PqCompression::UNCOMPRESSED,
-            _ => PqCompression::ZSTD(
-                ZstdLevel::try_new(v.compression_level.unwrap_or(DEFAULT_ZSTD_LEVEL) as i32)
-                    .map_err(err)?,
-            ),
-        };
-        let props = WriterProperties::builder()
-            .set_created_by(CREATED_BY.into())
-            .set_compression(compression)
-            .set_dictionary_enabled(false)
-            .set_statistics_enabled(EnabledStatistics::Chunk)
-            .set_max_row_group_row_count(None)
-            .set_max_row_group_bytes(None)
-            .build();
-        let channels: Vec<(String, Vec<usize>, ChannelKind)> = ctx
+        let files = DatasetFiles::new(ctx.dir, v.compression, v.compression_level)?;
+        let channels: Vec<Channel> = ctx
             .profile
             .channels
             .iter()
@@ -149,9 +129,8 @@ impl LerobotWriter {
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(LerobotWriter {
-            dir: ctx.dir.to_path_buf(),
+            files,
             fps: ctx.profile.fps,
-            props,
             ends: ctx.episode_ends.to_vec(),
             ids: ctx.episode_ids.to_vec(),
             sources: ctx.episode_sources.to_vec(),
@@ -176,111 +155,37 @@ impl LerobotWriter {
         })
     }
 
-    /// Writes `batches` as they come, one row group each.
-    fn write_parquet(
-        &self,
-        rel: &str,
-        schema: Arc<Schema>,
-        batches: impl IntoIterator<Item = Result<RecordBatch>>,
-    ) -> Result<()> {
-        let path = self.dir.join(rel);
-        if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent).at("create", parent)?;
+    /// The data table's layout.
+    fn table(&self) -> DataTable<'_> {
+        DataTable {
+            channels: &self.channels,
+            video: self.video.is_some(),
+            fps: self.fps,
+            mixture: !self.sources.is_empty(),
         }
-        let file = File::create(&path).at("create", &path)?;
-        let mut w = ArrowWriter::try_new(file, schema, Some(self.props.clone())).map_err(err)?;
-        for b in batches {
-            w.write(&b?).map_err(err)?;
-            // One row group per batch.
-            w.flush().map_err(err)?;
-        }
-        w.close().map_err(err)?;
-        Ok(())
-    }
-
-    fn write_json(&self, rel: &str, value: &Value) -> Result<()> {
-        let path = self.dir.join(rel);
-        if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent).at("create", parent)?;
-        }
-        let mut text = serde_json::to_string_pretty(value).expect("JSON serializes");
-        text.push('\n');
-        std::fs::write(&path, text).at("write", &path)
     }
 
     fn data(&mut self) -> Result<()> {
-        let mut fields = Vec::new();
-        for (name, shape, kind) in &self.channels {
-            if self.is_video(*kind) {
-                continue;
-            }
-            let dt = match kind {
-                ChannelKind::Lowdim => lowdim_type(shape),
-                ChannelKind::Image => DataType::Struct(image_fields()),
-            };
-            fields.push(Field::new(name, dt, false));
-        }
-        for (name, dt) in [
-            ("timestamp", DataType::Float32),
-            ("frame_index", DataType::Int64),
-            ("episode_index", DataType::Int64),
-            ("index", DataType::Int64),
-            ("task_index", DataType::Int64),
-        ] {
-            fields.push(Field::new(name, dt, false));
-        }
-        if !self.sources.is_empty() {
-            fields.push(Field::new("source_index", DataType::Int64, false));
-        }
-        let schema = Arc::new(Schema::new(fields));
         let mut frames: Vec<Option<SpillReader>> = std::mem::take(&mut self.frames)
             .into_iter()
             .map(|f| f.map(FrameSpill::into_reader).transpose())
             .collect::<Result<_>>()?;
-        let this = &*self;
+        let table = self.table();
+        let schema = table.schema();
         let mut start = 0usize;
-        let batches = this.ends.iter().enumerate().map(|(e, &end)| {
-            let (lo, hi) = (start, end as usize);
-            start = hi;
-            let mut cols: Vec<ArrayRef> = Vec::new();
-            for ((name, shape, kind), (raw, frames)) in this
-                .channels
-                .iter()
-                .zip(this.raw.iter().zip(frames.iter_mut()))
-            {
-                if this.is_video(*kind) {
-                    continue;
-                }
-                match (kind, frames) {
-                    (ChannelKind::Lowdim, _) => {
-                        let raw = raw
-                            .as_ref()
-                            .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
-                        cols.push(lowdim_column(raw.rows(lo, hi)?.into_owned(), shape)?);
-                    }
-                    (ChannelKind::Image, Some(frames)) => {
-                        cols.push(Arc::new(frames.next(hi - lo, name)?));
-                    }
-                    (ChannelKind::Image, None) => {
-                        return Err(Error::Internal(format!("no frames of {name}")));
-                    }
-                }
-            }
-            let n = hi - lo;
-            cols.push(Arc::new(Float32Array::from_iter_values(
-                (0..n).map(|i| (i as f64 / this.fps) as f32),
-            )));
-            cols.push(i64_col((0..n).map(|i| i as i64)));
-            cols.push(i64_col((0..n).map(|_| this.ids[e] as i64)));
-            cols.push(i64_col((lo..hi).map(|i| i as i64)));
-            let task = this.tasks.of_episode[e] as i64;
-            cols.push(i64_col((0..n).map(|_| task)));
-            if let Some(&source) = this.sources.get(e) {
-                cols.push(i64_col((0..n).map(|_| source as i64)));
-            }
-            RecordBatch::try_new(schema.clone(), cols).map_err(err)
+        let batches = self.ends.iter().enumerate().map(|(e, &end)| {
+            let rows = start..end as usize;
+            start = rows.end;
+            let ep = EpisodeRows {
+                first_index: rows.start as i64,
+                rows,
+                episode_index: self.ids[e] as i64,
+                task: self.tasks.of_episode[e] as i64,
+                source: self.sources.get(e).copied(),
+            };
+            table.batch(&schema, &self.raw, &mut frames, &ep)
         });
-        this.write_parquet(DATA_PATH, schema.clone(), batches)
+        self.files.parquet(DATA_PATH, schema.clone(), batches)
     }
 
     fn episodes(&self) -> Result<()> {
@@ -342,67 +247,32 @@ impl LerobotWriter {
             cols.push(seconds(&ends));
         }
         let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
-        self.write_parquet(
+        self.files.parquet(
             "meta/episodes/chunk-000/file-000.parquet",
             schema,
             [Ok(batch)],
         )?;
 
         let (schema, batch) = tasks_table(&self.tasks.names)?;
-        self.write_parquet("meta/tasks.parquet", schema, [Ok(batch)])
+        self.files
+            .parquet("meta/tasks.parquet", schema, [Ok(batch)])
     }
 
     fn info(&self) -> Result<()> {
-        let mut features = serde_json::Map::new();
-        for (name, shape, kind) in &self.channels {
-            if let (true, Some(video)) = (self.is_video(*kind), self.video) {
-                let info = json!({
-                    "video.height": shape[0],
-                    "video.width": shape[1],
-                    "video.codec": video_encode::codec_name(video.codec),
-                    "video.pix_fmt": video_encode::PIX_FMT,
-                    "video.is_depth_map": false,
-                    "video.fps": self.fps.round() as u64,
-                    "video.channels": shape[2],
-                    "has_audio": false,
-                });
-                features.insert(
-                    name.clone(),
-                    json!({"dtype": "video", "shape": shape,
-                           "names": ["height", "width", "channels"], "info": info}),
-                );
-                continue;
-            }
-            let dtype = match kind {
-                ChannelKind::Lowdim => "float32",
-                ChannelKind::Image => "image",
-            };
-            let shape = if shape.is_empty() {
-                vec![1]
-            } else {
-                shape.clone()
-            };
-            features.insert(
-                name.clone(),
-                json!({"dtype": dtype, "shape": shape, "names": null}),
-            );
-        }
-        for (name, dtype) in [
-            ("timestamp", "float32"),
-            ("frame_index", "int64"),
-            ("episode_index", "int64"),
-            ("index", "int64"),
-            ("task_index", "int64"),
-            ("source_index", "int64"),
-        ] {
-            if name == "source_index" && self.sources.is_empty() {
-                continue;
-            }
-            features.insert(
-                name.into(),
-                json!({"dtype": dtype, "shape": [1], "names": null}),
-            );
-        }
+        let video_info = |_: &str, shape: &[usize]| match self.video {
+            Some(video) => json!({
+                "video.height": shape[0],
+                "video.width": shape[1],
+                "video.codec": video_encode::codec_name(video.codec),
+                "video.pix_fmt": video_encode::PIX_FMT,
+                "video.is_depth_map": false,
+                "video.fps": self.fps.round() as u64,
+                "video.channels": shape[2],
+                "has_audio": false,
+            }),
+            None => Value::Null,
+        };
+        let features = features(&self.table(), false, video_info);
         let n = self.ends.len();
         let video_path = self
             .video_channels()
@@ -422,7 +292,7 @@ impl LerobotWriter {
             "video_path": video_path,
             "features": Value::Object(features),
         });
-        self.write_json("meta/info.json", &doc)
+        self.files.json("meta/info.json", &doc)
     }
 
     fn chunkc_index(&self) -> Result<()> {
@@ -446,7 +316,7 @@ impl LerobotWriter {
             cols.push(i64_col(rows.iter().map(|(_, r)| r[k])));
         }
         let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
-        self.write_parquet(INDEX_FILE, schema, [Ok(batch)])
+        self.files.parquet(INDEX_FILE, schema, [Ok(batch)])
     }
 }
 

@@ -13,8 +13,9 @@
 //! - `hdf5_native`: the writer path `act_episodes` and `robomimic` share.
 //! - `hdf5_rows`: rows written into an HDF5 dataset (every HDF5 writer).
 //! - `lerobot`: a LeRobot v3.0 parquet dataset + the window index (raw values); its arrow
-//!   columns (`lerobot_columns`), the frames spilled until their row groups (`lerobot_spill`)
-//!   and its tasks (`lerobot_tasks`).
+//!   columns (`lerobot_columns`), the rows of a data file (`lerobot_rows`), `info.json`'s
+//!   features (`lerobot_features`), how its files are written (`lerobot_files`), the frames
+//!   spilled until their row groups (`lerobot_spill`) and its tasks (`lerobot_tasks`).
 //! - `png`: the PNG encoding of frames that `lerobot` stores.
 //! - `video_copy`: a source video's packets copied as an episode's file (`hdf5_video`), where
 //!   the frames are the video's own.
@@ -44,6 +45,9 @@ pub mod hdf5_video;
 pub mod jpeg;
 pub mod lerobot;
 mod lerobot_columns;
+mod lerobot_features;
+mod lerobot_files;
+mod lerobot_rows;
 mod lerobot_spill;
 mod lerobot_tasks;
 mod meta_sources;
