@@ -185,20 +185,31 @@ impl VideoStream {
 
 /// A [`VideoStream`] encoded on a thread of its own, so that several cameras encode side by
 /// side while the caller goes on; at most [`QUEUE`] batches of frames wait for it.
+///
+/// Dropped without [`Background::finish`] (the build failed elsewhere), the stream is abandoned,
+/// not flushed: its file is in the staging directory, which goes, and SVT-AV1 1.4 never returns
+/// from a flush of an encoder that was sent no frame.
 pub struct Background {
     send: Option<mpsc::SyncSender<Vec<u8>>>,
     thread: Option<std::thread::JoinHandle<Result<u64>>>,
+    abandoned: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
 impl Background {
     pub fn spawn(path: &Path, shape: StreamShape, settings: VideoSettings) -> Result<Self> {
+        use std::sync::atomic::Ordering;
         let mut stream = VideoStream::create(path, shape, settings)?;
         let (send, recv) = mpsc::sync_channel::<Vec<u8>>(QUEUE);
+        let abandoned = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let flag = abandoned.clone();
         let thread = std::thread::Builder::new()
             .name("chunkc-video".into())
             .spawn(move || {
                 for frames in recv {
                     stream.push_all(&frames)?;
+                }
+                if flag.load(Ordering::SeqCst) {
+                    return Err(Error::Internal("video stream abandoned".into()));
                 }
                 stream.finish()
             })
@@ -206,6 +217,7 @@ impl Background {
         Ok(Background {
             send: Some(send),
             thread: Some(thread),
+            abandoned,
         })
     }
 
@@ -235,6 +247,7 @@ impl Background {
 
 impl Drop for Background {
     fn drop(&mut self) {
+        (self.abandoned).store(true, std::sync::atomic::Ordering::SeqCst);
         drop(self.send.take());
         if let Some(t) = self.thread.take() {
             let _ = t.join();
@@ -583,6 +596,24 @@ mod tests {
             let other = x264_file(&dir.path().join("other.mp4"), Some(asm));
             assert!(other == native, "x264 limited to `{asm}` wrote other bytes");
         }
+    }
+
+    #[test]
+    fn a_stream_dropped_unfinished_is_abandoned_not_flushed() {
+        // A build that fails elsewhere drops its encoders; SVT-AV1 1.4 hung in the flush of an
+        // encoder that had been sent no frame (and so did the failed build).
+        let dir = tempfile::tempdir().unwrap();
+        let shape = StreamShape {
+            height: 64,
+            width: 96,
+            fps: 10.0,
+        };
+        let start = std::time::Instant::now();
+        drop(Background::spawn(&dir.path().join("none.mp4"), shape, settings()).unwrap());
+        let mut some = Background::spawn(&dir.path().join("some.mp4"), shape, settings()).unwrap();
+        some.push(vec![9u8; 64 * 96 * 3 * 3]).unwrap();
+        drop(some);
+        assert!(start.elapsed() < std::time::Duration::from_secs(20));
     }
 
     #[test]

@@ -12,7 +12,7 @@ use std::thread::JoinHandle;
 use super::video_copy::{self, CopyOutcome, COPIED_CODECS};
 use super::video_encode::{codec_name, StreamShape, VideoStream};
 use super::Frames;
-use crate::error::{Error, Result};
+use crate::error::{Error, IoContext, Result};
 use crate::source::video::PacketSpan;
 use crate::spec::{StreamCopy, VideoSettings};
 
@@ -93,6 +93,9 @@ impl Encoders {
             self.wait_oldest()?;
         }
         let path = self.dir.join(file);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).at("create", parent)?;
+        }
         let (shape, settings) = (channel.shape, channel.settings);
         // A copy reads packets, not pixels: it runs here, and only a refused one keeps a copy
         // of the episode's frames for its encoder (an episode of 640x480 frames is 400 MB).
