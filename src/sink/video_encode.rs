@@ -187,8 +187,9 @@ impl VideoStream {
 /// side while the caller goes on; at most [`QUEUE`] batches of frames wait for it.
 ///
 /// Dropped without [`Background::finish`] (the build failed elsewhere), the stream is abandoned,
-/// not flushed: its file is in the staging directory, which goes, and SVT-AV1 1.4 never returns
-/// from a flush of an encoder that was sent no frame.
+/// neither flushed nor closed: its file is in the staging directory, which goes, and SVT-AV1 1.4
+/// never returns from a flush of an encoder that was sent no frame, nor from the deinit of an
+/// encoder that was not flushed.
 pub struct Background {
     send: Option<mpsc::SyncSender<Vec<u8>>>,
     thread: Option<std::thread::JoinHandle<Result<u64>>>,
@@ -209,6 +210,10 @@ impl Background {
                     stream.push_all(&frames)?;
                 }
                 if flag.load(Ordering::SeqCst) {
+                    // Leaked: SVT-AV1 1.4 hangs in its flush of an encoder sent no frame, and
+                    // in its deinit of one never flushed. The process is about to report the
+                    // build's error and exit.
+                    std::mem::forget(stream);
                     return Err(Error::Internal("video stream abandoned".into()));
                 }
                 stream.finish()
