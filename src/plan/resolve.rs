@@ -227,9 +227,15 @@ fn resolve_profile(
         dir: &out_dir.join(name),
     };
     let status = freshness::status_of(&current, lock)?;
+    let mut values = profile.clone();
+    if let Some((at, _)) = crate::spec::lerobot_version::set_at(name, &spec.spec.profiles) {
+        values
+            .origins
+            .insert("lerobot_version", format!("profiles.{at}"));
+    }
     Ok(ProfilePlan {
         name: name.clone(),
-        values: profile.clone(),
+        values,
         lerobot_version,
         fps,
         conversion: conv,

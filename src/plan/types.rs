@@ -290,6 +290,11 @@ impl ProfilePlan {
             ("sampling", self.sampling.name().to_string()),
         ]
         .into_iter()
+        .chain(
+            // Only where it is not the default, so that other profiles' lines stay.
+            (self.lerobot_version != LerobotVersion::V30)
+                .then(|| ("lerobot_version", self.lerobot_version.name().to_string())),
+        )
         .map(|(key, value)| {
             let origin = v.origins.get(key).cloned().unwrap_or_else(|| {
                 let from_spec = key == "sampling" && (v.segment.is_some() || v.hierarchy.is_some());

@@ -33,7 +33,7 @@ use super::lerobot_files::DatasetFiles;
 use super::lerobot_rows::{timestamp, DataTable, EpisodeRows, INDEX_COLUMNS, SOURCE_COLUMN};
 use super::lerobot_spill::{FrameSpill, SpillReader};
 use super::lerobot_tasks::Tasks;
-use super::lerobot_v21_meta::{data_file, video_file, Meta, Part, VAL_DIR};
+use super::lerobot_v21_meta::{data_file, placement, video_file, Meta, Part, PART_DIRS};
 use super::video_episodes::{Encoders, EpisodeCamera};
 use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
@@ -268,17 +268,12 @@ fn parts(ctx: &SinkContext) -> (Vec<Part>, Vec<(usize, usize)>) {
         .filter(|e| e.split != "train")
         .map(|e| e.id)
         .collect();
-    let mut members: [Vec<usize>; 2] = [Vec::new(), Vec::new()];
-    let mut place = Vec::with_capacity(ctx.episode_ids.len());
-    for (e, id) in ctx.episode_ids.iter().enumerate() {
-        let p = usize::from(val.contains(id));
-        place.push((p, members[p].len()));
-        members[p].push(e);
-    }
-    let parts = members
-        .into_iter()
-        .zip(["", VAL_DIR])
-        .map(|(episodes, dir)| {
+    let place = placement(ctx.episode_ids, |id| val.contains(&id));
+    let parts = PART_DIRS
+        .iter()
+        .enumerate()
+        .map(|(p, &dir)| {
+            let episodes: Vec<usize> = (0..place.len()).filter(|&e| place[e].0 == p).collect();
             let ids: Vec<u64> = episodes.iter().map(|&e| ctx.episode_ids[e]).collect();
             Part {
                 dir,

@@ -40,6 +40,45 @@ pub fn video_file(key: &str, index: usize) -> String {
     )
 }
 
+/// The folder of each part, in part order: the training episodes' dataset is the profile
+/// folder itself, the validation episodes' is [`VAL_DIR`].
+pub const PART_DIRS: [&str; 2] = ["", VAL_DIR];
+
+/// Per stored episode (`ids` in stored order): its part (0 training, 1 validation, as
+/// `is_val` says) and its `episode_index` there, the episode's position among its part's.
+pub fn placement(ids: &[u64], is_val: impl Fn(u64) -> bool) -> Vec<(usize, usize)> {
+    let mut counts = [0usize; 2];
+    ids.iter()
+        .map(|&id| {
+            let p = usize::from(is_val(id));
+            counts[p] += 1;
+            (p, counts[p] - 1)
+        })
+        .collect()
+}
+
+/// `meta.json` of a v2.1 export: `data_format` `"lerobot_v2.1"` (chunkc's `loader.py` does not
+/// read it: LeRobot's `LeRobotDataset` does), and `lerobot`: the version, each dataset's folder,
+/// and per stored episode (`episodes`, the source ids) its dataset and `episode_index`.
+pub fn describe(doc: &mut Value, profile: &crate::plan::ProfilePlan) {
+    let ids: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();
+    let val: std::collections::BTreeSet<u64> = (profile.episodes.iter())
+        .filter(|e| e.split != "train")
+        .map(|e| e.id)
+        .collect();
+    let places = placement(&ids, |id| val.contains(&id));
+    doc["data_format"] = json!(DATA_FORMAT);
+    doc["lerobot"] = json!({
+        "version": "v2.1",
+        "datasets": {"train": ".", "val": VAL_DIR},
+        "dataset": places.iter().map(|&(p, _)| ["train", "val"][p]).collect::<Vec<_>>(),
+        "episode_index": places.iter().map(|&(_, i)| i).collect::<Vec<_>>(),
+    });
+}
+
+/// `meta.json`'s `data_format` of a v2.1 export.
+pub const DATA_FORMAT: &str = "lerobot_v2.1";
+
 /// One of the export's datasets: its folder and its episodes.
 pub(super) struct Part {
     /// Its folder in the profile folder (`""`: the profile folder itself).
@@ -154,6 +193,12 @@ impl Meta<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn episodes_are_numbered_within_their_dataset_in_stored_order() {
+        let places = placement(&[3, 5, 8, 9, 12], |id| id == 5 || id == 12);
+        assert_eq!(places, [(0, 0), (1, 0), (0, 1), (0, 2), (1, 1)]);
+    }
 
     #[test]
     fn paths_are_lerobots() {
