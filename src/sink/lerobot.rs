@@ -41,18 +41,17 @@ use arrow_array::{ArrayRef, RecordBatch, StringArray};
 use arrow_schema::{DataType, Field, Schema};
 use serde_json::{json, Value};
 
-use super::lerobot_columns::{err, i64_col, video_shape, Channel};
+use super::lerobot_columns::{err, i64_col, Channel};
 use super::lerobot_features::features;
 use super::lerobot_files::DatasetFiles;
 use super::lerobot_rows::{DataTable, EpisodeRows};
 use super::lerobot_spill::{FrameSpill, SpillReader};
 pub use super::lerobot_tasks::tasks_table;
 use super::lerobot_tasks::Tasks;
-use super::video_encode::{self, Background};
+use super::lerobot_v3_videos::V3Videos;
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
-use crate::error::{Error, IoContext, Result};
+use crate::error::{Error, Result};
 use crate::source::ChannelKind;
-use crate::spec::VideoSettings;
 use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
 
@@ -62,9 +61,9 @@ pub const STATS_PATH: &str = "meta/stats.json";
 /// LeRobot's `video_path` template (v3.0).
 pub const VIDEO_PATH: &str = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4";
 
-/// Where camera `name`'s video goes (the one file of [`VIDEO_PATH`] chunkc writes).
+/// Where camera `name`'s video goes (the one file of [`VIDEO_PATH`] chunkc writes by default).
 pub fn video_file(name: &str) -> String {
-    format!("videos/{name}/chunk-000/file-000.mp4")
+    super::lerobot_v3_videos::shared_file(name)
 }
 
 pub struct LerobotWriter {
@@ -81,10 +80,8 @@ pub struct LerobotWriter {
     raw: Vec<Option<Arc<LowdimStore>>>,
     /// Per channel: its PNG frames by stored row (images stored as PNG only).
     frames: Vec<Option<FrameSpill>>,
-    /// The encoder settings when images are stored as video.
-    video: Option<VideoSettings>,
-    /// Per channel: its video encoder and the frames sent to it (images stored as video only).
-    videos: Vec<Option<(Background, usize)>>,
+    /// The cameras, when images are stored as video.
+    videos: Option<V3Videos>,
     train: Vec<[i64; 4]>,
     val: Vec<[i64; 4]>,
 }
@@ -92,7 +89,7 @@ pub struct LerobotWriter {
 impl LerobotWriter {
     /// Whether channels of `kind` are stored as video.
     fn is_video(&self, kind: ChannelKind) -> bool {
-        kind == ChannelKind::Image && self.video.is_some()
+        kind == ChannelKind::Image && self.videos.is_some()
     }
 
     /// The channels stored as video: (name, shape).
@@ -113,21 +110,8 @@ impl LerobotWriter {
             .map(|c| (c.name.clone(), c.shape.clone(), c.kind))
             .collect();
         let steps = *ctx.episode_ends.last().unwrap_or(&0) as usize;
-        let video = v.video();
-        let videos = channels
-            .iter()
-            .map(|(name, shape, kind)| match (kind, video) {
-                (ChannelKind::Image, Some(settings)) => {
-                    let shape = video_shape(name, shape, ctx.profile.fps)?;
-                    let path = ctx.dir.join(video_file(name));
-                    if let Some(parent) = path.parent() {
-                        std::fs::create_dir_all(parent).at("create", parent)?;
-                    }
-                    Ok(Some((Background::spawn(&path, shape, settings)?, 0)))
-                }
-                _ => Ok(None),
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let videos = V3Videos::create(ctx, &channels)?;
+        let video = videos.is_some();
         Ok(LerobotWriter {
             files,
             fps: ctx.profile.fps,
@@ -140,14 +124,13 @@ impl LerobotWriter {
                 .iter()
                 .enumerate()
                 .map(|(c, (_, _, k))| match k {
-                    ChannelKind::Image if video.is_none() => {
+                    ChannelKind::Image if !video => {
                         let file = format!("{}-frames-{c}", ctx.profile.name);
                         FrameSpill::create(ctx.scratch.join(file), steps).map(Some)
                     }
                     _ => Ok(None),
                 })
                 .collect::<Result<_>>()?,
-            video,
             videos,
             channels,
             train: Vec::new(),
@@ -159,7 +142,7 @@ impl LerobotWriter {
     fn table(&self) -> DataTable<'_> {
         DataTable {
             channels: &self.channels,
-            video: self.video.is_some(),
+            video: self.videos.is_some(),
             fps: self.fps,
             mixture: !self.sources.is_empty(),
         }
@@ -233,18 +216,21 @@ impl LerobotWriter {
             i64_col((0..n).map(|_| 0)),
             i64_col((0..n).map(|_| 0)),
         ];
-        // Every camera's file holds every stored row, row `i` at `i / fps`.
-        let seconds = |rows: &[i64]| -> ArrayRef {
-            Arc::new(arrow_array::Float64Array::from_iter_values(
-                rows.iter().map(|&r| r as f64 / self.fps),
-            ))
-        };
-        let ends: Vec<i64> = self.ends.iter().map(|&e| e as i64).collect();
-        for _ in self.video_channels() {
-            cols.push(i64_col((0..n).map(|_| 0)));
-            cols.push(i64_col((0..n).map(|_| 0)));
-            cols.push(seconds(&starts));
-            cols.push(seconds(&ends));
+        // Where each episode's frames are in its camera's file(s).
+        if let Some(videos) = &self.videos {
+            let at: Vec<(i64, i64, f64, f64)> =
+                (0..n).map(|e| videos.location(e, self.fps)).collect();
+            let seconds = |f: fn(&(i64, i64, f64, f64)) -> f64| -> ArrayRef {
+                Arc::new(arrow_array::Float64Array::from_iter_values(
+                    at.iter().map(f),
+                ))
+            };
+            for _ in self.video_channels() {
+                cols.push(i64_col(at.iter().map(|a| a.0)));
+                cols.push(i64_col(at.iter().map(|a| a.1)));
+                cols.push(seconds(|a| a.2));
+                cols.push(seconds(|a| a.3));
+            }
         }
         let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
         self.files.parquet(
@@ -259,18 +245,12 @@ impl LerobotWriter {
     }
 
     fn info(&self) -> Result<()> {
-        let video_info = |_: &str, shape: &[usize]| match self.video {
-            Some(video) => json!({
-                "video.height": shape[0],
-                "video.width": shape[1],
-                "video.codec": video_encode::codec_name(video.codec),
-                "video.pix_fmt": video_encode::PIX_FMT,
-                "video.is_depth_map": false,
-                "video.fps": self.fps.round() as u64,
-                "video.channels": shape[2],
-                "has_audio": false,
-            }),
-            None => Value::Null,
+        let video_info = |name: &str, shape: &[usize]| {
+            let c = self.channels.iter().position(|(n, ..)| n == name);
+            match (&self.videos, c) {
+                (Some(videos), Some(c)) => videos.info(&self.files.dir, c, shape, self.fps),
+                _ => Value::Null,
+            }
         };
         let features = features(&self.table(), false, video_info);
         let n = self.ends.len();
@@ -326,7 +306,7 @@ impl Sink for LerobotWriter {
     }
 
     fn frame_encoding(&self) -> FrameEncoding {
-        match self.video {
+        match self.videos {
             Some(_) => FrameEncoding::Raw,
             None => FrameEncoding::Png,
         }
@@ -337,17 +317,8 @@ impl Sink for LerobotWriter {
     }
 
     fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
-        if let Some((encoder, sent)) = self.videos[channel].as_mut() {
-            if *sent != row {
-                return Err(Error::Internal(format!(
-                    "frames out of order: row {row}, have {sent}"
-                )));
-            }
-            *sent += frames.len();
-            let name = &self.channels[channel].0;
-            return encoder
-                .push(frames.bytes().to_vec())
-                .map_err(|e| Error::output(format!("channel `{name}`, rows from {row}: {e}")));
+        if let Some(videos) = self.videos.as_mut().filter(|v| v.has(channel)) {
+            return videos.push(channel, row, frames);
         }
         let spill = self.frames[channel]
             .as_mut()
@@ -379,19 +350,8 @@ impl Sink for LerobotWriter {
     }
 
     fn finish(mut self: Box<Self>) -> Result<()> {
-        let rows = self.ends.last().copied().unwrap_or(0);
-        for (c, video) in self.videos.iter_mut().enumerate() {
-            if let Some((encoder, sent)) = video.as_mut() {
-                let name = &self.channels[c].0;
-                let written = encoder
-                    .finish()
-                    .map_err(|e| Error::output(format!("channel `{name}`: {e}")))?;
-                if written != rows || *sent as u64 != rows {
-                    return Err(Error::Internal(format!(
-                        "video of `{name}` has {written} frames for {rows} rows"
-                    )));
-                }
-            }
+        if let Some(videos) = self.videos.as_mut() {
+            videos.finish()?;
         }
         self.data()?;
         self.episodes()?;

@@ -26,7 +26,8 @@ use std::sync::Arc;
 use arrow_schema::Schema;
 use serde_json::{json, Value};
 
-use super::lerobot_columns::{video_shape, Channel};
+use super::lerobot_cameras::camera;
+use super::lerobot_columns::Channel;
 use super::lerobot_episode_stats::FeatureStats;
 use super::lerobot_features::features;
 use super::lerobot_files::DatasetFiles;
@@ -38,15 +39,9 @@ use super::video_episodes::{Encoders, EpisodeCamera};
 use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
 use crate::source::ChannelKind;
-use crate::spec::{StreamCopy, VideoCodec, VideoSettings, HAS_X264};
 use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
 use crate::window::Ends;
-
-/// The smallest frames SVT-AV1 1.4 (Debian 12's, the wheel's) encodes.
-const SVTAV1_MIN_SIDE: usize = 64;
-/// x264's crf where a camera too small for SVT-AV1 falls back to it (x264's own default).
-const X264_FALLBACK_CRF: u32 = 23;
 
 pub struct LerobotV21Writer {
     files: DatasetFiles,
@@ -69,30 +64,6 @@ pub struct LerobotV21Writer {
     image_stats: Vec<BTreeMap<usize, FeatureStats>>,
 }
 
-/// The encoder of a camera of `shape` stored as video: the profile's, copying the source's
-/// packets unless `video_copy = false` (of the codec `video_codec` names, when it names one);
-/// a camera too small for SVT-AV1 gets x264 where this chunkc has it and the spec names no
-/// codec.
-fn camera_settings(
-    ctx: &SinkContext,
-    settings: VideoSettings,
-    shape: &super::video_encode::StreamShape,
-) -> VideoSettings {
-    let v = &ctx.profile.values;
-    let mut s = settings;
-    s.copy = match (v.video_copy, v.video_codec) {
-        (Some(false), _) => StreamCopy::Never,
-        (_, Some(_)) => StreamCopy::SameCodec,
-        _ => StreamCopy::AnyCodec,
-    };
-    let small = shape.height < SVTAV1_MIN_SIDE || shape.width < SVTAV1_MIN_SIDE;
-    if small && HAS_X264 && v.video_codec.is_none() && s.codec == VideoCodec::Libsvtav1 {
-        s.codec = VideoCodec::Libx264;
-        s.crf = v.video_crf.unwrap_or(X264_FALLBACK_CRF);
-    }
-    s
-}
-
 impl LerobotV21Writer {
     pub fn create(ctx: &SinkContext) -> Result<Self> {
         let v = &ctx.profile.values;
@@ -108,13 +79,8 @@ impl LerobotV21Writer {
             .iter()
             .map(|(name, shape, kind)| match (kind, video) {
                 (ChannelKind::Image, Some(settings)) => {
-                    let shape = video_shape(name, shape, ctx.profile.fps)?;
-                    let settings = camera_settings(ctx, settings, &shape);
-                    Ok(Some(EpisodeCamera {
-                        name: name.clone(),
-                        shape,
-                        settings,
-                    }))
+                    let at = (name.as_str(), shape.as_slice(), ctx.profile.fps);
+                    camera(v, at, settings, true).map(Some)
                 }
                 _ => Ok(None),
             })

@@ -19,6 +19,8 @@
 //! - `lerobot_v21`: a LeRobot v2.1 dataset (`lerobot_version = "v2.1"`): a parquet file and a
 //!   video per episode, the validation episodes a second dataset in `val/`; its layout and
 //!   `meta/` files (`lerobot_v21_meta`), its per-episode statistics (`lerobot_episode_stats`).
+//! - `lerobot_cameras`: how either LeRobot export encodes (or copies) a camera's video;
+//!   `lerobot_v3_videos`: v3.0's video files (one of every episode, or one per episode).
 //! - `png`: the PNG encoding of frames that `lerobot` stores.
 //! - `video_copy`: a source video's packets copied as an episode's file (`hdf5_video`), where
 //!   the frames are the video's own.
@@ -48,6 +50,7 @@ mod hdf5_rows;
 pub mod hdf5_video;
 pub mod jpeg;
 pub mod lerobot;
+mod lerobot_cameras;
 mod lerobot_columns;
 mod lerobot_episode_stats;
 mod lerobot_features;
@@ -57,6 +60,7 @@ mod lerobot_spill;
 mod lerobot_tasks;
 pub mod lerobot_v21;
 pub mod lerobot_v21_meta;
+pub mod lerobot_v3_videos;
 mod meta_sources;
 pub mod png;
 pub mod robomimic;

@@ -718,12 +718,15 @@ pub struct ProfileSpec {
     /// `image_compression = "video"` (see `video-storage.md`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub video_gop: Option<u32>,
-    /// Whether hdf5's `image_compression = "video"` copies a source video's packets into an
+    /// Whether a video stored one file per episode copies a source video's packets into an
     /// episode's file instead of encoding its frames again, where the profile keeps the video
     /// as it is: the source's rate, no `cameras` resize, rows that are the video's own frames,
     /// an episode that starts on a keyframe, keyframes at most `video_gop` frames apart, and the
-    /// codec of `video_codec` when that is given. Default true: the stored video is the source's
-    /// bytes, with no second generation of compression loss. `false` encodes every episode.
+    /// codec of `video_codec` when that is given. hdf5's `image_compression = "video"` and
+    /// parquet's `lerobot_version = "v2.1"`: default true (the stored video is the source's
+    /// bytes, with no second generation of compression loss); `false` encodes every episode.
+    /// Parquet's LeRobot v3.0: default false (one encoded file of every episode per camera, as
+    /// LeRobot records); `true` writes one file per episode, copied where it can be.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub video_copy: Option<bool>,
     /// Zarr format version of `format = "zarr"`: 2 (default; what Diffusion Policy's

@@ -443,8 +443,7 @@ impl Checker<'_> {
             }
         }
         self.image_options(name, p);
-        let version = super::lerobot_version::resolve(name, &self.loaded.spec.profiles);
-        self.video_options(name, p, version);
+        self.video_options(name, p);
         if !matches!(p.zarr_version, 2 | 3) {
             let message = format!("`zarr_version` must be 2 or 3, not {}", p.zarr_version);
             self.value(&key("zarr_version"), message, "expected 2 or 3", None);

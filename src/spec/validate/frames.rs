@@ -3,7 +3,7 @@
 //! keys of either video storage, with a chunkc that can encode video.
 
 use super::Checker;
-use crate::spec::model::{ImageCompression, LerobotVersion, OutputFormat, VideoCodec};
+use crate::spec::model::{ImageCompression, OutputFormat, VideoCodec};
 use crate::spec::preset::{Profile, HAS_X264};
 
 /// The encoder keys of `image_encoding = "video"` and `image_compression = "video"`.
@@ -87,7 +87,7 @@ impl Checker<'_> {
     /// `image_encoding` (parquet only) and the `video_*` keys: only for a profile that stores
     /// video (`image_encoding = "video"` or `image_compression = "video"`), values in the
     /// encoder's range, and a chunkc that can encode.
-    pub(super) fn video_options(&mut self, name: &str, p: &Profile, version: LerobotVersion) {
+    pub(super) fn video_options(&mut self, name: &str, p: &Profile) {
         let key = |k: &'static str| ["profiles", name, k];
         let set = |k: &str| p.origins.contains_key(k);
         if p.format != OutputFormat::Parquet && set("image_encoding") {
@@ -140,22 +140,6 @@ impl Checker<'_> {
                 video.codec.max_crf()
             );
             self.value(&key("video_crf"), message, "out of range", None);
-        }
-        let per_episode = p.format == OutputFormat::Hdf5 || version == LerobotVersion::V21;
-        if set("video_copy") && !per_episode {
-            let message = format!(
-                "`video_copy` is for one video per episode (hdf5's `image_compression = \"video\"`, \
-                 `lerobot_version = \"v2.1\"`); profile `{name}` writes one LeRobot v3.0 video of \
-                 every episode per camera, always encoded"
-            );
-            let help =
-                Some("set `lerobot_version = \"v2.1\"` to copy a source video's packets".into());
-            self.value(
-                &key("video_copy"),
-                message,
-                "only for per-episode videos",
-                help,
-            );
         }
         if video.gop == 0 {
             let message = "`video_gop` must be at least 1 (1: every frame a keyframe)".to_string();
