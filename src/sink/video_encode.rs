@@ -40,6 +40,7 @@ pub fn codec_name(codec: VideoCodec) -> &'static str {
     match codec {
         VideoCodec::Libsvtav1 => "av1",
         VideoCodec::Libx264 => "h264",
+        VideoCodec::Mpeg4 => "mpeg4",
     }
 }
 
@@ -275,7 +276,12 @@ mod imp {
 
     use super::{SVTAV1_PRESET, X264_PARAMS};
 
+    /// libavcodec's `FF_QP2LAMBDA`: a quantizer as the encoder's `quality` (lambda).
+    const QP2LAMBDA: i32 = 118;
+
     pub struct Inner {
+        /// Every frame's `quality` (a fixed quantizer's lambda; 0: the encoder decides).
+        quality: i32,
         octx: format::context::Output,
         encoder: encoder::Video,
         scaler: scaling::Context,
@@ -360,14 +366,22 @@ mod imp {
             }
             enc.set_flags(flags);
             let mut opts = Dictionary::new();
-            opts.set("crf", &s.crf.to_string());
+            let mut quality = 0;
             match s.codec {
                 VideoCodec::Libsvtav1 => {
+                    opts.set("crf", &s.crf.to_string());
                     opts.set("preset", &SVTAV1_PRESET.to_string());
                     // One thread, no core pinning: the same decisions on every run.
                     opts.set("svtav1-params", "lp=1");
                 }
+                // A fixed quantizer (`-q:v`): MPEG-4 Part 2 has no constant rate factor.
+                VideoCodec::Mpeg4 => {
+                    quality = QP2LAMBDA * s.crf.max(1) as i32;
+                    enc.set_flags(flags | codec::Flags::QSCALE);
+                    enc.set_global_quality(quality);
+                }
                 VideoCodec::Libx264 => {
+                    opts.set("crf", &s.crf.to_string());
                     opts.set("threads", "1");
                     let params = match asm {
                         Some(asm) => format!("{X264_PARAMS}:asm={asm}"),
@@ -421,6 +435,7 @@ mod imp {
             )
             .map_err(e("cannot convert RGB24 to yuv420p"))?;
             Ok(Inner {
+                quality,
                 octx,
                 encoder,
                 scaler,
@@ -442,6 +457,10 @@ mod imp {
                 .run(&self.rgb, &mut self.yuv)
                 .map_err(|e| format!("converting a frame to yuv420p: {e}"))?;
             self.yuv.set_pts(Some(pts));
+            if self.quality > 0 {
+                // As FFmpeg's own `-q:v` does: the quantizer of every frame.
+                unsafe { (*self.yuv.as_mut_ptr()).quality = self.quality };
+            }
             self.encoder
                 .send_frame(&self.yuv)
                 .map_err(|e| format!("encoding frame {pts}: {e}"))?;
@@ -619,6 +638,40 @@ mod tests {
         some.push(vec![9u8; 64 * 96 * 3 * 3]).unwrap();
         drop(some);
         assert!(start.elapsed() < std::time::Duration::from_secs(20));
+    }
+
+    #[test]
+    fn mpeg4_encodes_what_svtav1_refuses() {
+        // The LeRobot exports' codec for a camera under 64 pixels in a build without x264.
+        let dir = tempfile::tempdir().unwrap();
+        let shape = StreamShape {
+            height: 32,
+            width: 32,
+            fps: 10.0,
+        };
+        let mpeg4 = VideoSettings {
+            codec: VideoCodec::Mpeg4,
+            crf: 3,
+            gop: 2,
+            ..settings()
+        };
+        let write = |name: &str| {
+            let path = dir.path().join(name);
+            let mut s = VideoStream::create(&path, shape, mpeg4).unwrap();
+            for i in 0..5u8 {
+                s.push(&vec![i * 40; 32 * 32 * 3]).unwrap();
+            }
+            assert_eq!(s.finish().unwrap(), 5);
+            std::fs::read(path).unwrap()
+        };
+        let (a, b) = (write("a.mp4"), write("b.mp4"));
+        assert!(a.len() > 100 && a == b);
+        assert!(
+            !a.windows(4).any(|w| w == b"Lavc"),
+            "no encoder version in the stream"
+        );
+        let small = VideoStream::create(&dir.path().join("svt.mp4"), shape, settings());
+        assert!(small.is_err(), "SVT-AV1 1.4 refuses 32x32 frames");
     }
 
     #[test]

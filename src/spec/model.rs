@@ -1186,6 +1186,10 @@ pub enum VideoCodec {
     Libsvtav1,
     /// H.264 with x264.
     Libx264,
+    /// MPEG-4 Part 2 with FFmpeg's own encoder. Not a value of `video_codec`: chunkc encodes a
+    /// LeRobot camera too small for SVT-AV1 with it where it has no x264 (the wheel).
+    #[serde(skip)]
+    Mpeg4,
 }
 
 impl VideoCodec {
@@ -1194,14 +1198,16 @@ impl VideoCodec {
         match self {
             VideoCodec::Libsvtav1 => "libsvtav1",
             VideoCodec::Libx264 => "libx264",
+            VideoCodec::Mpeg4 => "mpeg4",
         }
     }
 
-    /// The largest constant rate factor the encoder takes.
+    /// The largest constant rate factor the encoder takes (MPEG-4's fixed quantizer).
     pub fn max_crf(self) -> u32 {
         match self {
             VideoCodec::Libsvtav1 => 63,
             VideoCodec::Libx264 => 51,
+            VideoCodec::Mpeg4 => 31,
         }
     }
 }
