@@ -17,7 +17,7 @@ use crate::audit::{AuditReport, Verdict};
 use crate::error::Result;
 use crate::lock::SpecLock;
 use crate::source::{ChannelKind, Manifest};
-use crate::spec::{LoadedSpec, NormalizeMode, Profile, ResampleMethod, SplitFrom};
+use crate::spec::{LoadedSpec, NormalizeMode, Profile, SplitFrom};
 use crate::window::Sampling;
 
 /// Builds the plan. `lock` is the previous build's lock, if any; `out_dir` is the resolved output
@@ -239,7 +239,7 @@ fn resolve_profile(
         lerobot_version,
         fps,
         conversion: conv,
-        rate: rate_text(manifest.fps, fps, conv),
+        rate: super::text::rate_line(manifest.fps, fps, conv),
         sampling,
         channels,
         transforms,
@@ -255,25 +255,6 @@ fn resolve_profile(
         inputs,
         status,
     })
-}
-
-/// The rate line of `chunkc plan`.
-fn rate_text(source_fps: f64, fps: f64, conv: Conversion) -> String {
-    match conv {
-        Conversion::Decimate { factor: 1 } => {
-            format!("{fps} Hz (the source rate, no conversion)")
-        }
-        Conversion::Decimate { factor } => {
-            format!("{source_fps} Hz -> {fps} Hz: keep 1 step in {factor}")
-        }
-        Conversion::Resample { method, .. } => format!(
-            "{source_fps} Hz -> {fps} Hz: resample each episode ({}), n -> round(n × {fps} / {source_fps})",
-            match method {
-                ResampleMethod::Fourier => "fourier",
-                ResampleMethod::Linear => "linear",
-            },
-        ),
-    }
 }
 
 /// The profile's channels with their normalization (images only `none`).
