@@ -529,3 +529,43 @@ def test_a_camera_short_of_frames_is_refused_naming_its_file(tmp_path):
     assert "episode 1, camera `observation.images.top`" in proc.stderr
     assert "episode_000001.mp4: 16 frames for 18 rows" in proc.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_the_bytes_do_not_depend_on_threads_or_shards(tmp_path):
+    """The v2.1 export (copied and encoded videos, PNG frames, the validation dataset) is the
+    same bytes with one thread, two, and from two shards merged."""
+    text = spec_text(VIDEO_V21, """
+[profiles.copied]
+preset = "pi0"
+chunk = 5
+format = "parquet"
+lerobot_version = "v2.1"
+image_encoding = "video"
+
+[profiles.encoded]
+extends = "copied"
+video_copy = false
+
+[profiles.png]
+preset = "pi0"
+chunk = 5
+format = "parquet"
+lerobot_version = "v2.1"
+""", split="val_fraction = 0.34\nseed = 0")
+    files = {}
+    for how in ("j1", "j2", "shards"):
+        d = tmp_path / how
+        d.mkdir()
+        spec = d / "spec.toml"
+        spec.write_text(text)
+        if how == "shards":
+            for i in range(2):
+                run_chunkc("build", "-q", "--shard", f"{i}/2", "--partials", d / "parts", spec)
+            run_chunkc("merge", "-q", "--partials", d / "parts", spec)
+        else:
+            build_with_video(spec, "-j", how[1])
+        root = d / "out"
+        files[how] = {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
+                      if p.is_file() and not p.name.startswith(".") and p.name != "chunkc.lock"}
+    assert any("val/videos" in f for f in files["j1"])
+    assert files["j1"] == files["j2"] == files["shards"]
