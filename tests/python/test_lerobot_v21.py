@@ -312,6 +312,7 @@ def test_lerobot_opens_the_camera_export_and_its_frames_are_the_sources(tmp_path
             expect.append((name, ids))
     results = read_v21(lerobot21, tmp_path / "lr", jobs)
     src = source_episodes(VIDEO_V21)
+    source_frames = {e: decode(f) for e, f in source_files.items()}
     for (name, ids), got in zip(expect, results):
         assert got["meta"]["backend"] == "torchcodec"
         assert len(got["sample"]) == got["meta"]["len"] == sum(len(src[e]["action"]) for e in ids) > 0
@@ -327,7 +328,9 @@ def test_lerobot_opens_the_camera_export_and_its_frames_are_the_sources(tmp_path
             if name == "copied":
                 np.testing.assert_array_equal(frame, got[f"decoded_{i}"][t])
             elif name == "png":
+                # Lossless: chunkc's decode of the source, which is PyAV's.
                 np.testing.assert_array_equal(frame, ours)
+                np.testing.assert_array_equal(frame, source_frames[e][t])
             elif name == "encoded":
                 assert psnr(frame, ours) > 30
             else:
