@@ -6,7 +6,8 @@
 #
 # Only what chunkc uses, and nothing under the GPL (book/src/install.md lists it):
 #   - FFmpeg 5.1 (LGPL 2.1 or later): the file protocol, the mp4/mov demuxer and muxer, the
-#     native h264, hevc, mpeg4 and vp9 decoders and their parsers, libswscale; no --enable-gpl,
+#     native h264, hevc, mpeg4 and vp9 decoders and their parsers, the native mpeg4 encoder (for
+#     LeRobot cameras under SVT-AV1's 64x64 minimum), libswscale; no --enable-gpl,
 #     no x264, no libpostproc, no libavfilter, no libavdevice, no network, no autodetected
 #     system libraries;
 #   - SVT-AV1 1.4 (BSD 3-Clause Clear + the AOMedia patent licence): the AV1 encoder, LeRobot's
@@ -139,7 +140,7 @@ say "building $(basename "$ffmpeg_src") (static, LGPL)"
         --enable-decoder=h264,hevc,mpeg4,vp9,libdav1d \
         --enable-parser=h264,hevc,mpeg4video,vp9,av1 \
         --enable-bsf=h264_mp4toannexb,hevc_mp4toannexb,extract_extradata,av1_frame_split,vp9_superframe_split \
-        --enable-libdav1d --enable-libsvtav1 --enable-encoder=libsvtav1 \
+        --enable-libdav1d --enable-libsvtav1 --enable-encoder=libsvtav1,mpeg4 \
         --enable-swscale --enable-swresample
     # zig's glibc headers are the newest glibc's, which dropped sys/sysctl.h (2.32), while its
     # 2.28 link stubs still have sysctl(): configure finds the function, cpu.c the header missing.

@@ -15,6 +15,8 @@
 #   2. install tests/python/requirements.txt into it, only when that file changed since the last
 #      successful install (its hash and tier are kept in .venv/.chunkc-requirements.sha256): the
 #      core always, the target-model tier (torch, LeRobot, gym-pusht) when the disk has room;
+#      with the model tier, `.venv-lerobot21` too: lerobot 0.3.3 (LeRobot v2.1's reader) over
+#      .venv's torch (tests/python/requirements-lerobot21.txt);
 #   3. put .venv/bin first on PATH: the bundled HDF5 build needs cmake >= 3.26, which comes from
 #      the venv;
 #   4. build chunkc with `cargo build --release --locked --features video` (the first build
@@ -204,6 +206,38 @@ if [ "$want" != "$have_sha" ] || [ "$tier" != "$have_tier" ]; then
 fi
 if [ "$tier" = core ]; then
     say "warning: Python tier 'core' ($(sed -n 2p "$tier_file")): the target-model tests (torch, LeRobot, gym-pusht) will skip; free disk and run setup again, or set CHUNKC_PY_TIER=models"
+fi
+
+# 2b. LeRobot 0.3.3, the v2.1 reader of the LeRobot v2.1 export's tests, in a venv of its own
+#     (tests/python/requirements-lerobot21.txt says why): only with the model tier, whose torch it
+#     borrows. The venv is rebuilt whenever that file changes (a few small packages, seconds);
+#     its packages are installed before the .pth that shows it .venv's, so that pip never sees
+#     (or touches) .venv's own datasets and fsspec.
+lr_venv=.venv-lerobot21
+lr_requirements=tests/python/requirements-lerobot21.txt
+lr_stamp=$lr_venv/.chunkc-requirements.sha256
+if [ "$tier" = models ]; then
+    lr_want=$("$venv/bin/python" -c 'import hashlib, sys
+print(hashlib.sha256(open(sys.argv[1], "rb").read() + sys.argv[2].encode()).hexdigest())' \
+        "$lr_requirements" "$CHUNKC_ROOT")
+    lr_have=''
+    [ -f "$lr_stamp" ] && read -r lr_have <"$lr_stamp"
+    if [ "$lr_want" != "$lr_have" ]; then
+        say "creating $lr_venv (lerobot 0.3.3, LeRobot v2.1's reader) beside $venv"
+        rm -rf "$lr_venv"
+        "$venv/bin/python" -m venv "$lr_venv" || die "'python -m venv $lr_venv' failed"
+        mkdir -p "$lr_venv/.pip-tmp"
+        TMPDIR="$CHUNKC_ROOT/$lr_venv/.pip-tmp" "$lr_venv/bin/python" -m pip install "${quiet[@]}" \
+            --disable-pip-version-check --no-cache-dir --no-deps -r "$lr_requirements" \
+            || { rm -rf "$lr_venv"; die "pip could not install $lr_requirements into $lr_venv (see above)"; }
+        rm -rf "$lr_venv/.pip-tmp"
+        own=$("$lr_venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+        main=$("$venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+        printf '%s\n' "$main" >"$own/_chunkc_main_venv.pth"
+        "$lr_venv/bin/python" -c 'from lerobot.datasets.lerobot_dataset import LeRobotDataset' \
+            || { rm -rf "$lr_venv"; die "lerobot 0.3.3 does not import in $lr_venv (see above)"; }
+        printf '%s\n' "$lr_want" >"$lr_stamp"
+    fi
 fi
 
 # 3. cmake (and python) from the venv.

@@ -370,7 +370,7 @@ pub(super) fn update_lock(spec: &LoadedSpec, plan: &Plan, hashes: &FileHashes) -
                 fingerprint: p.fingerprint.clone(),
                 files: files.clone(),
                 inputs: p.inputs.clone(),
-                encoder: crate::sink::encoder_record::of(&p.values),
+                encoder: crate::sink::encoder_record::of(p),
             },
             None => previous.profiles.get(&p.name).cloned().unwrap_or_default(),
         };

@@ -17,7 +17,7 @@ use crate::audit::{AuditReport, Verdict};
 use crate::error::Result;
 use crate::lock::SpecLock;
 use crate::source::{ChannelKind, Manifest};
-use crate::spec::{LoadedSpec, NormalizeMode, Profile, ResampleMethod, SplitFrom};
+use crate::spec::{LoadedSpec, NormalizeMode, Profile, SplitFrom};
 use crate::window::Sampling;
 
 /// Builds the plan. `lock` is the previous build's lock, if any; `out_dir` is the resolved output
@@ -216,8 +216,9 @@ fn resolve_profile(
     }
     let used = episodes_of(spec, manifest, split, profile, fps, conv, &sampling)?;
 
-    let fingerprint = freshness::profile_fingerprint(spec, manifest, profile);
-    let inputs = freshness::inputs(spec, profile);
+    let lerobot_version = crate::spec::lerobot_version::resolve(name, &spec.spec.profiles);
+    let fingerprint = freshness::profile_fingerprint(spec, manifest, profile, lerobot_version);
+    let inputs = freshness::inputs(spec, profile, lerobot_version);
     let current = freshness::Current {
         name,
         fingerprint: &fingerprint,
@@ -226,12 +227,19 @@ fn resolve_profile(
         dir: &out_dir.join(name),
     };
     let status = freshness::status_of(&current, lock)?;
+    let mut values = profile.clone();
+    if let Some((at, _)) = crate::spec::lerobot_version::set_at(name, &spec.spec.profiles) {
+        values
+            .origins
+            .insert("lerobot_version", format!("profiles.{at}"));
+    }
     Ok(ProfilePlan {
         name: name.clone(),
-        values: profile.clone(),
+        values,
+        lerobot_version,
         fps,
         conversion: conv,
-        rate: rate_text(manifest.fps, fps, conv),
+        rate: super::text::rate_line(manifest.fps, fps, conv),
         sampling,
         channels,
         transforms,
@@ -247,25 +255,6 @@ fn resolve_profile(
         inputs,
         status,
     })
-}
-
-/// The rate line of `chunkc plan`.
-fn rate_text(source_fps: f64, fps: f64, conv: Conversion) -> String {
-    match conv {
-        Conversion::Decimate { factor: 1 } => {
-            format!("{fps} Hz (the source rate, no conversion)")
-        }
-        Conversion::Decimate { factor } => {
-            format!("{source_fps} Hz -> {fps} Hz: keep 1 step in {factor}")
-        }
-        Conversion::Resample { method, .. } => format!(
-            "{source_fps} Hz -> {fps} Hz: resample each episode ({}), n -> round(n × {fps} / {source_fps})",
-            match method {
-                ResampleMethod::Fourier => "fourier",
-                ResampleMethod::Linear => "linear",
-            },
-        ),
-    }
 }
 
 /// The profile's channels with their normalization (images only `none`).

@@ -251,6 +251,25 @@ fn planned_note(f: &super::PlannedFile) -> String {
     }
 }
 
+/// The rate line of `chunkc plan`.
+pub(super) fn rate_line(source_fps: f64, fps: f64, conv: super::Conversion) -> String {
+    match conv {
+        super::Conversion::Decimate { factor: 1 } => {
+            format!("{fps} Hz (the source rate, no conversion)")
+        }
+        super::Conversion::Decimate { factor } => {
+            format!("{source_fps} Hz -> {fps} Hz: keep 1 step in {factor}")
+        }
+        super::Conversion::Resample { method, .. } => format!(
+            "{source_fps} Hz -> {fps} Hz: resample each episode ({}), n -> round(n × {fps} / {source_fps})",
+            match method {
+                crate::spec::ResampleMethod::Fourier => "fourier",
+                crate::spec::ResampleMethod::Linear => "linear",
+            },
+        ),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::human_bytes;

@@ -8,7 +8,7 @@ use serde::Serialize;
 use super::{CameraResize, Conversion, Split, Status};
 use crate::audit::Verdict;
 use crate::source::{ChannelInfo, ChannelKind, SourcePart};
-use crate::spec::{MixtureSpec, NormalizeMode, Profile};
+use crate::spec::{LerobotVersion, MixtureSpec, NormalizeMode, OutputFormat, Profile};
 use crate::window::{Sampling, Window};
 
 #[derive(Debug, Clone, Serialize)]
@@ -117,6 +117,10 @@ pub struct ProfilePlan {
     pub name: String,
     /// Every value, fully resolved.
     pub values: Profile,
+    /// The LeRobot layout a `format = "parquet"` profile writes (`lerobot_version`); left out
+    /// of the plan's JSON when it is the default (v3.0), so that plans stay as they were.
+    #[serde(skip_serializing_if = "is_v30")]
+    pub lerobot_version: LerobotVersion,
     pub fps: f64,
     pub conversion: Conversion,
     pub rate: String,
@@ -219,7 +223,17 @@ pub struct ResolvedValue {
     pub origin: String,
 }
 
+fn is_v30(v: &LerobotVersion) -> bool {
+    *v == LerobotVersion::V30
+}
+
 impl ProfilePlan {
+    /// Whether the profile writes a LeRobot v2.1 dataset (`format = "parquet"`,
+    /// `lerobot_version = "v2.1"`).
+    pub fn writes_lerobot_v21(&self) -> bool {
+        self.values.format == OutputFormat::Parquet && self.lerobot_version == LerobotVersion::V21
+    }
+
     /// The transforms of channel `c` (a manifest position), in order.
     pub fn transforms_of(&self, c: usize) -> impl Iterator<Item = &crate::transform::Transform> {
         self.transforms.iter().filter(move |t| t.channel_index == c)
@@ -276,6 +290,11 @@ impl ProfilePlan {
             ("sampling", self.sampling.name().to_string()),
         ]
         .into_iter()
+        .chain(
+            // Only where it is not the default, so that other profiles' lines stay.
+            (self.lerobot_version != LerobotVersion::V30)
+                .then(|| ("lerobot_version", self.lerobot_version.name().to_string())),
+        )
         .map(|(key, value)| {
             let origin = v.origins.get(key).cloned().unwrap_or_else(|| {
                 let from_spec = key == "sampling" && (v.segment.is_some() || v.hierarchy.is_some());

@@ -183,6 +183,11 @@ fn camera_storage(c: &CardContext, name: &str, shape: &[usize]) -> String {
         (OutputFormat::Hdf5, ImageCompression::Gzip, _) => {
             format!("uint8 frames ({dims}), each deflated (gzip)")
         }
+        (OutputFormat::Parquet, _, Some(s)) if c.profile.writes_lerobot_v21() => format!(
+            "video, one mp4 per episode in `videos/chunk-*/{name}/` ({dims}), the source's \
+             packets copied where they are the episode's frames unchanged, else {}",
+            codec(s)
+        ),
         (OutputFormat::Parquet, _, Some(s)) => format!(
             "video, one mp4 of every episode in `videos/{name}/` ({dims}): {}",
             codec(s)
@@ -308,6 +313,7 @@ pub fn card(r: &Renderer, c: &CardContext) -> Result<String> {
         stats_hints => stats_hints(&p.values.stats_formats),
         output_hint => c.output_hint,
         chunk => p.window().chunk,
+        lerobot => p.writes_lerobot_v21().then(|| context! { fps => p.fps, repo_id => p.name }),
     };
     r.render("README.md", ctx)
 }

@@ -165,6 +165,9 @@ pub fn meta_json(
     if !plan.source.parts.is_empty() {
         super::meta_sources::add(&mut doc, plan, profile, built.source_normalizers);
     }
+    if profile.writes_lerobot_v21() {
+        super::lerobot_v21_meta::describe(&mut doc, profile);
+    }
     pretty(&doc)
 }
 

@@ -6,12 +6,12 @@ use std::collections::BTreeMap;
 
 use super::{jpeg, video_encode};
 use crate::lock::LockedEncoder;
-use crate::spec::{
-    ImageCompression, OutputFormat, Profile, StreamCopy, VideoCodec, DEFAULT_IMAGE_QUALITY,
-};
+use crate::plan::ProfilePlan;
+use crate::spec::{ImageCompression, OutputFormat, StreamCopy, VideoCodec, DEFAULT_IMAGE_QUALITY};
 
-/// The encoder of `profile`'s frames, or `None` when it stores them losslessly.
-pub fn of(profile: &Profile) -> Option<LockedEncoder> {
+/// The encoder of the profile's frames, or `None` when it stores them losslessly.
+pub fn of(plan: &ProfilePlan) -> Option<LockedEncoder> {
+    let profile = &plan.values;
     let settings = |pairs: &[(&str, String)]| -> BTreeMap<String, String> {
         pairs
             .iter()
@@ -41,9 +41,18 @@ pub fn of(profile: &Profile) -> Option<LockedEncoder> {
     match video.codec {
         VideoCodec::Libsvtav1 => pairs.push(("preset", video_encode::SVTAV1_PRESET.to_string())),
         VideoCodec::Libx264 => pairs.push(("x264_params", video_encode::X264_PARAMS.to_string())),
+        VideoCodec::Mpeg4 => pairs.push(("qscale", video.crf.to_string())),
     }
-    // Which source streams are copied instead of encoded (their bytes are the source's).
-    match video.copy {
+    // Which source streams are copied instead of encoded (their bytes are the source's): the
+    // LeRobot exports' per-episode videos decide it apart from `Profile::video`.
+    let copy = match profile.format {
+        OutputFormat::Parquet => super::lerobot_cameras::copy_mode(
+            profile,
+            super::lerobot_cameras::per_episode_copies(plan),
+        ),
+        _ => video.copy,
+    };
+    match copy {
         StreamCopy::Never => {}
         StreamCopy::AnyCodec => pairs.push(("stream_copy", "any codec".into())),
         StreamCopy::SameCodec => pairs.push((

@@ -105,7 +105,9 @@ impl LossyFrames {
                         )))
                     }
                 };
-                self.encoders.start((channel, v), id, frames)?;
+                let file = super::hdf5_video::episode_path(&v.camera.name, id);
+                self.encoders
+                    .start((channel, &v.camera), (id, &file), frames)?;
                 Ok(true)
             }
         }

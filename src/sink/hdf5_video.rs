@@ -14,23 +14,19 @@
 //! ```
 //! Where the episode's frames are a source video's own, unchanged, its packets are copied
 //! ([`super::video_copy`], `video_copy`); otherwise each file is encoded on a thread of its own
-//! with a single-threaded encoder ([`super::video_encode`]). Either way its bytes do not depend
-//! on `-j`; up to `-j` episodes are copied or encoded side by side while the build goes on, each
-//! holding its episode's frames.
+//! with a single-threaded encoder ([`super::video_encode`]): [`super::video_episodes`] does
+//! either.
 
-use std::collections::{BTreeMap, VecDeque};
-use std::path::{Path, PathBuf};
-use std::thread::JoinHandle;
+use std::path::Path;
 
 use hdf5::types::VarLenUnicode;
 use hdf5::{Dataset, Group};
 
-use super::video_copy::{self, CopyOutcome, COPIED_CODECS};
-use super::video_encode::{codec_name, StreamShape, VideoStream, PIX_FMT};
-use super::Frames;
+use super::video_encode::{StreamShape, PIX_FMT};
+pub(super) use super::video_episodes::Encoders;
+use super::video_episodes::EpisodeCamera;
 use crate::error::{Error, Result};
-use crate::source::video::PacketSpan;
-use crate::spec::{StreamCopy, VideoSettings};
+use crate::spec::VideoSettings;
 
 /// The file of episode `id`'s frames of `camera`, relative to the profile directory.
 pub fn episode_path(camera: &str, id: u64) -> String {
@@ -74,9 +70,7 @@ pub fn copy_records(data_file: &Path) -> Result<Vec<CopyRecord>> {
 
 /// One camera's per-episode videos.
 pub(super) struct VideoChannel {
-    name: String,
-    shape: StreamShape,
-    settings: VideoSettings,
+    pub(super) camera: EpisodeCamera,
     frames: Dataset,
     copied: Dataset,
 }
@@ -177,32 +171,14 @@ impl VideoChannel {
             .create("copied")?;
         describe(&group, settings, shape)?;
         Ok(VideoChannel {
-            name: name.to_string(),
-            shape: StreamShape { height, width, fps },
-            settings,
+            camera: EpisodeCamera {
+                name: name.to_string(),
+                shape: StreamShape { height, width, fps },
+                settings,
+            },
             frames,
             copied,
         })
-    }
-
-    /// The source packets to copy for `frames` instead of encoding them: when they are a
-    /// video's own frames, at this camera's size, in a codec the profile lets it keep.
-    fn to_copy(&self, frames: &Frames) -> Option<PacketSpan> {
-        let span = frames.packets()?;
-        let codec = span.probe.codec.as_str();
-        let kept = match self.settings.copy {
-            StreamCopy::Never => false,
-            StreamCopy::AnyCodec => COPIED_CODECS.contains(&codec),
-            StreamCopy::SameCodec => codec == codec_name(self.settings.codec),
-        };
-        let size = (span.probe.height, span.probe.width) == (self.shape.height, self.shape.width);
-        (kept && size && span.frames == frames.len()).then(|| span.clone())
-    }
-
-    /// The longest keyframe interval a copy of the source's stream may have (`video_gop` when
-    /// the spec sets it, else the source's own).
-    fn copy_gop(&self) -> u32 {
-        self.settings.copy_gop.unwrap_or(u32::MAX)
     }
 
     /// Writes `/videos/<camera>/copied`: per stored episode, whether its file was copied; and
@@ -218,7 +194,7 @@ impl VideoChannel {
         let group = self
             .copied
             .file()?
-            .group(&format!("videos/{}", self.name))?;
+            .group(&format!("videos/{}", self.camera.name))?;
         let stored = match (copied.iter().all(|&c| c == 1), copied.contains(&1)) {
             (true, _) if !copied.is_empty() => "copied",
             (_, true) => "mixed",
@@ -245,147 +221,5 @@ impl VideoChannel {
     /// The dataset `/videos/<camera>/frames`.
     pub(super) fn dataset(&self) -> Dataset {
         self.frames.clone()
-    }
-}
-
-/// One episode's file being written: (frames written, whether they were copied).
-struct Running {
-    path: PathBuf,
-    frames: u64,
-    /// (channel position, episode id).
-    of: (usize, u64),
-    thread: JoinHandle<Result<(u64, bool)>>,
-}
-
-/// The episodes being copied or encoded, oldest first; at most `limit` at a time.
-pub(super) struct Encoders {
-    dir: PathBuf,
-    limit: usize,
-    running: VecDeque<Running>,
-    /// Per (channel position, episode id) written: whether its file was copied.
-    copied: BTreeMap<(usize, u64), bool>,
-    /// Why copies were refused, with the episodes.
-    refusals: BTreeMap<(usize, String), Vec<u64>>,
-    /// Per channel position, the codec of the streams copied.
-    codecs: BTreeMap<usize, String>,
-}
-
-impl Encoders {
-    pub(super) fn new(dir: &Path) -> Encoders {
-        Encoders {
-            dir: dir.to_path_buf(),
-            limit: rayon::current_num_threads().max(1),
-            running: VecDeque::new(),
-            copied: BTreeMap::new(),
-            refusals: BTreeMap::new(),
-            codecs: BTreeMap::new(),
-        }
-    }
-
-    /// Starts writing episode `id`'s frames of `channel` (position `at`), copied from the
-    /// source or encoded, waiting for the oldest writer first when `limit` are running.
-    pub(super) fn start(
-        &mut self,
-        (at, channel): (usize, &VideoChannel),
-        id: u64,
-        frames: &Frames,
-    ) -> Result<()> {
-        while self.running.len() >= self.limit {
-            self.wait_oldest()?;
-        }
-        let path = self.dir.join(episode_path(&channel.name, id));
-        let (shape, settings) = (channel.shape, channel.settings);
-        // A copy reads packets, not pixels: it runs here, and only a refused one keeps a copy
-        // of the episode's frames for its encoder (an episode of 640x480 frames is 400 MB).
-        if let Some(span) = channel.to_copy(frames) {
-            match video_copy::copy(&span, &path, shape.fps, channel.copy_gop())? {
-                CopyOutcome::Copied(n) => {
-                    self.copied.insert((at, id), true);
-                    self.codecs.insert(at, span.probe.codec.clone());
-                    if n != frames.len() as u64 {
-                        return Err(Error::Internal(format!(
-                            "{}: {n} frames copied, {} expected",
-                            path.display(),
-                            frames.len()
-                        )));
-                    }
-                    return Ok(());
-                }
-                CopyOutcome::Refused(why) => {
-                    self.refusals.entry((at, why)).or_default().push(id);
-                }
-            }
-        }
-        let pixels = frames.bytes().to_vec();
-        let file = path.clone();
-        let thread = std::thread::Builder::new()
-            .name("chunkc-video".into())
-            .spawn(move || {
-                let mut stream = VideoStream::create(&file, shape, settings)?;
-                stream.push_all(&pixels)?;
-                Ok((stream.finish()?, false))
-            })
-            .map_err(|e| Error::Internal(format!("cannot start a video encoder thread: {e}")))?;
-        self.running.push_back(Running {
-            path,
-            frames: frames.len() as u64,
-            of: (at, id),
-            thread,
-        });
-        Ok(())
-    }
-
-    fn wait_oldest(&mut self) -> Result<()> {
-        let Some(Running {
-            path,
-            frames: want,
-            of,
-            thread,
-        }) = self.running.pop_front()
-        else {
-            return Ok(());
-        };
-        let (got, copied) = thread.join().map_err(|_| {
-            Error::Internal(format!("the encoder of {} panicked", path.display()))
-        })??;
-        self.copied.insert(of, copied);
-        if got != want {
-            return Err(Error::Internal(format!(
-                "{}: {got} frames encoded, {want} expected",
-                path.display()
-            )));
-        }
-        Ok(())
-    }
-
-    /// Waits for every file to be complete.
-    pub(super) fn finish(&mut self) -> Result<()> {
-        while !self.running.is_empty() {
-            self.wait_oldest()?;
-        }
-        Ok(())
-    }
-
-    /// The codec of the streams copied for the channel at position `at`, if any was.
-    pub(super) fn copied_codec(&self, at: usize) -> Option<&str> {
-        self.codecs.get(&at).map(String::as_str)
-    }
-
-    /// Why copies of the channel at position `at` were refused: one line per reason, with its
-    /// episodes.
-    pub(super) fn refusals(&self, at: usize) -> Vec<String> {
-        self.refusals
-            .iter()
-            .filter(|((a, _), _)| *a == at)
-            .map(|((_, why), ids)| {
-                let ids: Vec<String> = ids.iter().map(u64::to_string).collect();
-                format!("{why}: episodes {}", ids.join(", "))
-            })
-            .collect()
-    }
-
-    /// Whether episode `id`'s file of the channel at position `at` was copied.
-    pub(super) fn copied(&self, at: usize, id: u64) -> bool {
-        self.copied.get(&(at, id)).copied().unwrap_or(false)
     }
 }

@@ -34,48 +34,41 @@
 //! (`videos/<channel>/{chunk_index, file_index, from_timestamp, to_timestamp}`), as LeRobot's
 //! own writer does.
 
-use std::fs::File;
-use std::path::PathBuf;
 use std::sync::Arc;
 
 use arrow_array::builder::{ListBuilder, StringBuilder};
-use arrow_array::{ArrayRef, Float32Array, RecordBatch, StringArray};
+use arrow_array::{ArrayRef, RecordBatch, StringArray};
 use arrow_schema::{DataType, Field, Schema};
-use parquet::arrow::ArrowWriter;
-use parquet::basic::{Compression as PqCompression, ZstdLevel};
-use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use serde_json::{json, Value};
 
-use super::lerobot_columns::{
-    err, i64_col, image_fields, lowdim_column, lowdim_type, video_shape, CREATED_BY,
-};
+use super::lerobot_columns::{err, i64_col, Channel};
+use super::lerobot_features::features;
+use super::lerobot_files::DatasetFiles;
+use super::lerobot_rows::{DataTable, EpisodeRows};
 use super::lerobot_spill::{FrameSpill, SpillReader};
 pub use super::lerobot_tasks::tasks_table;
 use super::lerobot_tasks::Tasks;
-use super::video_encode::{self, Background};
+use super::lerobot_v3_videos::V3Videos;
 use super::{FrameEncoding, Frames, Sink, SinkContext, Split, WindowIndex};
-use crate::error::{Error, IoContext, Result};
+use crate::error::{Error, Result};
 use crate::source::ChannelKind;
-use crate::spec::{Compression, VideoSettings};
 use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
 
 pub const DATA_PATH: &str = crate::spec::OutputFormat::Parquet.files().data;
 pub const INDEX_FILE: &str = "chunkc_index.parquet";
 pub const STATS_PATH: &str = "meta/stats.json";
-const DEFAULT_ZSTD_LEVEL: u32 = 3;
 /// LeRobot's `video_path` template (v3.0).
 pub const VIDEO_PATH: &str = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4";
 
-/// Where camera `name`'s video goes (the one file of [`VIDEO_PATH`] chunkc writes).
+/// Where camera `name`'s video goes (the one file of [`VIDEO_PATH`] chunkc writes by default).
 pub fn video_file(name: &str) -> String {
-    format!("videos/{name}/chunk-000/file-000.mp4")
+    super::lerobot_v3_videos::shared_file(name)
 }
 
 pub struct LerobotWriter {
-    dir: PathBuf,
+    files: DatasetFiles,
     fps: f64,
-    props: WriterProperties,
     ends: Vec<u64>,
     ids: Vec<u64>,
     /// A mixture's: each stored episode's source, the `source_index` column (empty: none).
@@ -83,14 +76,12 @@ pub struct LerobotWriter {
     /// The tasks, in the order their first episode is stored, and each stored episode's.
     tasks: Tasks,
     /// Per channel: the name, its shape, its kind.
-    channels: Vec<(String, Vec<usize>, ChannelKind)>,
+    channels: Vec<Channel>,
     raw: Vec<Option<Arc<LowdimStore>>>,
     /// Per channel: its PNG frames by stored row (images stored as PNG only).
     frames: Vec<Option<FrameSpill>>,
-    /// The encoder settings when images are stored as video.
-    video: Option<VideoSettings>,
-    /// Per channel: its video encoder and the frames sent to it (images stored as video only).
-    videos: Vec<Option<(Background, usize)>>,
+    /// The cameras, when images are stored as video.
+    videos: Option<V3Videos>,
     train: Vec<[i64; 4]>,
     val: Vec<[i64; 4]>,
 }
@@ -98,7 +89,7 @@ pub struct LerobotWriter {
 impl LerobotWriter {
     /// Whether channels of `kind` are stored as video.
     fn is_video(&self, kind: ChannelKind) -> bool {
-        kind == ChannelKind::Image && self.video.is_some()
+        kind == ChannelKind::Image && self.videos.is_some()
     }
 
     /// The channels stored as video: (name, shape).
@@ -111,47 +102,19 @@ impl LerobotWriter {
 
     pub fn create(ctx: &SinkContext) -> Result<Self> {
         let v = &ctx.profile.values;
-        let compression = match v.compression {
-            Compression::None => PqCompression::UNCOMPRESSED,
-            _ => PqCompression::ZSTD(
-                ZstdLevel::try_new(v.compression_level.unwrap_or(DEFAULT_ZSTD_LEVEL) as i32)
-                    .map_err(err)?,
-            ),
-        };
-        let props = WriterProperties::builder()
-            .set_created_by(CREATED_BY.into())
-            .set_compression(compression)
-            .set_dictionary_enabled(false)
-            .set_statistics_enabled(EnabledStatistics::Chunk)
-            .set_max_row_group_row_count(None)
-            .set_max_row_group_bytes(None)
-            .build();
-        let channels: Vec<(String, Vec<usize>, ChannelKind)> = ctx
+        let files = DatasetFiles::new(ctx.dir, v.compression, v.compression_level)?;
+        let channels: Vec<Channel> = ctx
             .profile
             .channels
             .iter()
             .map(|c| (c.name.clone(), c.shape.clone(), c.kind))
             .collect();
         let steps = *ctx.episode_ends.last().unwrap_or(&0) as usize;
-        let video = v.video();
-        let videos = channels
-            .iter()
-            .map(|(name, shape, kind)| match (kind, video) {
-                (ChannelKind::Image, Some(settings)) => {
-                    let shape = video_shape(name, shape, ctx.profile.fps)?;
-                    let path = ctx.dir.join(video_file(name));
-                    if let Some(parent) = path.parent() {
-                        std::fs::create_dir_all(parent).at("create", parent)?;
-                    }
-                    Ok(Some((Background::spawn(&path, shape, settings)?, 0)))
-                }
-                _ => Ok(None),
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let videos = V3Videos::create(ctx, &channels)?;
+        let video = videos.is_some();
         Ok(LerobotWriter {
-            dir: ctx.dir.to_path_buf(),
+            files,
             fps: ctx.profile.fps,
-            props,
             ends: ctx.episode_ends.to_vec(),
             ids: ctx.episode_ids.to_vec(),
             sources: ctx.episode_sources.to_vec(),
@@ -161,14 +124,13 @@ impl LerobotWriter {
                 .iter()
                 .enumerate()
                 .map(|(c, (_, _, k))| match k {
-                    ChannelKind::Image if video.is_none() => {
+                    ChannelKind::Image if !video => {
                         let file = format!("{}-frames-{c}", ctx.profile.name);
                         FrameSpill::create(ctx.scratch.join(file), steps).map(Some)
                     }
                     _ => Ok(None),
                 })
                 .collect::<Result<_>>()?,
-            video,
             videos,
             channels,
             train: Vec::new(),
@@ -176,111 +138,37 @@ impl LerobotWriter {
         })
     }
 
-    /// Writes `batches` as they come, one row group each.
-    fn write_parquet(
-        &self,
-        rel: &str,
-        schema: Arc<Schema>,
-        batches: impl IntoIterator<Item = Result<RecordBatch>>,
-    ) -> Result<()> {
-        let path = self.dir.join(rel);
-        if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent).at("create", parent)?;
+    /// The data table's layout.
+    fn table(&self) -> DataTable<'_> {
+        DataTable {
+            channels: &self.channels,
+            video: self.videos.is_some(),
+            fps: self.fps,
+            mixture: !self.sources.is_empty(),
         }
-        let file = File::create(&path).at("create", &path)?;
-        let mut w = ArrowWriter::try_new(file, schema, Some(self.props.clone())).map_err(err)?;
-        for b in batches {
-            w.write(&b?).map_err(err)?;
-            // One row group per batch.
-            w.flush().map_err(err)?;
-        }
-        w.close().map_err(err)?;
-        Ok(())
-    }
-
-    fn write_json(&self, rel: &str, value: &Value) -> Result<()> {
-        let path = self.dir.join(rel);
-        if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent).at("create", parent)?;
-        }
-        let mut text = serde_json::to_string_pretty(value).expect("JSON serializes");
-        text.push('\n');
-        std::fs::write(&path, text).at("write", &path)
     }
 
     fn data(&mut self) -> Result<()> {
-        let mut fields = Vec::new();
-        for (name, shape, kind) in &self.channels {
-            if self.is_video(*kind) {
-                continue;
-            }
-            let dt = match kind {
-                ChannelKind::Lowdim => lowdim_type(shape),
-                ChannelKind::Image => DataType::Struct(image_fields()),
-            };
-            fields.push(Field::new(name, dt, false));
-        }
-        for (name, dt) in [
-            ("timestamp", DataType::Float32),
-            ("frame_index", DataType::Int64),
-            ("episode_index", DataType::Int64),
-            ("index", DataType::Int64),
-            ("task_index", DataType::Int64),
-        ] {
-            fields.push(Field::new(name, dt, false));
-        }
-        if !self.sources.is_empty() {
-            fields.push(Field::new("source_index", DataType::Int64, false));
-        }
-        let schema = Arc::new(Schema::new(fields));
         let mut frames: Vec<Option<SpillReader>> = std::mem::take(&mut self.frames)
             .into_iter()
             .map(|f| f.map(FrameSpill::into_reader).transpose())
             .collect::<Result<_>>()?;
-        let this = &*self;
+        let table = self.table();
+        let schema = table.schema();
         let mut start = 0usize;
-        let batches = this.ends.iter().enumerate().map(|(e, &end)| {
-            let (lo, hi) = (start, end as usize);
-            start = hi;
-            let mut cols: Vec<ArrayRef> = Vec::new();
-            for ((name, shape, kind), (raw, frames)) in this
-                .channels
-                .iter()
-                .zip(this.raw.iter().zip(frames.iter_mut()))
-            {
-                if this.is_video(*kind) {
-                    continue;
-                }
-                match (kind, frames) {
-                    (ChannelKind::Lowdim, _) => {
-                        let raw = raw
-                            .as_ref()
-                            .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
-                        cols.push(lowdim_column(raw.rows(lo, hi)?.into_owned(), shape)?);
-                    }
-                    (ChannelKind::Image, Some(frames)) => {
-                        cols.push(Arc::new(frames.next(hi - lo, name)?));
-                    }
-                    (ChannelKind::Image, None) => {
-                        return Err(Error::Internal(format!("no frames of {name}")));
-                    }
-                }
-            }
-            let n = hi - lo;
-            cols.push(Arc::new(Float32Array::from_iter_values(
-                (0..n).map(|i| (i as f64 / this.fps) as f32),
-            )));
-            cols.push(i64_col((0..n).map(|i| i as i64)));
-            cols.push(i64_col((0..n).map(|_| this.ids[e] as i64)));
-            cols.push(i64_col((lo..hi).map(|i| i as i64)));
-            let task = this.tasks.of_episode[e] as i64;
-            cols.push(i64_col((0..n).map(|_| task)));
-            if let Some(&source) = this.sources.get(e) {
-                cols.push(i64_col((0..n).map(|_| source as i64)));
-            }
-            RecordBatch::try_new(schema.clone(), cols).map_err(err)
+        let batches = self.ends.iter().enumerate().map(|(e, &end)| {
+            let rows = start..end as usize;
+            start = rows.end;
+            let ep = EpisodeRows {
+                first_index: rows.start as i64,
+                rows,
+                episode_index: self.ids[e] as i64,
+                task: self.tasks.of_episode[e] as i64,
+                source: self.sources.get(e).copied(),
+            };
+            table.batch(&schema, &self.raw, &mut frames, &ep)
         });
-        this.write_parquet(DATA_PATH, schema.clone(), batches)
+        self.files.parquet(DATA_PATH, schema.clone(), batches)
     }
 
     fn episodes(&self) -> Result<()> {
@@ -328,81 +216,43 @@ impl LerobotWriter {
             i64_col((0..n).map(|_| 0)),
             i64_col((0..n).map(|_| 0)),
         ];
-        // Every camera's file holds every stored row, row `i` at `i / fps`.
-        let seconds = |rows: &[i64]| -> ArrayRef {
-            Arc::new(arrow_array::Float64Array::from_iter_values(
-                rows.iter().map(|&r| r as f64 / self.fps),
-            ))
-        };
-        let ends: Vec<i64> = self.ends.iter().map(|&e| e as i64).collect();
-        for _ in self.video_channels() {
-            cols.push(i64_col((0..n).map(|_| 0)));
-            cols.push(i64_col((0..n).map(|_| 0)));
-            cols.push(seconds(&starts));
-            cols.push(seconds(&ends));
+        // Where each episode's frames are in its camera's file(s).
+        if let Some(videos) = &self.videos {
+            let at: Vec<(i64, i64, f64, f64)> =
+                (0..n).map(|e| videos.location(e, self.fps)).collect();
+            let seconds = |f: fn(&(i64, i64, f64, f64)) -> f64| -> ArrayRef {
+                Arc::new(arrow_array::Float64Array::from_iter_values(
+                    at.iter().map(f),
+                ))
+            };
+            for _ in self.video_channels() {
+                cols.push(i64_col(at.iter().map(|a| a.0)));
+                cols.push(i64_col(at.iter().map(|a| a.1)));
+                cols.push(seconds(|a| a.2));
+                cols.push(seconds(|a| a.3));
+            }
         }
         let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
-        self.write_parquet(
+        self.files.parquet(
             "meta/episodes/chunk-000/file-000.parquet",
             schema,
             [Ok(batch)],
         )?;
 
         let (schema, batch) = tasks_table(&self.tasks.names)?;
-        self.write_parquet("meta/tasks.parquet", schema, [Ok(batch)])
+        self.files
+            .parquet("meta/tasks.parquet", schema, [Ok(batch)])
     }
 
     fn info(&self) -> Result<()> {
-        let mut features = serde_json::Map::new();
-        for (name, shape, kind) in &self.channels {
-            if let (true, Some(video)) = (self.is_video(*kind), self.video) {
-                let info = json!({
-                    "video.height": shape[0],
-                    "video.width": shape[1],
-                    "video.codec": video_encode::codec_name(video.codec),
-                    "video.pix_fmt": video_encode::PIX_FMT,
-                    "video.is_depth_map": false,
-                    "video.fps": self.fps.round() as u64,
-                    "video.channels": shape[2],
-                    "has_audio": false,
-                });
-                features.insert(
-                    name.clone(),
-                    json!({"dtype": "video", "shape": shape,
-                           "names": ["height", "width", "channels"], "info": info}),
-                );
-                continue;
+        let video_info = |name: &str, shape: &[usize]| {
+            let c = self.channels.iter().position(|(n, ..)| n == name);
+            match (&self.videos, c) {
+                (Some(videos), Some(c)) => videos.info(&self.files.dir, c, shape, self.fps),
+                _ => Value::Null,
             }
-            let dtype = match kind {
-                ChannelKind::Lowdim => "float32",
-                ChannelKind::Image => "image",
-            };
-            let shape = if shape.is_empty() {
-                vec![1]
-            } else {
-                shape.clone()
-            };
-            features.insert(
-                name.clone(),
-                json!({"dtype": dtype, "shape": shape, "names": null}),
-            );
-        }
-        for (name, dtype) in [
-            ("timestamp", "float32"),
-            ("frame_index", "int64"),
-            ("episode_index", "int64"),
-            ("index", "int64"),
-            ("task_index", "int64"),
-            ("source_index", "int64"),
-        ] {
-            if name == "source_index" && self.sources.is_empty() {
-                continue;
-            }
-            features.insert(
-                name.into(),
-                json!({"dtype": dtype, "shape": [1], "names": null}),
-            );
-        }
+        };
+        let features = features(&self.table(), false, video_info);
         let n = self.ends.len();
         let video_path = self
             .video_channels()
@@ -422,7 +272,7 @@ impl LerobotWriter {
             "video_path": video_path,
             "features": Value::Object(features),
         });
-        self.write_json("meta/info.json", &doc)
+        self.files.json("meta/info.json", &doc)
     }
 
     fn chunkc_index(&self) -> Result<()> {
@@ -446,7 +296,7 @@ impl LerobotWriter {
             cols.push(i64_col(rows.iter().map(|(_, r)| r[k])));
         }
         let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
-        self.write_parquet(INDEX_FILE, schema, [Ok(batch)])
+        self.files.parquet(INDEX_FILE, schema, [Ok(batch)])
     }
 }
 
@@ -456,7 +306,7 @@ impl Sink for LerobotWriter {
     }
 
     fn frame_encoding(&self) -> FrameEncoding {
-        match self.video {
+        match self.videos {
             Some(_) => FrameEncoding::Raw,
             None => FrameEncoding::Png,
         }
@@ -467,17 +317,8 @@ impl Sink for LerobotWriter {
     }
 
     fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
-        if let Some((encoder, sent)) = self.videos[channel].as_mut() {
-            if *sent != row {
-                return Err(Error::Internal(format!(
-                    "frames out of order: row {row}, have {sent}"
-                )));
-            }
-            *sent += frames.len();
-            let name = &self.channels[channel].0;
-            return encoder
-                .push(frames.bytes().to_vec())
-                .map_err(|e| Error::output(format!("channel `{name}`, rows from {row}: {e}")));
+        if let Some(videos) = self.videos.as_mut().filter(|v| v.has(channel)) {
+            return videos.push(channel, row, frames);
         }
         let spill = self.frames[channel]
             .as_mut()
@@ -509,19 +350,8 @@ impl Sink for LerobotWriter {
     }
 
     fn finish(mut self: Box<Self>) -> Result<()> {
-        let rows = self.ends.last().copied().unwrap_or(0);
-        for (c, video) in self.videos.iter_mut().enumerate() {
-            if let Some((encoder, sent)) = video.as_mut() {
-                let name = &self.channels[c].0;
-                let written = encoder
-                    .finish()
-                    .map_err(|e| Error::output(format!("channel `{name}`: {e}")))?;
-                if written != rows || *sent as u64 != rows {
-                    return Err(Error::Internal(format!(
-                        "video of `{name}` has {written} frames for {rows} rows"
-                    )));
-                }
-            }
+        if let Some(videos) = self.videos.as_mut() {
+            videos.finish()?;
         }
         self.data()?;
         self.episodes()?;

@@ -8,6 +8,10 @@ use arrow_schema::{DataType, Field, Fields};
 
 use super::video_encode::StreamShape;
 use crate::error::{Error, Result};
+use crate::source::ChannelKind;
+
+/// A channel as the LeRobot exports see it: its name, per-step shape and kind.
+pub(super) type Channel = (String, Vec<usize>, ChannelKind);
 
 /// The `created_by` of every parquet file chunkc writes.
 pub(super) const CREATED_BY: &str = "chunkc";

@@ -13,11 +13,20 @@
 //! - `hdf5_native`: the writer path `act_episodes` and `robomimic` share.
 //! - `hdf5_rows`: rows written into an HDF5 dataset (every HDF5 writer).
 //! - `lerobot`: a LeRobot v3.0 parquet dataset + the window index (raw values); its arrow
-//!   columns (`lerobot_columns`), the frames spilled until their row groups (`lerobot_spill`)
-//!   and its tasks (`lerobot_tasks`).
+//!   columns (`lerobot_columns`), the rows of a data file (`lerobot_rows`), `info.json`'s
+//!   features (`lerobot_features`), how its files are written (`lerobot_files`), the frames
+//!   spilled until their row groups (`lerobot_spill`) and its tasks (`lerobot_tasks`).
+//! - `lerobot_v21`: a LeRobot v2.1 dataset (`lerobot_version = "v2.1"`): a parquet file and a
+//!   video per episode, the validation episodes a second dataset in `val/`; its layout and
+//!   `meta/` files (`lerobot_v21_meta`), its per-episode statistics (`lerobot_episode_stats`).
+//! - `lerobot_cameras`: how either LeRobot export encodes (or copies) a camera's video;
+//!   `lerobot_v3_videos`: v3.0's video files (one of every episode, or one per episode).
 //! - `png`: the PNG encoding of frames that `lerobot` stores.
 //! - `video_copy`: a source video's packets copied as an episode's file (`hdf5_video`), where
 //!   the frames are the video's own.
+//! - `video_episodes`: one video per episode and camera, copied or encoded (`hdf5_video`, the
+//!   LeRobot v2.1 export).
+//! - `video_info`: the codec and pixel format of an mp4 written (LeRobot's `info` block).
 //! - `video_encode`: camera frames as mp4 video (SVT-AV1/x264), what `lerobot` stores with
 //!   `image_encoding = "video"` and `chunkc synth --format lerobot` writes.
 //! - `robomimic`: robomimic's `data.hdf5` with `data/demo_<i>` (raw values).
@@ -41,9 +50,17 @@ mod hdf5_rows;
 pub mod hdf5_video;
 pub mod jpeg;
 pub mod lerobot;
+mod lerobot_cameras;
 mod lerobot_columns;
+mod lerobot_episode_stats;
+mod lerobot_features;
+mod lerobot_files;
+mod lerobot_rows;
 mod lerobot_spill;
 mod lerobot_tasks;
+pub mod lerobot_v21;
+pub mod lerobot_v21_meta;
+pub mod lerobot_v3_videos;
 mod meta_sources;
 pub mod png;
 pub mod robomimic;
@@ -51,6 +68,8 @@ mod shapes;
 mod source_marks;
 pub mod video_copy;
 pub mod video_encode;
+mod video_episodes;
+pub mod video_info;
 pub mod zarr;
 mod zarr_store;
 
@@ -296,6 +315,9 @@ pub fn create(ctx: &SinkContext) -> Result<Box<dyn Sink>> {
         OutputFormat::Hdf5 => Ok(Box::new(hdf5::Hdf5Writer::create(ctx)?)),
         OutputFormat::Zarr => Ok(Box::new(zarr::ZarrWriter::create(ctx)?)),
         OutputFormat::ActEpisodes => Ok(Box::new(act_episodes::ActEpisodesWriter::create(ctx)?)),
+        OutputFormat::Parquet if ctx.profile.writes_lerobot_v21() => {
+            Ok(Box::new(lerobot_v21::LerobotV21Writer::create(ctx)?))
+        }
         OutputFormat::Parquet => Ok(Box::new(lerobot::LerobotWriter::create(ctx)?)),
         OutputFormat::RobomimicHdf5 => Ok(Box::new(robomimic::RobomimicWriter::create(ctx)?)),
     }

@@ -718,18 +718,29 @@ pub struct ProfileSpec {
     /// `image_compression = "video"` (see `video-storage.md`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub video_gop: Option<u32>,
-    /// Whether hdf5's `image_compression = "video"` copies a source video's packets into an
+    /// Whether a video stored one file per episode copies a source video's packets into an
     /// episode's file instead of encoding its frames again, where the profile keeps the video
     /// as it is: the source's rate, no `cameras` resize, rows that are the video's own frames,
     /// an episode that starts on a keyframe, keyframes at most `video_gop` frames apart, and the
-    /// codec of `video_codec` when that is given. Default true: the stored video is the source's
-    /// bytes, with no second generation of compression loss. `false` encodes every episode.
+    /// codec of `video_codec` when that is given. hdf5's `image_compression = "video"` and
+    /// parquet's `lerobot_version = "v2.1"`: default true (the stored video is the source's
+    /// bytes, with no second generation of compression loss); `false` encodes every episode.
+    /// Parquet's LeRobot v3.0: default false (one encoded file of every episode per camera, as
+    /// LeRobot records); `true` writes one file per episode, copied where it can be.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub video_copy: Option<bool>,
     /// Zarr format version of `format = "zarr"`: 2 (default; what Diffusion Policy's
     /// `ReplayBuffer` opens) or 3.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub zarr_version: Option<u32>,
+    /// LeRobot dataset version of `format = "parquet"`: `"v3.0"` (default; what LeRobot >= 0.4
+    /// reads: one data file of every episode) or `"v2.1"` (what openpi's pinned lerobot, PyPI
+    /// lerobot <= 0.3.3, GR00T and most VLA repositories read: one parquet file and one mp4 per
+    /// episode, `meta/*.jsonl`). A v2.1 profile folder is the dataset root and holds the training
+    /// episodes; the validation episodes are a second v2.1 dataset in its `val/` folder. See
+    /// `formats.md`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lerobot_version: Option<LerobotVersion>,
     /// Statistics files in target codebases' own formats, written beside `stats.json`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stats_formats: Option<Vec<StatsFormat>>,
@@ -1144,6 +1155,29 @@ impl ImageEncoding {
     }
 }
 
+/// The LeRobot dataset layout `format = "parquet"` writes (see `lerobot_version`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+pub enum LerobotVersion {
+    /// One parquet file and one mp4 per camera per episode, `meta/*.jsonl` (LeRobot <= 0.3.3,
+    /// openpi, GR00T).
+    #[serde(rename = "v2.1")]
+    V21,
+    /// Many episodes per file, `meta/episodes/*.parquet` (LeRobot >= 0.4).
+    #[default]
+    #[serde(rename = "v3.0")]
+    V30,
+}
+
+impl LerobotVersion {
+    /// As written in the spec and in `meta/info.json`'s `codebase_version`.
+    pub fn name(self) -> &'static str {
+        match self {
+            LerobotVersion::V21 => "v2.1",
+            LerobotVersion::V30 => "v3.0",
+        }
+    }
+}
+
 /// The video encoder of `image_encoding = "video"`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
@@ -1152,6 +1186,10 @@ pub enum VideoCodec {
     Libsvtav1,
     /// H.264 with x264.
     Libx264,
+    /// MPEG-4 Part 2 with FFmpeg's own encoder. Not a value of `video_codec`: chunkc encodes a
+    /// LeRobot camera too small for SVT-AV1 with it where it has no x264 (the wheel).
+    #[serde(skip)]
+    Mpeg4,
 }
 
 impl VideoCodec {
@@ -1160,14 +1198,16 @@ impl VideoCodec {
         match self {
             VideoCodec::Libsvtav1 => "libsvtav1",
             VideoCodec::Libx264 => "libx264",
+            VideoCodec::Mpeg4 => "mpeg4",
         }
     }
 
-    /// The largest constant rate factor the encoder takes.
+    /// The largest constant rate factor the encoder takes (MPEG-4's fixed quantizer).
     pub fn max_crf(self) -> u32 {
         match self {
             VideoCodec::Libsvtav1 => 63,
             VideoCodec::Libx264 => 51,
+            VideoCodec::Mpeg4 => 31,
         }
     }
 }

@@ -14,6 +14,7 @@ use super::preset::{self, ExpandError, Profile};
 
 mod export_names;
 mod frames;
+mod lerobot_version;
 mod mixture;
 
 /// Checks the spec and expands its profiles (in name order).
@@ -344,6 +345,7 @@ impl Checker<'_> {
             Ok(expanded) => {
                 self.output_options(name, &expanded);
                 self.export_keys(name, profile, &expanded);
+                self.lerobot_version(name, profile, &expanded);
                 Some(expanded)
             }
             Err(ExpandError::Missing(missing)) => {

@@ -212,10 +212,10 @@ def test_copied_bytes_do_not_depend_on_threads_or_shards(tmp_path):
 
 @pytest.mark.parametrize("keys, message", [
     ("video_copy = false", "`video_copy` sets the video encoder, but profile `bad` stores no video"),
-    ('format = "parquet"\nimage_encoding = "video"\nvideo_copy = true',
-     "`video_copy` is for `image_compression = \"video\"` in hdf5; profile `bad` writes one LeRobot video"),
+    ('format = "parquet"\nvideo_copy = true',
+     "`video_copy` sets the video encoder, but profile `bad` stores frames as PNG"),
 ])
-def test_video_copy_outside_hdf5_video_is_a_spec_error(tmp_path, keys, message):
+def test_video_copy_without_video_is_a_spec_error(tmp_path, keys, message):
     path = spec(tmp_path, V21, f'[profiles.bad]\npreset = "diffusion_policy"\nfps = 10\n{keys}\n')
     proc = run_chunkc("build", "-q", path, check=False)
     assert proc.returncode == 2, proc.stderr

@@ -173,7 +173,7 @@ impl Lossy<'_> {
     }
 
     /// The video files of each camera stored as video: `videos/<camera>/`, one file per
-    /// episode (chunkc's HDF5) or one for every episode (LeRobot's parquet).
+    /// episode (chunkc's HDF5, LeRobot v2.1's) or one for every episode (LeRobot v3.0's).
     fn videos(&self) -> Vec<PlannedFile> {
         let p = self.p;
         let one_file = match (p.values.format, p.values.video()) {
@@ -182,7 +182,7 @@ impl Lossy<'_> {
             {
                 false
             }
-            (OutputFormat::Parquet, Some(_)) => true,
+            (OutputFormat::Parquet, Some(_)) => !p.writes_lerobot_v21(),
             _ => return Vec::new(),
         };
         p.channels
@@ -209,8 +209,14 @@ impl Lossy<'_> {
                         .sum();
                     (bytes, p.episodes.len())
                 };
+                // LeRobot v2.1's are in its chunk folders (and the validation episodes' in
+                // `val/`'s).
+                let path = match p.writes_lerobot_v21() {
+                    true => format!("videos/chunk-*/{}/", c.name),
+                    false => format!("videos/{}/", c.name),
+                };
                 PlannedFile {
-                    path: format!("videos/{}/", c.name),
+                    path,
                     estimated_bytes: bytes,
                     bound: false,
                     files: Some(count),

@@ -7,10 +7,12 @@ use std::sync::Once;
 use ff::{codec, encoder, format, frame, software::scaling, Dictionary, Packet, Rational};
 use ffmpeg_next as ff;
 
-use super::settings::{encoder_options, refusal_hint, StreamShape, MUXER_OPTIONS};
+use super::settings::{encoder_options, mpeg4_quality, refusal_hint, StreamShape, MUXER_OPTIONS};
 use crate::spec::VideoSettings;
 
 pub struct Inner {
+    /// Every frame's `quality` (a fixed quantizer's lambda; 0: the encoder decides).
+    quality: i32,
     octx: format::context::Output,
     encoder: encoder::Video,
     scaler: scaling::Context,
@@ -92,6 +94,7 @@ impl Inner {
         )
         .map_err(e("cannot convert RGB24 to yuv420p"))?;
         Ok(Inner {
+            quality: mpeg4_quality(&s),
             octx,
             encoder,
             scaler,
@@ -113,6 +116,10 @@ impl Inner {
             .run(&self.rgb, &mut self.yuv)
             .map_err(|e| format!("converting a frame to yuv420p: {e}"))?;
         self.yuv.set_pts(Some(pts));
+        if self.quality > 0 {
+            // As FFmpeg's own `-q:v` does: the quantizer of every frame.
+            unsafe { (*self.yuv.as_mut_ptr()).quality = self.quality };
+        }
         self.encoder
             .send_frame(&self.yuv)
             .map_err(|e| format!("encoding frame {pts}: {e}"))?;
@@ -181,6 +188,11 @@ fn open_encoder(
     // from there reports missing references).
     if s.closed_gop {
         flags |= codec::Flags::CLOSED_GOP;
+    }
+    let quality = mpeg4_quality(s);
+    if quality > 0 {
+        flags |= codec::Flags::QSCALE;
+        enc.set_global_quality(quality);
     }
     enc.set_flags(flags);
     let mut opts = Dictionary::new();

@@ -11,6 +11,7 @@ pub fn codec_name(codec: VideoCodec) -> &'static str {
     match codec {
         VideoCodec::Libsvtav1 => "av1",
         VideoCodec::Libx264 => "h264",
+        VideoCodec::Mpeg4 => "mpeg4",
     }
 }
 
@@ -56,8 +57,13 @@ impl StreamShape {
 /// those instruction sets (its `asm` option; `0`: none), as a machine without the others would.
 #[cfg(feature = "video")]
 pub(super) fn encoder_options(s: &VideoSettings, asm: Option<&str>) -> Vec<(&'static str, String)> {
-    let mut opts = vec![("crf", s.crf.to_string())];
+    let mut opts = vec![];
+    if s.codec != VideoCodec::Mpeg4 {
+        opts.push(("crf", s.crf.to_string()));
+    }
     match s.codec {
+        // A fixed quantizer instead ([`mpeg4_quality`]): MPEG-4 Part 2 has no constant rate factor.
+        VideoCodec::Mpeg4 => {}
         VideoCodec::Libsvtav1 => {
             opts.push(("preset", SVTAV1_PRESET.to_string()));
             // One thread, no core pinning: the same decisions on every run.
@@ -73,6 +79,20 @@ pub(super) fn encoder_options(s: &VideoSettings, asm: Option<&str>) -> Vec<(&'st
         }
     }
     opts
+}
+
+/// libavcodec's `FF_QP2LAMBDA`: a quantizer as the encoder's `quality` (lambda).
+#[cfg(feature = "video")]
+const QP2LAMBDA: i32 = 118;
+
+/// Every frame's `quality` for the settings, as FFmpeg's own `-q:v` sets it: MPEG-4's fixed
+/// quantizer (the settings' `crf`, at least 1) as a lambda; 0 where the encoder decides.
+#[cfg(feature = "video")]
+pub(super) fn mpeg4_quality(s: &VideoSettings) -> i32 {
+    match s.codec {
+        VideoCodec::Mpeg4 => QP2LAMBDA * s.crf.max(1) as i32,
+        _ => 0,
+    }
 }
 
 /// The muxer's options: no library version in the file (`+bitexact`), and the index first, so

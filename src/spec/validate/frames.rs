@@ -141,13 +141,6 @@ impl Checker<'_> {
             );
             self.value(&key("video_crf"), message, "out of range", None);
         }
-        if set("video_copy") && p.format != OutputFormat::Hdf5 {
-            let message = format!(
-                "`video_copy` is for `image_compression = \"video\"` in hdf5; profile `{name}` \
-                 writes one LeRobot video of every episode per camera, always encoded"
-            );
-            self.value(&key("video_copy"), message, "only for hdf5", None);
-        }
         if video.gop == 0 {
             let message = "`video_gop` must be at least 1 (1: every frame a keyframe)".to_string();
             self.value(&key("video_gop"), message, "must be >= 1", None);

@@ -1,0 +1,163 @@
+//! How the LeRobot exports (v3.0 and v2.1) write their files: parquet with fixed writer
+//! properties (created_by, zstd level, no dictionary, chunk statistics, one row group per
+//! batch), so the bytes depend only on the contents; pretty JSON and JSON Lines.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use arrow_array::RecordBatch;
+use arrow_schema::Schema;
+use parquet::arrow::ArrowWriter;
+use parquet::basic::{Compression as PqCompression, ZstdLevel};
+use parquet::file::properties::{EnabledStatistics, WriterProperties};
+use serde_json::Value;
+
+use super::lerobot_columns::{err, CREATED_BY};
+use crate::error::{IoContext, Result};
+use crate::spec::Compression;
+
+const DEFAULT_ZSTD_LEVEL: u32 = 3;
+
+/// Writes a LeRobot dataset's files under one root directory.
+#[derive(Clone)]
+pub(super) struct DatasetFiles {
+    pub dir: PathBuf,
+    props: WriterProperties,
+}
+
+impl DatasetFiles {
+    /// Files under `dir`, parquet compressed as the profile says (`compression`, its level).
+    pub(super) fn new(dir: &Path, compression: Compression, level: Option<u32>) -> Result<Self> {
+        let compression = match compression {
+            Compression::None => PqCompression::UNCOMPRESSED,
+            _ => PqCompression::ZSTD(
+                ZstdLevel::try_new(level.unwrap_or(DEFAULT_ZSTD_LEVEL) as i32).map_err(err)?,
+            ),
+        };
+        let props = WriterProperties::builder()
+            .set_created_by(CREATED_BY.into())
+            .set_compression(compression)
+            .set_dictionary_enabled(false)
+            .set_statistics_enabled(EnabledStatistics::Chunk)
+            .set_max_row_group_row_count(None)
+            .set_max_row_group_bytes(None)
+            .build();
+        Ok(DatasetFiles {
+            dir: dir.to_path_buf(),
+            props,
+        })
+    }
+
+    /// The same writer for the dataset in the folder `sub` of this one.
+    pub(super) fn under(&self, sub: &str) -> DatasetFiles {
+        DatasetFiles {
+            dir: self.dir.join(sub),
+            props: self.props.clone(),
+        }
+    }
+
+    /// `rel` under the root, its directory created.
+    fn create(&self, rel: &str) -> Result<PathBuf> {
+        let path = self.dir.join(rel);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).at("create", parent)?;
+        }
+        Ok(path)
+    }
+
+    /// Writes `batches` as they come, one row group each.
+    pub(super) fn parquet(
+        &self,
+        rel: &str,
+        schema: Arc<Schema>,
+        batches: impl IntoIterator<Item = Result<RecordBatch>>,
+    ) -> Result<()> {
+        let path = self.create(rel)?;
+        let file = File::create(&path).at("create", &path)?;
+        let mut w = ArrowWriter::try_new(file, schema, Some(self.props.clone())).map_err(err)?;
+        for b in batches {
+            w.write(&b?).map_err(err)?;
+            // One row group per batch.
+            w.flush().map_err(err)?;
+        }
+        w.close().map_err(err)?;
+        Ok(())
+    }
+
+    /// Pretty JSON with a trailing newline.
+    pub(super) fn json(&self, rel: &str, value: &Value) -> Result<()> {
+        let path = self.create(rel)?;
+        let mut text = serde_json::to_string_pretty(value).expect("JSON serializes");
+        text.push('\n');
+        std::fs::write(&path, text).at("write", &path)
+    }
+
+    /// JSON Lines: one object a line, as LeRobot v2.1's `meta/*.jsonl` are (the `jsonlines`
+    /// package: Python's `json.dumps`, with `", "` and `": "` between items).
+    pub(super) fn jsonl(&self, rel: &str, rows: impl IntoIterator<Item = Value>) -> Result<()> {
+        let path = self.create(rel)?;
+        let mut text = Vec::new();
+        for row in rows {
+            let mut ser = serde_json::Serializer::with_formatter(&mut text, PythonStyle);
+            serde::Serialize::serialize(&row, &mut ser).expect("JSON serializes");
+            text.push(b'\n');
+        }
+        std::fs::write(&path, text).at("write", &path)
+    }
+}
+
+/// Python's `json.dumps` layout: one line, `", "` between items and `": "` after keys.
+struct PythonStyle;
+
+impl serde_json::ser::Formatter for PythonStyle {
+    fn begin_array_value<W: ?Sized + std::io::Write>(
+        &mut self,
+        w: &mut W,
+        first: bool,
+    ) -> std::io::Result<()> {
+        if first {
+            Ok(())
+        } else {
+            w.write_all(b", ")
+        }
+    }
+
+    fn begin_object_key<W: ?Sized + std::io::Write>(
+        &mut self,
+        w: &mut W,
+        first: bool,
+    ) -> std::io::Result<()> {
+        if first {
+            Ok(())
+        } else {
+            w.write_all(b", ")
+        }
+    }
+
+    fn begin_object_value<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        w.write_all(b": ")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn json_lines_are_laid_out_as_python_writes_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let files = DatasetFiles::new(dir.path(), Compression::None, None).unwrap();
+        let rows = [
+            serde_json::json!({"episode_index": 0, "tasks": ["pick", "place"], "length": 3}),
+            serde_json::json!({"task_index": 0, "task": "pick"}),
+        ];
+        files.jsonl("meta/x.jsonl", rows).unwrap();
+        let text = std::fs::read_to_string(dir.path().join("meta/x.jsonl")).unwrap();
+        assert_eq!(
+            text,
+            "{\"episode_index\": 0, \"tasks\": [\"pick\", \"place\"], \"length\": 3}\n\
+             {\"task_index\": 0, \"task\": \"pick\"}\n"
+        );
+    }
+}

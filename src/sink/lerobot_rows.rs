@@ -1,0 +1,133 @@
+//! The rows of a LeRobot data file (v3.0's shared file, v2.1's file per episode): the stored
+//! channels (a camera stored as video has no column), then LeRobot's `timestamp`,
+//! `frame_index`, `episode_index`, `index` and `task_index`, and a mixture's `source_index`.
+
+use std::ops::Range;
+use std::sync::Arc;
+
+use arrow_array::{ArrayRef, Float32Array, RecordBatch};
+use arrow_schema::{DataType, Field, Schema};
+
+use super::lerobot_columns::{err, i64_col, image_fields, lowdim_column, lowdim_type, Channel};
+use super::lerobot_spill::SpillReader;
+use crate::error::{Error, Result};
+use crate::source::ChannelKind;
+use crate::store::LowdimStore;
+
+/// LeRobot's columns after the channels, with their `info.json` dtypes.
+pub(super) const INDEX_COLUMNS: [(&str, &str); 5] = [
+    ("timestamp", "float32"),
+    ("frame_index", "int64"),
+    ("episode_index", "int64"),
+    ("index", "int64"),
+    ("task_index", "int64"),
+];
+
+/// The column of a training mixture's episodes' source.
+pub(super) const SOURCE_COLUMN: &str = "source_index";
+
+/// The layout of a data file.
+pub(super) struct DataTable<'a> {
+    pub channels: &'a [Channel],
+    /// Whether cameras are stored as video (then they have no column).
+    pub video: bool,
+    pub fps: f64,
+    /// A training mixture's (a `source_index` column).
+    pub mixture: bool,
+}
+
+/// One episode's rows: where they are in the stored arrays and the values of its index columns.
+pub(super) struct EpisodeRows {
+    /// Its stored rows.
+    pub rows: Range<usize>,
+    /// `episode_index`.
+    pub episode_index: i64,
+    /// `index` of its first row.
+    pub first_index: i64,
+    pub task: i64,
+    /// A mixture's: the episode's source.
+    pub source: Option<usize>,
+}
+
+impl DataTable<'_> {
+    /// Whether channel `kind` has a column.
+    pub(super) fn has_column(&self, kind: ChannelKind) -> bool {
+        !(self.video && kind == ChannelKind::Image)
+    }
+
+    pub(super) fn schema(&self) -> Arc<Schema> {
+        let mut fields = Vec::new();
+        for (name, shape, kind) in self.channels {
+            if !self.has_column(*kind) {
+                continue;
+            }
+            let dt = match kind {
+                ChannelKind::Lowdim => lowdim_type(shape),
+                ChannelKind::Image => DataType::Struct(image_fields()),
+            };
+            fields.push(Field::new(name, dt, false));
+        }
+        for (name, dtype) in INDEX_COLUMNS {
+            let dt = match dtype {
+                "float32" => DataType::Float32,
+                _ => DataType::Int64,
+            };
+            fields.push(Field::new(name, dt, false));
+        }
+        if self.mixture {
+            fields.push(Field::new(SOURCE_COLUMN, DataType::Int64, false));
+        }
+        Arc::new(Schema::new(fields))
+    }
+
+    /// One episode's rows as a batch of `schema`: low-dim values from `raw`, frames read on from
+    /// `frames` (per channel, the PNG frames of a camera with a column).
+    pub(super) fn batch(
+        &self,
+        schema: &Arc<Schema>,
+        raw: &[Option<Arc<LowdimStore>>],
+        frames: &mut [Option<SpillReader>],
+        ep: &EpisodeRows,
+    ) -> Result<RecordBatch> {
+        let (lo, hi) = (ep.rows.start, ep.rows.end);
+        let mut cols: Vec<ArrayRef> = Vec::new();
+        for ((name, shape, kind), (raw, frames)) in
+            self.channels.iter().zip(raw.iter().zip(frames.iter_mut()))
+        {
+            if !self.has_column(*kind) {
+                continue;
+            }
+            match (kind, frames) {
+                (ChannelKind::Lowdim, _) => {
+                    let raw = raw
+                        .as_ref()
+                        .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
+                    cols.push(lowdim_column(raw.rows(lo, hi)?.into_owned(), shape)?);
+                }
+                (ChannelKind::Image, Some(frames)) => {
+                    cols.push(Arc::new(frames.next(hi - lo, name)?));
+                }
+                (ChannelKind::Image, None) => {
+                    return Err(Error::Internal(format!("no frames of {name}")));
+                }
+            }
+        }
+        let n = hi - lo;
+        cols.push(Arc::new(Float32Array::from_iter_values(
+            (0..n).map(|i| timestamp(i, self.fps)),
+        )));
+        cols.push(i64_col((0..n).map(|i| i as i64)));
+        cols.push(i64_col((0..n).map(|_| ep.episode_index)));
+        cols.push(i64_col((0..n).map(|i| ep.first_index + i as i64)));
+        cols.push(i64_col((0..n).map(|_| ep.task)));
+        if let Some(source) = ep.source {
+            cols.push(i64_col((0..n).map(|_| source as i64)));
+        }
+        RecordBatch::try_new(schema.clone(), cols).map_err(err)
+    }
+}
+
+/// The `timestamp` of an episode's row `i`: `i / fps`, as float32.
+pub(super) fn timestamp(i: usize, fps: f64) -> f32 {
+    (i as f64 / fps) as f32
+}

@@ -1,0 +1,373 @@
+//! LeRobot v2.1's dataset layout (`format = "parquet"`, `lerobot_version = "v2.1"`): what
+//! openpi's pinned lerobot, PyPI lerobot <= 0.3.3 and GR00T read.
+//!
+//! ```text
+//! data/chunk-000/episode_000000.parquet     one file per episode (one row group): <channel>
+//!                                           columns as in v3.0 (raw), timestamp = frame_index
+//!                                           / fps, frame_index, episode_index (0..N-1 in file
+//!                                           order), index (the dataset's row), task_index;
+//!                                           a mixture's source_index; datasets' `huggingface`
+//!                                           features in the schema metadata
+//! videos/chunk-000/<camera>/episode_000000.mp4   image_encoding = "video": one frame per row,
+//!                                           frame i at i / fps, the source's packets copied
+//!                                           where they are the episode's frames unchanged
+//! meta/info.json, episodes.jsonl, tasks.jsonl, episodes_stats.jsonl   (lerobot_v21_meta)
+//! meta/stats.json                           written by `exec`: chunkc's training statistics
+//! val/…                                     the validation episodes, a v2.1 dataset of their own
+//! ```
+//! Frames arrive raw: their per-episode statistics are taken here, then they go to the
+//! episode's video (copied or encoded, [`super::video_episodes`]) or, PNG-encoded, to a scratch
+//! file until `finish` writes the episode's data file. A camera whose frames are not one per
+//! row is an error naming the camera and the episode.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use arrow_schema::Schema;
+use serde_json::{json, Value};
+
+use super::lerobot_cameras::camera;
+use super::lerobot_columns::Channel;
+use super::lerobot_episode_stats::FeatureStats;
+use super::lerobot_features::features;
+use super::lerobot_files::DatasetFiles;
+use super::lerobot_rows::{timestamp, DataTable, EpisodeRows, INDEX_COLUMNS, SOURCE_COLUMN};
+use super::lerobot_spill::{FrameSpill, SpillReader};
+use super::lerobot_tasks::Tasks;
+use super::lerobot_v21_meta::{data_file, placement, video_file, Meta, Part, PART_DIRS};
+use super::video_episodes::{Encoders, EpisodeCamera};
+use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
+use crate::error::{Error, Result};
+use crate::source::ChannelKind;
+use crate::stats::normalize::RowNormalizer;
+use crate::store::LowdimStore;
+use crate::window::Ends;
+
+pub struct LerobotV21Writer {
+    files: DatasetFiles,
+    fps: f64,
+    ends: Ends,
+    ids: Vec<u64>,
+    sources: Vec<usize>,
+    channels: Vec<Channel>,
+    raw: Vec<Option<Arc<LowdimStore>>>,
+    /// Per channel: its PNG frames by stored row (cameras stored as PNG only).
+    frames: Vec<Option<FrameSpill>>,
+    /// Per channel: the camera's videos (cameras stored as video only).
+    cameras: Vec<Option<EpisodeCamera>>,
+    encoders: Encoders,
+    /// The training dataset (the profile folder) and the validation one (`val/`).
+    parts: Vec<Part>,
+    /// Per stored episode: its part and its `episode_index` there.
+    place: Vec<(usize, usize)>,
+    /// Per stored episode, per channel: the camera's statistics over the episode's frames.
+    image_stats: Vec<BTreeMap<usize, FeatureStats>>,
+}
+
+impl LerobotV21Writer {
+    pub fn create(ctx: &SinkContext) -> Result<Self> {
+        let v = &ctx.profile.values;
+        let files = DatasetFiles::new(ctx.dir, v.compression, v.compression_level)?;
+        let channels: Vec<Channel> = ctx
+            .profile
+            .channels
+            .iter()
+            .map(|c| (c.name.clone(), c.shape.clone(), c.kind))
+            .collect();
+        let video = v.video();
+        let cameras = channels
+            .iter()
+            .map(|(name, shape, kind)| match (kind, video) {
+                (ChannelKind::Image, Some(settings)) => {
+                    let at = (name.as_str(), shape.as_slice(), ctx.profile.fps);
+                    camera(v, at, settings, true).map(Some)
+                }
+                _ => Ok(None),
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let steps = *ctx.episode_ends.last().unwrap_or(&0) as usize;
+        let frames = channels
+            .iter()
+            .enumerate()
+            .map(|(c, (_, _, k))| match k {
+                ChannelKind::Image if video.is_none() => {
+                    let file = format!("{}-frames-{c}", ctx.profile.name);
+                    FrameSpill::create(ctx.scratch.join(file), steps).map(Some)
+                }
+                _ => Ok(None),
+            })
+            .collect::<Result<_>>()?;
+        let (parts, place) = parts(ctx);
+        Ok(LerobotV21Writer {
+            files,
+            fps: ctx.profile.fps,
+            ends: Ends::new(ctx.episode_ends.to_vec()),
+            ids: ctx.episode_ids.to_vec(),
+            sources: ctx.episode_sources.to_vec(),
+            raw: channels.iter().map(|_| None).collect(),
+            frames,
+            cameras,
+            encoders: Encoders::new(ctx.dir),
+            image_stats: vec![BTreeMap::new(); ctx.episode_ids.len()],
+            channels,
+            parts,
+            place,
+        })
+    }
+
+    fn table(&self) -> DataTable<'_> {
+        DataTable {
+            channels: &self.channels,
+            video: self.cameras.iter().any(Option::is_some),
+            fps: self.fps,
+            mixture: !self.sources.is_empty(),
+        }
+    }
+
+    /// The stored episode whose rows start at `row`.
+    fn episode_at(&self, channel: usize, row: usize) -> Result<usize> {
+        let e = self.ends.partition_point(|&end| end <= row as u64);
+        match e < self.ends.len() && self.ends.start(e) == row {
+            true => Ok(e),
+            false => Err(Error::Internal(format!(
+                "channel {channel}: row {row} starts no episode"
+            ))),
+        }
+    }
+
+    /// Writes every episode's data file, in stored order; returns each episode's statistics.
+    fn data(&mut self) -> Result<Vec<Vec<(String, FeatureStats)>>> {
+        let mut frames: Vec<Option<SpillReader>> = std::mem::take(&mut self.frames)
+            .into_iter()
+            .map(|f| f.map(FrameSpill::into_reader).transpose())
+            .collect::<Result<_>>()?;
+        let table = self.table();
+        let schema = with_hf_features(&table);
+        let mut first_index = vec![0i64; self.parts.len()];
+        let mut stats = Vec::with_capacity(self.ends.len());
+        for e in 0..self.ends.len() {
+            let (p, index) = self.place[e];
+            let part = &self.parts[p];
+            let ep = EpisodeRows {
+                rows: self.ends.range(e),
+                episode_index: index as i64,
+                first_index: first_index[p],
+                task: part.tasks.of_episode[index] as i64,
+                source: self.sources.get(e).copied(),
+            };
+            first_index[p] += ep.rows.len() as i64;
+            let batch = table.batch(&schema, &self.raw, &mut frames, &ep);
+            self.files
+                .parquet(&part.path(&data_file(index)), schema.clone(), [batch])?;
+            stats.push(self.episode_stats(e, &ep)?);
+        }
+        Ok(stats)
+    }
+
+    /// Every feature's statistics over stored episode `e` (its rows `ep`), in `features` order.
+    fn episode_stats(&self, e: usize, ep: &EpisodeRows) -> Result<Vec<(String, FeatureStats)>> {
+        let mut out = Vec::new();
+        for (c, (name, shape, kind)) in self.channels.iter().enumerate() {
+            let s = match kind {
+                ChannelKind::Lowdim => {
+                    let raw = self.raw[c]
+                        .as_ref()
+                        .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
+                    FeatureStats::of_rows(&raw.rows(ep.rows.start, ep.rows.end)?, shape)
+                }
+                ChannelKind::Image => self.image_stats[e].get(&c).cloned().ok_or_else(|| {
+                    Error::Internal(format!("no frames of {name} in episode {}", self.ids[e]))
+                })?,
+            };
+            out.push((name.clone(), s));
+        }
+        let n = ep.rows.len();
+        let constant = |v: i64| vec![v as f64; n];
+        let columns: [Vec<f64>; 5] = [
+            (0..n).map(|i| f64::from(timestamp(i, self.fps))).collect(),
+            (0..n).map(|i| i as f64).collect(),
+            constant(ep.episode_index),
+            (0..n).map(|i| (ep.first_index + i as i64) as f64).collect(),
+            constant(ep.task),
+        ];
+        for ((name, dtype), values) in INDEX_COLUMNS.iter().zip(&columns) {
+            let integer = *dtype == "int64";
+            out.push((name.to_string(), FeatureStats::of_column(values, integer)));
+        }
+        if let Some(source) = ep.source {
+            let values = constant(source as i64);
+            out.push((SOURCE_COLUMN.into(), FeatureStats::of_column(&values, true)));
+        }
+        Ok(out)
+    }
+
+    /// The `info` block of camera `name` in `part`: what its first episode's file holds.
+    fn video_info(&self, part: &Part, name: &str, shape: &[usize]) -> Value {
+        let (codec, pix_fmt) = part
+            .episodes
+            .first()
+            .and_then(|_| {
+                let path = self.files.dir.join(part.path(&video_file(name, 0)));
+                super::video_info::stream_format(&path).ok()
+            })
+            .unwrap_or_else(|| ("unknown".into(), "unknown".into()));
+        json!({
+            "video.height": shape[0],
+            "video.width": shape[1],
+            "video.codec": codec,
+            "video.pix_fmt": pix_fmt,
+            "video.is_depth_map": false,
+            "video.fps": self.fps.round() as u64,
+            "video.channels": shape[2],
+            "has_audio": false,
+        })
+    }
+}
+
+/// The training episodes (the profile folder) and the validation ones (`val/`), each with its
+/// tasks; per stored episode, its part and `episode_index`.
+fn parts(ctx: &SinkContext) -> (Vec<Part>, Vec<(usize, usize)>) {
+    let val: std::collections::BTreeSet<u64> = ctx
+        .profile
+        .episodes
+        .iter()
+        .filter(|e| e.split != "train")
+        .map(|e| e.id)
+        .collect();
+    let place = placement(ctx.episode_ids, |id| val.contains(&id));
+    let parts = PART_DIRS
+        .iter()
+        .enumerate()
+        .map(|(p, &dir)| {
+            let episodes: Vec<usize> = (0..place.len()).filter(|&e| place[e].0 == p).collect();
+            let ids: Vec<u64> = episodes.iter().map(|&e| ctx.episode_ids[e]).collect();
+            Part {
+                dir,
+                tasks: Tasks::of(&ids, ctx.tasks),
+                episodes,
+            }
+        })
+        .collect();
+    (parts, place)
+}
+
+/// The data files' schema: nullable columns, as `datasets` writes them, with its features in
+/// the `huggingface` metadata, so that lerobot 0.3.3 (which reads the files with
+/// `load_dataset("parquet")`, no features given) gets PNG frames as images.
+fn with_hf_features(table: &DataTable) -> Arc<Schema> {
+    let schema = table.schema();
+    let mut features = serde_json::Map::new();
+    let fields: Vec<arrow_schema::Field> = schema
+        .fields()
+        .iter()
+        .map(|f| {
+            features.insert(f.name().clone(), hf_feature(f.data_type()));
+            f.as_ref().clone().with_nullable(true)
+        })
+        .collect();
+    let info = json!({"info": {"features": Value::Object(features)}});
+    let metadata = [("huggingface".to_string(), info.to_string())].into();
+    Arc::new(Schema::new_with_metadata(fields, metadata))
+}
+
+/// The `datasets` feature of a column of arrow type `dt`.
+fn hf_feature(dt: &arrow_schema::DataType) -> Value {
+    use arrow_schema::DataType as D;
+    match dt {
+        D::Float32 => json!({"dtype": "float32", "_type": "Value"}),
+        D::Int64 => json!({"dtype": "int64", "_type": "Value"}),
+        D::FixedSizeList(item, n) => {
+            json!({"feature": hf_feature(item.data_type()), "length": n, "_type": "Sequence"})
+        }
+        _ => json!({"_type": "Image"}),
+    }
+}
+
+impl Sink for LerobotV21Writer {
+    fn data_file(&self) -> &str {
+        "data/chunk-000/episode_000000.parquet"
+    }
+
+    fn frame_encoding(&self) -> FrameEncoding {
+        FrameEncoding::Raw
+    }
+
+    fn stores_normalized(&self) -> bool {
+        false
+    }
+
+    fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
+        let e = self.episode_at(channel, row)?;
+        let (name, shape, _) = &self.channels[channel];
+        let rows = self.ends.range(e).len();
+        if frames.len() != rows {
+            return Err(Error::output(format!(
+                "camera `{name}`, episode {}: {} frames for {rows} rows; a LeRobot v2.1 video \
+                 holds exactly one frame per row",
+                self.ids[e],
+                frames.len()
+            )));
+        }
+        let colors = *shape.last().unwrap_or(&1);
+        let stats = FeatureStats::of_frames(frames.bytes(), frames.len(), colors);
+        self.image_stats[e].insert(channel, stats);
+        if let Some(camera) = &self.cameras[channel] {
+            let (p, index) = self.place[e];
+            let file = self.parts[p].path(&video_file(name, index));
+            return self
+                .encoders
+                .start((channel, camera), (e as u64, &file), frames);
+        }
+        let spill = self.frames[channel]
+            .as_mut()
+            .ok_or_else(|| Error::Internal(format!("channel {channel} has no frames")))?;
+        if spill.ends.len() != row {
+            return Err(Error::Internal(format!(
+                "frames out of order: row {row}, have {}",
+                spill.ends.len()
+            )));
+        }
+        spill.push(&Frames::encode(FrameEncoding::Png, frames.bytes(), shape))
+    }
+
+    /// Raw values: LeRobot normalizes with the episodes' statistics.
+    fn write_lowdim(
+        &mut self,
+        channel: usize,
+        raw: &Arc<LowdimStore>,
+        _: &RowNormalizer,
+    ) -> Result<()> {
+        self.raw[channel] = Some(Arc::clone(raw));
+        Ok(())
+    }
+
+    /// LeRobot makes its own windows (`delta_timestamps`); chunkc's index is not stored.
+    fn write_index(&mut self, _: &dyn WindowIndex) -> Result<()> {
+        Ok(())
+    }
+
+    fn finish(mut self: Box<Self>) -> Result<()> {
+        self.encoders.finish()?;
+        let stats = self.data()?;
+        let videos = self.cameras.iter().flatten().count();
+        for (p, part) in self.parts.iter().enumerate() {
+            if p > 0 && part.episodes.is_empty() {
+                continue;
+            }
+            let table = self.table();
+            let info = |name: &str, shape: &[usize]| self.video_info(part, name, shape);
+            let meta = Meta {
+                part,
+                fps: self.fps,
+                lengths: (part.episodes.iter())
+                    .map(|&e| self.ends.range(e).len() as u64)
+                    .collect(),
+                features: features(&table, true, info),
+                videos,
+                stats: part.episodes.iter().map(|&e| stats[e].clone()).collect(),
+            };
+            meta.write(&self.files, p > 0)?;
+        }
+        Ok(())
+    }
+}

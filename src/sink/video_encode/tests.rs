@@ -1,0 +1,196 @@
+//! The encoder's tests: determinism, odd sizes, abandoned streams, the codecs a build has.
+use super::*;
+use crate::spec::VideoCodec;
+
+fn settings() -> VideoSettings {
+    VideoSettings {
+        codec: VideoCodec::Libsvtav1,
+        crf: 30,
+        gop: 2,
+        copy: crate::spec::StreamCopy::Never,
+        copy_gop: None,
+        closed_gop: false,
+    }
+}
+
+fn write(path: &Path, n: usize) -> u64 {
+    let shape = StreamShape {
+        height: 64,
+        width: 96,
+        fps: 10.0,
+    };
+    let mut s = VideoStream::create(path, shape, settings()).unwrap();
+    for i in 0..n {
+        let frame: Vec<u8> = (0..64 * 96 * 3)
+            .map(|p| ((p / 3 % 96 + i * 4) % 256) as u8)
+            .collect();
+        s.push(&frame).unwrap();
+    }
+    s.finish().unwrap()
+}
+
+#[test]
+fn the_same_frames_give_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.mp4"), dir.path().join("b.mp4"));
+    assert_eq!(write(&a, 7), 7);
+    // In the background, while another stream is written here.
+    let mut bg = Background::spawn(
+        &b,
+        StreamShape {
+            height: 64,
+            width: 96,
+            fps: 10.0,
+        },
+        settings(),
+    )
+    .unwrap();
+    let frames: Vec<u8> = (0..7)
+        .flat_map(|i| (0..64 * 96 * 3).map(move |p| ((p / 3 % 96 + i * 4) % 256) as u8))
+        .collect();
+    bg.push(frames).unwrap();
+    write(&dir.path().join("c.mp4"), 3);
+    assert_eq!(bg.finish().unwrap(), 7);
+    let (a, b) = (std::fs::read(a).unwrap(), std::fs::read(b).unwrap());
+    assert!(a.len() > 100);
+    assert!(a == b, "two encodes of the same frames differ");
+    // No library version in the container.
+    assert!(!a.windows(4).any(|w| w == b"Lavf"));
+}
+
+/// hdf5 `video` storage's encoder, on frames with detail and motion.
+fn x264_file(path: &Path, asm: Option<&str>) -> Vec<u8> {
+    let shape = StreamShape {
+        height: 64,
+        width: 96,
+        fps: 50.0,
+    };
+    let settings = crate::spec::STORAGE_VIDEO;
+    let mut s = match asm {
+        None => VideoStream::create(path, shape, settings),
+        Some(asm) => VideoStream::create_with_asm(path, shape, settings, asm),
+    }
+    .unwrap();
+    let mut state = 1u64;
+    for i in 0..38 {
+        let frame: Vec<u8> = (0..64 * 96 * 3)
+            .map(|p| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((p / 3 % 96) * 3 + i * 5 + (state >> 60) as usize) as u8
+            })
+            .collect();
+        s.push(&frame).unwrap();
+    }
+    s.finish().unwrap();
+    std::fs::read(path).unwrap()
+}
+
+#[test]
+fn x264_bytes_do_not_depend_on_what_the_heap_held() {
+    // Each encode runs on a new thread whose heap was first filled with other bytes and
+    // freed. x264's AVX-512 code used to read such leftovers (2 to 4 distinct files of 32).
+    let dir = tempfile::tempdir().unwrap();
+    let files: Vec<Vec<u8>> = (0..32u8)
+        .map(|k| {
+            let path = dir.path().join(format!("{k}.mp4"));
+            std::thread::spawn(move || {
+                let dirt: Vec<Vec<u8>> = (0..4000)
+                    .map(|i| vec![k.wrapping_mul(37).wrapping_add(i as u8); 16 + i * 37 % 20000])
+                    .collect();
+                drop(dirt);
+                x264_file(&path, None)
+            })
+            .join()
+            .unwrap()
+        })
+        .collect();
+    let distinct: std::collections::BTreeSet<&Vec<u8>> = files.iter().collect();
+    assert_eq!(
+        distinct.len(),
+        1,
+        "{} different files of 32",
+        distinct.len()
+    );
+}
+
+#[test]
+fn x264_bytes_do_not_depend_on_the_cpu() {
+    // What this machine runs, a machine without AVX-512, and x264's C code alone.
+    let dir = tempfile::tempdir().unwrap();
+    let native = x264_file(&dir.path().join("native.mp4"), None);
+    let avx2 = "MMX2,SSE,SSE2,SSE2Fast,LZCNT,SSE3,SSSE3,SSE4.1,SSE4.2,AVX,FMA3,BMI1,BMI2,AVX2";
+    for asm in [avx2, "0"] {
+        let other = x264_file(&dir.path().join("other.mp4"), Some(asm));
+        assert!(other == native, "x264 limited to `{asm}` wrote other bytes");
+    }
+}
+
+#[test]
+fn a_stream_dropped_unfinished_is_abandoned_not_flushed() {
+    // A build that fails elsewhere drops its encoders; SVT-AV1 1.4 hung in the flush of an
+    // encoder that had been sent no frame (and so did the failed build).
+    let dir = tempfile::tempdir().unwrap();
+    let shape = StreamShape {
+        height: 64,
+        width: 96,
+        fps: 10.0,
+    };
+    let start = std::time::Instant::now();
+    drop(Background::spawn(&dir.path().join("none.mp4"), shape, settings()).unwrap());
+    let mut some = Background::spawn(&dir.path().join("some.mp4"), shape, settings()).unwrap();
+    some.push(vec![9u8; 64 * 96 * 3 * 3]).unwrap();
+    drop(some);
+    assert!(start.elapsed() < std::time::Duration::from_secs(20));
+}
+
+#[test]
+fn mpeg4_encodes_what_svtav1_refuses() {
+    // The LeRobot exports' codec for a camera under 64 pixels in a build without x264.
+    let dir = tempfile::tempdir().unwrap();
+    let shape = StreamShape {
+        height: 32,
+        width: 32,
+        fps: 10.0,
+    };
+    let mpeg4 = VideoSettings {
+        codec: VideoCodec::Mpeg4,
+        crf: 3,
+        gop: 2,
+        ..settings()
+    };
+    let write = |name: &str| {
+        let path = dir.path().join(name);
+        let mut s = VideoStream::create(&path, shape, mpeg4).unwrap();
+        for i in 0..5u8 {
+            s.push(&vec![i * 40; 32 * 32 * 3]).unwrap();
+        }
+        assert_eq!(s.finish().unwrap(), 5);
+        std::fs::read(path).unwrap()
+    };
+    let (a, b) = (write("a.mp4"), write("b.mp4"));
+    assert!(a.len() > 100 && a == b);
+    assert!(
+        !a.windows(4).any(|w| w == b"Lavc"),
+        "no encoder version in the stream"
+    );
+    let small = VideoStream::create(&dir.path().join("svt.mp4"), shape, settings());
+    assert!(small.is_err(), "SVT-AV1 1.4 refuses 32x32 frames");
+}
+
+#[test]
+fn odd_sizes_are_refused_with_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("odd.mp4");
+    let shape = StreamShape {
+        height: 63,
+        width: 96,
+        fps: 10.0,
+    };
+    let err = VideoStream::create(&path, shape, settings())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("odd.mp4") && err.contains("even"), "{err}");
+}
