@@ -20,7 +20,9 @@ vendored chunking and compressor). `own` stays the G1 subset at every scale.
    specs), all with one profile `dp` (preset "diffusion_policy", fps 10, format "zarr"). Wall
    time, CPU time and peak RSS from `/usr/bin/time`, `--repeat` interleaved rounds, medians
    reported; `own + sim` and `mixture / (own + sim)` are taken per round (paired), then the
-   median. Every build runs with `CHUNKC_TIMINGS=1`: the phases of the median run are kept.
+   median. Also `twin`: a mixture of the `sim` data twice (`[sources.sim]` + `[sources.sim_b]`,
+   one width, nothing padded) against twice `sim` alone, `twin / (2 sim)` paired per round: what
+   the mixture path costs beside the padding. Every build runs with `CHUNKC_TIMINGS=1`: the phases of the median run are kept.
    Peak RSS (the largest of the rounds) is compared at every pair of scales N and 4N, for the
    mixture and for `sim` alone (it should be flat in episodes). At the largest scale, unless
    `--no-diagnose`, the mixture and `sim` alone are also built with `[audit.doctor] enabled =
@@ -161,8 +163,9 @@ def builds_at(work, scale, threads, diagnose=False):
     d = work / "runs" / f"x{scale}"
     cases = {}
     mix = OWN.format(t="sources.own") + SIM.format(t="sources.sim", path=sim)
+    twin = SIM.format(t="sources.sim", path=sim) + SIM.format(t="sources.sim_b", path=sim)
     variants = [("mixture", mix, PAD), ("own", OWN.format(t="source"), ""),
-                ("sim", SIM.format(t="source", path=sim), "")]
+                ("sim", SIM.format(t="source", path=sim), ""), ("twin", twin, "")]
     if diagnose:
         off = "[audit.doctor]\nenabled = false\n"
         variants += [("mixture_nodoctor", mix, PAD + off),
@@ -338,6 +341,8 @@ def main():
         entry["own_plus_sim"] = {"wall_s": round(statistics.median(sums), 3),
                                  "cpu_s": round(statistics.median(cpu_sums), 3)}
         entry["mixture_over_sum_wall"] = paired_median(ratios)
+        entry["twin_over_two_sims_wall"] = paired_median(
+            [t["wall_s"] / (2 * m["wall_s"]) for t, m in zip(cases["twin"].runs, cases["sim"].runs)])
         if "mixture_nodoctor" in cases:
             entry["mixture_nodoctor_over_sim_nodoctor_wall"] = paired_median(
                 [a["wall_s"] / b["wall_s"] for a, b in
@@ -379,6 +384,8 @@ def main():
         s = e["own_plus_sim"]
         print(f"{key:6} {e['sim_episodes']:7} {'own+sim':16} {s['wall_s']:8.3f} {s['cpu_s']:7.2f}"
               f"{'':9}  mixture/(own+sim) = {e['mixture_over_sum_wall']}")
+        print(f"{'':31}twin (sim twice, one width, no padding): twin/(2 sim) = "
+              f"{e['twin_over_two_sims_wall']}")
         if "mixture_nodoctor_over_sim_nodoctor_wall" in e:
             print(f"{'':31}doctor off: mixture/sim = "
                   f"{e['mixture_nodoctor_over_sim_nodoctor_wall']}")
@@ -387,7 +394,8 @@ def main():
         print(f"peak RSS {p['build']:8} {p['N']:>5} {p['N_mib']:6.1f} MiB -> {p['4N']:>5} "
               f"{p['4N_mib']:6.1f} MiB: 4N/N = {p['ratio']}")
     top = res["scales"][f"x{scales[-1]}"]["runs"]
-    cols = [k for k in ("mixture", "own", "sim", "mixture_nodoctor", "sim_nodoctor") if k in top]
+    cols = [k for k in ("mixture", "own", "sim", "twin", "mixture_nodoctor", "sim_nodoctor")
+            if k in top]
     print(f"\nphases at x{scales[-1]} (median run, CHUNKC_TIMINGS, wall s; a mixture has one "
           "open source + audit per source)")
     print(f"{'phase':36}" + "".join(f"{k:>17}" for k in cols))

@@ -29,6 +29,10 @@ pub(super) struct RateState {
     /// they are pushed (see [`stats::SecondPass`] for the second); `None` for images and for
     /// channels wider than [`COUNT_AHEAD_COLUMNS`].
     pub high: Vec<Option<Vec<HighCounts>>>,
+    /// A training mixture's, per channel, per source: the same first pass over that source's
+    /// training rows, on its own dimensions (its padding is not a value); the pooled bands
+    /// merge them. Empty for one source.
+    pub source_high: Vec<Vec<Option<Vec<HighCounts>>>>,
     /// Per channel: the statistics partials of the training episodes, merged in episode order.
     pub partials: Vec<Partial>,
     /// A training mixture's, per source, per channel (empty for one source).
@@ -49,7 +53,6 @@ impl RateState {
         for e in &manifest.episodes {
             ends.push(conversion.len(e.len));
         }
-        let total = ends.total();
         let width = |ch: &crate::source::ChannelInfo| match ch.kind {
             ChannelKind::Lowdim => ch.width(),
             ChannelKind::Image => 0,
@@ -66,9 +69,12 @@ impl RateState {
                 })
                 .collect()
         };
-        // A mixture's padded rows hold zeros that no statistic counts: its percentiles take both
-        // passes over each source's rows (`rate_stats`).
+        // A mixture's padded rows hold zeros that no statistic counts: its sources count their
+        // own dimensions, and the pooled bands merge them (`rate_stats`).
         let mixture = !manifest.parts.is_empty();
+        let counts = |w: usize| {
+            (w <= COUNT_AHEAD_COLUMNS).then(|| (0..w).map(|_| HighCounts::new()).collect())
+        };
         RateState {
             ends,
             lowdim: channels
@@ -76,15 +82,27 @@ impl RateState {
                 .enumerate()
                 .map(|(c, ch)| {
                     let dir = staging.scratch_dir().join(format!("rate{r}-channel{c}"));
-                    Arc::new(LowdimStore::new(width(ch), budget, dir, total))
+                    // A mixture's sources keep their own dimensions only (`push_narrow`).
+                    let values: usize = (manifest.episodes.iter())
+                        .map(|ep| conversion.len(ep.len) * own_width(manifest, c, ep.id))
+                        .sum();
+                    let values = if width(ch) == 0 { 0 } else { values };
+                    Arc::new(LowdimStore::with_values(width(ch), budget, dir, values))
                 })
                 .collect(),
             high: channels
                 .iter()
-                .map(|ch| {
-                    let w = width(ch);
-                    (w <= COUNT_AHEAD_COLUMNS && !mixture)
-                        .then(|| (0..w).map(|_| HighCounts::new()).collect())
+                .map(|ch| counts(width(ch)).filter(|_| !mixture))
+                .collect(),
+            source_high: channels
+                .iter()
+                .enumerate()
+                .filter(|_| mixture)
+                .map(|(c, ch)| {
+                    let own = |w: usize| if width(ch) == 0 { 0 } else { w };
+                    (manifest.parts.iter())
+                        .map(|part| counts(own(part.widths[c])))
+                        .collect()
                 })
                 .collect(),
             partials: partials(),
@@ -96,6 +114,13 @@ impl RateState {
     pub fn start(&self, e: usize) -> usize {
         self.ends.start(e)
     }
+}
+
+/// The values per row that episode `id` keeps in channel `c`'s store: a mixture source's own
+/// width (the rest of a row is its padding), else the channel's.
+pub(super) fn own_width(manifest: &Manifest, c: usize, id: u64) -> usize {
+    let part = manifest.parts.get(manifest.source_of(id));
+    part.map_or(manifest.channels[c].width(), |p| p.widths[c])
 }
 
 /// The part of a channel's statistics reduced while the source is read: moments of low-dim

@@ -11,7 +11,7 @@ use std::ops::Range;
 use super::rate::{Partial, RateState};
 use crate::error::Result;
 use crate::source::{ChannelKind, Manifest};
-use crate::stats::{self, bands, ChannelStats, Moments};
+use crate::stats::{self, bands, ChannelStats, HighCounts, Moments};
 use crate::store::LowdimStore;
 
 /// The statistics of every channel at this rate: low-dim percentiles from the store (moments
@@ -68,7 +68,8 @@ pub(super) fn per_source(
                 Partial::Image(p) => p.clone().finish(),
                 Partial::Lowdim(m) => {
                     let rows = train_rows(rate, manifest, train_mask, &[s]);
-                    band(&rate.lowdim[c], &rows, m.columns(0..width), 0..width)?
+                    let high = rate.source_high[c][s].as_deref();
+                    band(&rate.lowdim[c], &rows, m.columns(0..width), 0..width, high)?
                 }
             };
             own.insert(ch.name.clone(), s_stats);
@@ -106,7 +107,8 @@ fn pooled(
                         }
                     }
                     let rows = train_rows(rate, manifest, train_mask, &sources);
-                    parts.push(band(&rate.lowdim[c], &rows, m, dims)?);
+                    let high = merged_counts(&rate.source_high[c], &sources, &dims);
+                    parts.push(band(&rate.lowdim[c], &rows, m, dims, high.as_deref())?);
                 }
                 bands::concat(parts)
             }
@@ -131,17 +133,36 @@ fn train_rows(
         .collect()
 }
 
-/// The statistics of dimensions `dims` of the store's `rows`, whose moments are `m`.
+/// The first percentile pass over dimensions `dims` of the training rows of `sources`: the sum
+/// of what each source counted as its rows were pushed (`None` when one did not count).
+fn merged_counts(
+    counted: &[Option<Vec<HighCounts>>],
+    sources: &[usize],
+    dims: &Range<usize>,
+) -> Option<Vec<HighCounts>> {
+    let mut merged: Vec<HighCounts> = dims.clone().map(|_| HighCounts::new()).collect();
+    for &s in sources {
+        let own = counted[s].as_ref()?;
+        for (m, d) in merged.iter_mut().zip(dims.clone()) {
+            m.merge(&own[d]);
+        }
+    }
+    Some(merged)
+}
+
+/// The statistics of dimensions `dims` of the store's `rows`, whose moments are `m`; `high`:
+/// their first percentile pass, when it was counted as the rows were pushed.
 fn band(
     store: &LowdimStore,
     rows: &[(usize, usize)],
     m: Moments,
     dims: Range<usize>,
+    high: Option<&[HighCounts]>,
 ) -> Result<ChannelStats> {
     let width = store.width();
     let narrow = dims.len();
     let mut buffer = Vec::new();
-    stats::lowdim_from_rows(m, narrow, None, |f| {
+    stats::lowdim_from_rows(m, narrow, high, |f| {
         if dims == (0..width) {
             return store.for_rows(rows, f);
         }

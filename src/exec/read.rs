@@ -53,7 +53,14 @@ pub(super) enum Feed {
 }
 
 /// Low-dim rows waiting for their store, with whether they are a training episode's.
-type Rows = (Vec<f32>, bool);
+/// An episode's rows for one store.
+struct Rows {
+    values: Vec<f32>,
+    train: bool,
+    /// Its source (0 for one source), and the values of each row that are its own.
+    source: usize,
+    own: usize,
+}
 
 /// Reads every episode once into `rates` and `sinks` (rate position, sink). Returns the
 /// episodes `[audit] non_finite = "exclude_episode"` leaves out: when there are any, nothing
@@ -227,7 +234,7 @@ fn consume(
     let manifest = pass.source.manifest();
     let mut pending: Vec<Vec<Vec<Rows>>> = rates
         .iter()
-        .map(|r| vec![Vec::new(); r.lowdim.len()])
+        .map(|r| r.lowdim.iter().map(|_| Vec::new()).collect())
         .collect();
     for (i, episode) in batch.zip(processed) {
         let id = manifest.episodes[i].id;
@@ -247,7 +254,12 @@ fn consume(
                     }
                 }
                 match values {
-                    Prepared::Lowdim(v) => pending[r][c].push((v, train)),
+                    Prepared::Lowdim(values) => pending[r][c].push(Rows {
+                        values,
+                        train,
+                        source,
+                        own: super::rate::own_width(manifest, c, id),
+                    }),
                     Prepared::Frames(encoded) => {
                         for (_, sink) in sinks.iter_mut().filter(|(sr, _)| *sr == r) {
                             let enc = sink.frame_encoding();
@@ -273,23 +285,40 @@ fn consume(
 }
 
 /// Each store takes its episodes' rows in order, counting the training rows' first percentile
-/// pass; stores are independent, so they fill (and spill) side by side.
+/// pass (a mixture's per source, on its own dimensions); stores are independent, so they fill
+/// (and spill) side by side.
 fn push_rows(rates: &mut [RateState], pending: Vec<Vec<Vec<Rows>>>) -> Result<()> {
-    type Channel<'r> = (&'r mut Arc<LowdimStore>, &'r mut Option<Vec<HighCounts>>);
+    type Counts = Option<Vec<HighCounts>>;
+    type Channel<'r> = (
+        &'r mut Arc<LowdimStore>,
+        &'r mut Counts,
+        Option<&'r mut Vec<Counts>>,
+    );
     let channels: Vec<Channel> = rates
         .iter_mut()
-        .flat_map(|r| r.lowdim.iter_mut().zip(r.high.iter_mut()))
+        .flat_map(|r| {
+            let mut sources = r.source_high.iter_mut();
+            (r.lowdim.iter_mut().zip(r.high.iter_mut())).map(move |(s, h)| (s, h, sources.next()))
+        })
         .collect();
     let pushed: Vec<Result<()>> = channels
         .into_par_iter()
         .zip(pending.into_iter().flatten().collect::<Vec<_>>())
-        .map(|((store, high), episodes)| {
+        .map(|((store, high, mut sources), episodes)| {
             let store = Arc::get_mut(store).expect("no reader while the source is read");
-            episodes.iter().try_for_each(|(v, train)| {
-                if let Some(high) = high.as_mut().filter(|_| *train && store.width() > 0) {
-                    HighCounts::add_rows(high, v);
+            let width = store.width();
+            episodes.iter().try_for_each(|rows| {
+                let v = &rows.values;
+                if rows.train && width > 0 {
+                    if let Some(high) = high.as_mut() {
+                        HighCounts::add_rows(high, v);
+                    }
+                    let own = sources.as_mut().and_then(|s| s[rows.source].as_mut());
+                    if let Some(own) = own {
+                        HighCounts::add_row_starts(own, v, width);
+                    }
                 }
-                store.push(v)
+                store.push_narrow(v, rows.own)
             })
         })
         .collect();

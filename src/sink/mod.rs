@@ -246,6 +246,29 @@ pub struct SinkContext<'a> {
     pub spill_budget: usize,
 }
 
+impl SinkContext<'_> {
+    /// Values a stored row of channel `c` holds, on average over the stored rows: the channel's
+    /// width, or, for a training mixture's padded channel, its sources' own widths weighted by
+    /// their rows (padding is not values). Chunks are sized by it.
+    pub fn values_per_row(&self, c: usize) -> usize {
+        let width = self.profile.channels[c]
+            .shape
+            .iter()
+            .product::<usize>()
+            .max(1);
+        let (mut rows, mut values, mut start) = (0u64, 0u64, 0u64);
+        for (&end, &s) in self.episode_ends.iter().zip(self.episode_sources) {
+            let own = self.source_parts.get(s).map_or(width, |p| p.widths[c]);
+            (rows, values) = (rows + end - start, values + (end - start) * own as u64);
+            start = end;
+        }
+        match rows {
+            0 => width,
+            _ => (values.div_ceil(rows) as usize).clamp(1, width),
+        }
+    }
+}
+
 /// One output container being written.
 pub trait Sink: Send {
     /// The file `meta.json` names as the data (relative to the profile directory).

@@ -36,7 +36,7 @@ use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
 
 pub const ZARR_DIR: &str = crate::spec::OutputFormat::Zarr.files().data;
-/// Low-dim chunks hold about this many bytes.
+/// Low-dim chunks hold about this many bytes of values (a mixture's padding aside).
 const LOWDIM_CHUNK_BYTES: usize = 256 * 1024;
 const DEFAULT_BLOSC_LEVEL: u32 = 5;
 /// Low-dim values read from the store and written at once (whole chunks).
@@ -76,10 +76,12 @@ impl ZarrWriter {
             w.group(g)?;
         }
         let steps = *ctx.episode_ends.last().unwrap_or(&0) as usize;
-        for ch in &ctx.profile.channels {
+        for (c, ch) in ctx.profile.channels.iter().enumerate() {
             let width = ch.shape.iter().product::<usize>().max(1);
+            // About LOWDIM_CHUNK_BYTES of values a chunk: a mixture's padding is not values.
+            let values = ctx.values_per_row(c);
             let (dtype, rows) = match ch.kind {
-                ChannelKind::Lowdim => ("float32", (LOWDIM_CHUNK_BYTES / (4 * width)).max(1)),
+                ChannelKind::Lowdim => ("float32", (LOWDIM_CHUNK_BYTES / (4 * values)).max(1)),
                 ChannelKind::Image => ("uint8", 1),
             };
             let rows = rows.clamp(1, steps.max(1));

@@ -91,10 +91,16 @@ impl HighCounts {
     /// over the rows; consecutive increments go to different tables, so none waits for the
     /// previous one's store.
     pub fn add_rows(highs: &mut [HighCounts], values: &[f32]) {
-        let width = highs.len();
-        if width == 0 {
+        HighCounts::add_row_starts(highs, values, highs.len());
+    }
+
+    /// [`HighCounts::add_rows`] over rows of `width` values of which `highs` count the first
+    /// `highs.len()` (a mixture source's own dimensions, before its padding).
+    pub fn add_row_starts(highs: &mut [HighCounts], values: &[f32], width: usize) {
+        if highs.is_empty() || width == 0 {
             return;
         }
+        debug_assert!(highs.len() <= width);
         let rows = values.len() / width;
         if highs.iter().any(|h| h.pending + rows as u64 > h.limit) {
             // Near a fold: column by column, each folding where it must.
@@ -112,6 +118,27 @@ impl HighCounts {
             high.pending += rows as u64;
             high.total += rows as u64;
         }
+    }
+
+    /// Adds what `other` counted: the first pass over both sets of values (a mixture's pooled
+    /// band, from its sources' counts).
+    pub fn merge(&mut self, other: &HighCounts) {
+        if self.pending + other.pending > self.limit {
+            self.fold();
+        }
+        if !other.wide.is_empty() {
+            if self.wide.is_empty() {
+                self.wide = vec![0; 1 << 16];
+            }
+            for (w, o) in self.wide.iter_mut().zip(&other.wide) {
+                *w += o;
+            }
+        }
+        for (c, o) in self.counts.iter_mut().zip(&other.counts) {
+            *c += o;
+        }
+        self.pending += other.pending;
+        self.total += other.total;
     }
 
     fn fold(&mut self) {
@@ -381,7 +408,20 @@ mod tests {
             rows.chunks(2 * 11)
                 .for_each(|b| HighCounts::add_rows(&mut pair, b));
             let [_, strided] = pair;
-            for high in [&whole, &strided] {
+            // Counted in two parts, the second as the first of three-wide rows, then merged.
+            let half = n / 2;
+            let mut merged = HighCounts::new();
+            merged.limit = limit;
+            merged.add(&values[..half]);
+            let wide: Vec<f32> = values[half..]
+                .iter()
+                .flat_map(|&v| [v, f32::NAN, 0.0])
+                .collect();
+            let mut part = [HighCounts::new()];
+            part[0].limit = limit;
+            HighCounts::add_row_starts(&mut part, &wide, 3);
+            merged.merge(&part[0]);
+            for high in [&whole, &strided, &merged] {
                 assert_eq!(high.total(), n as u64);
                 let got = percentiles_counted::<()>(high, n as u64, qs, |f| {
                     values.chunks(64).for_each(&mut *f);

@@ -13,6 +13,11 @@
 //! ([`LowdimStore::rows`], [`LowdimStore::rows_into`]): one read each, nothing to reorder.
 //! Small builds never touch the disk.
 //!
+//! A training mixture's rows are padded to one width, but only each source's own dimensions are
+//! values: a store keeps a row's first `own` values only ([`LowdimStore::push_narrow`]), in runs
+//! of rows of one own width, and reads give back whole rows, their padding zeros, as if stored.
+//! A mixture's padding costs neither memory nor disk.
+//!
 //! The file lives under the staging directory, which is removed whether the build succeeds or
 //! fails. The budget is the caller's: exec decides it (`CHUNKC_SPILL_BYTES`, else
 //! [`DEFAULT_BUDGET`]) and hands it to whoever needs it; nothing here reads the environment.
@@ -44,29 +49,48 @@ pub struct LowdimStore {
     width: usize,
     /// Where the spill file goes, created when the store first spills.
     dir: PathBuf,
-    /// Rows not on disk (all of them until the store spills), row-major. Its capacity is set
-    /// once: every row when they fit in the budget, else one spill block (the store flushes a
+    /// Values not on disk (all of them until the store spills), row-major. Its capacity is set
+    /// once: every value when they fit in the budget, else one spill block (the store flushes a
     /// block at a time), so pushing never reallocates and copies it.
     mem: Vec<f32>,
     /// Bytes of `mem` that make the store flush.
     flush_at: usize,
-    /// The spill file (row-major rows, little-endian) once spilled, and how many rows it holds.
+    /// The spill file (row-major values, little-endian) once spilled, and how many values it
+    /// holds.
     spilled: Option<(File, usize)>,
+    /// Rows stored.
+    rows: usize,
+    /// Runs of rows stored narrower than `width` (empty while every row is whole).
+    runs: Vec<Run>,
+}
+
+/// Rows from `row` on (to the next run) keep their first `own` values, from value `value` on.
+#[derive(Debug, Clone, Copy)]
+struct Run {
+    row: usize,
+    value: usize,
+    own: usize,
 }
 
 impl LowdimStore {
     /// A store for `rows` rows (a capacity hint: more may be pushed) of `width` values.
     pub fn new(width: usize, budget: usize, dir: PathBuf, rows: usize) -> Self {
-        let bytes = rows.saturating_mul(width).saturating_mul(4);
-        // Rows that will spill go a block at a time (at least a row); rows that fit stay, in
-        // one allocation of their exact size.
+        LowdimStore::with_values(width, budget, dir, rows.saturating_mul(width))
+    }
+
+    /// A store of rows of `width` values that will hold about `values` values (rows pushed
+    /// narrow keep fewer than `width` each).
+    pub fn with_values(width: usize, budget: usize, dir: PathBuf, values: usize) -> Self {
+        let bytes = values.saturating_mul(4);
+        // Values that will spill go a block at a time (at least a row); values that fit stay,
+        // in one allocation of their exact size.
         let flush_at = if bytes <= budget {
             budget
         } else {
             SPILL_BLOCK.min(budget / 4).max(4 * width)
         };
         let capacity = if bytes <= budget {
-            rows * width
+            values
         } else {
             flush_at / 4 + width
         };
@@ -76,6 +100,8 @@ impl LowdimStore {
             mem: Vec::with_capacity(capacity),
             flush_at,
             spilled: None,
+            rows: 0,
+            runs: Vec::new(),
         }
     }
 
@@ -85,7 +111,7 @@ impl LowdimStore {
 
     /// Number of rows stored.
     pub fn len(&self) -> usize {
-        self.disk_rows() + self.mem.len() / self.width.max(1)
+        self.rows
     }
 
     pub fn is_empty(&self) -> bool {
@@ -97,24 +123,65 @@ impl LowdimStore {
         self.spilled.is_some()
     }
 
-    fn disk_rows(&self) -> usize {
-        self.spilled.as_ref().map_or(0, |(_, rows)| *rows)
+    fn disk_values(&self) -> usize {
+        self.spilled.as_ref().map_or(0, |(_, values)| *values)
+    }
+
+    /// Values stored, on disk and in memory.
+    fn values(&self) -> usize {
+        self.disk_values() + self.mem.len()
     }
 
     /// Appends whole rows.
     pub fn push(&mut self, values: &[f32]) -> Result<()> {
-        if self.width == 0 {
+        self.push_narrow(values, self.width)
+    }
+
+    /// Appends whole rows (of `width` values) of which only the first `own` are kept: the rest
+    /// are zeros (a mixture source's padding), and read back as zeros.
+    pub fn push_narrow(&mut self, values: &[f32], own: usize) -> Result<()> {
+        let width = self.width;
+        if width == 0 {
             return Ok(());
         }
-        debug_assert_eq!(values.len() % self.width, 0);
-        self.mem.extend_from_slice(values);
+        debug_assert_eq!(values.len() % width, 0);
+        debug_assert!(own <= width);
+        let rows = values.len() / width;
+        let narrow = own < width;
+        if narrow || !self.runs.is_empty() {
+            if self.runs.is_empty() && self.rows > 0 {
+                self.runs.push(Run {
+                    row: 0,
+                    value: 0,
+                    own: width,
+                });
+            }
+            if self.runs.last().is_none_or(|r| r.own != own) {
+                let (row, value) = (self.rows, self.values());
+                self.runs.push(Run { row, value, own });
+            }
+        }
+        if narrow {
+            debug_assert!(
+                values
+                    .chunks_exact(width)
+                    .all(|r| r[own..].iter().all(|&v| v == 0.0)),
+                "the values past `own` are padding"
+            );
+            for row in values.chunks_exact(width) {
+                self.mem.extend_from_slice(&row[..own]);
+            }
+        } else {
+            self.mem.extend_from_slice(values);
+        }
+        self.rows += rows;
         if self.mem.len() * 4 > self.flush_at {
             self.flush()?;
         }
         Ok(())
     }
 
-    /// Appends the rows held in memory to the spill file (created on first use).
+    /// Appends the values held in memory to the spill file (created on first use).
     fn flush(&mut self) -> Result<()> {
         if self.spilled.is_none() {
             std::fs::create_dir_all(&self.dir).at("create", &self.dir)?;
@@ -127,12 +194,12 @@ impl LowdimStore {
                 .at("create", &path)?;
             self.spilled = Some((file, 0));
         }
-        let rows = self.mem.len() / self.width;
         let path = self.path();
+        let values = self.mem.len();
         let (file, on_disk) = self.spilled.as_mut().expect("created above");
         file.write_all(bytes::f32_bytes(&self.mem))
             .at("write", &path)?;
-        *on_disk += rows;
+        *on_disk += values;
         self.mem.clear();
         Ok(())
     }
@@ -141,23 +208,23 @@ impl LowdimStore {
         self.dir.join("rows.f32")
     }
 
-    /// Rows `lo..hi`, row-major: borrowed when they are in memory, read back otherwise.
+    /// Rows `lo..hi`, row-major: borrowed when they are in memory and whole, read back (or
+    /// padded) otherwise.
     pub fn rows(&self, lo: usize, hi: usize) -> Result<Cow<'_, [f32]>> {
         self.check_range(lo, hi)?;
-        let disk = self.disk_rows();
-        if lo >= disk {
-            let width = self.width;
+        let (width, disk) = (self.width, self.disk_values());
+        if self.runs.is_empty() && lo * width >= disk {
             return Ok(Cow::Borrowed(
-                &self.mem[(lo - disk) * width..(hi - disk) * width],
+                &self.mem[lo * width - disk..hi * width - disk],
             ));
         }
-        let mut out = vec![0f32; (hi - lo) * self.width];
+        let mut out = vec![0f32; (hi - lo) * width];
         self.rows_into(lo, &mut out)?;
         Ok(Cow::Owned(out))
     }
 
-    /// Rows from `lo` into `out` (whole rows, row-major), wherever they are. Disjoint ranges
-    /// may be read on several threads at once.
+    /// Rows from `lo` into `out` (whole rows, row-major, narrow ones padded with zeros),
+    /// wherever they are. Disjoint ranges may be read on several threads at once.
     pub fn rows_into(&self, lo: usize, out: &mut [f32]) -> Result<()> {
         let width = self.width;
         if width == 0 {
@@ -165,17 +232,43 @@ impl LowdimStore {
         }
         let hi = lo + out.len() / width;
         self.check_range(lo, hi)?;
-        let disk = self.disk_rows();
+        if self.runs.is_empty() {
+            return self.values_into(lo * width, out);
+        }
+        let first = self.runs.partition_point(|r| r.row <= lo) - 1;
+        for (i, run) in self.runs.iter().enumerate().skip(first) {
+            let end = self.runs.get(i + 1).map_or(self.rows, |next| next.row);
+            let (a, b) = (lo.max(run.row), hi.min(end));
+            if a >= b {
+                break;
+            }
+            let part = &mut out[(a - lo) * width..(b - lo) * width];
+            let own = run.own;
+            self.values_into(run.value + (a - run.row) * own, &mut part[..(b - a) * own])?;
+            if own < width {
+                // Each row from its compact place to its own, last first (rows only move up).
+                for r in (0..b - a).rev() {
+                    part.copy_within(r * own..(r + 1) * own, r * width);
+                    part[r * width + own..(r + 1) * width].fill(0.0);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Values from value `lo` into `out`, from the spill file and from memory.
+    fn values_into(&self, lo: usize, out: &mut [f32]) -> Result<()> {
+        let hi = lo + out.len();
+        let disk = self.disk_values();
         let disk_hi = hi.min(disk);
         if lo < disk_hi {
-            let (file, _) = self.spilled.as_ref().expect("rows on disk");
-            let part = &mut out[..(disk_hi - lo) * width];
-            bytes::read_f32_at(file, part, (lo * width * 4) as u64).at("read", self.path())?;
+            let (file, _) = self.spilled.as_ref().expect("values on disk");
+            let part = &mut out[..disk_hi - lo];
+            bytes::read_f32_at(file, part, (lo * 4) as u64).at("read", self.path())?;
         }
         if hi > disk {
             let from = lo.max(disk);
-            out[(from - lo) * width..]
-                .copy_from_slice(&self.mem[(from - disk) * width..(hi - disk) * width]);
+            out[from - lo..].copy_from_slice(&self.mem[from - disk..hi - disk]);
         }
         Ok(())
     }
@@ -222,101 +315,4 @@ impl LowdimStore {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use std::path::Path;
-
-    fn filled(budget: usize, dir: &Path, width: usize, batches: &[usize]) -> LowdimStore {
-        let rows: usize = batches.iter().sum();
-        let mut store = LowdimStore::new(width, budget, dir.to_path_buf(), rows);
-        let mut next = 0f32;
-        for &rows in batches {
-            let values: Vec<f32> = (0..rows * width)
-                .map(|_| {
-                    next += 1.0;
-                    next * 0.37 - 5.0
-                })
-                .collect();
-            store.push(&values).unwrap();
-        }
-        store
-    }
-
-    #[test]
-    fn spilled_and_in_memory_stores_read_the_same_rows_and_columns() {
-        let tmp = tempfile::tempdir().unwrap();
-        let batches = [3, 17, 1, 40, 9, 0, 25, 2];
-        let width = 3;
-        let memory = filled(usize::MAX, &tmp.path().join("m"), width, &batches);
-        // 256 bytes (it flushes 64 at a time): a few rows, so most pushes flush and some rows
-        // stay in memory at the end.
-        let spilled = filled(256, &tmp.path().join("s"), width, &batches);
-        assert!(!memory.is_spilled());
-        assert!(
-            !tmp.path().join("m").exists(),
-            "no file for an in-memory store"
-        );
-        assert!(spilled.is_spilled());
-        let n: usize = batches.iter().sum();
-        assert_eq!(memory.len(), n);
-        assert_eq!(spilled.len(), n);
-        let all = memory.rows(0, n).unwrap().into_owned();
-        // Row-major as pushed: row r, column d holds the (r * width + d + 1)-th value.
-        for (i, &v) in all.iter().enumerate() {
-            assert_eq!(v, (i + 1) as f32 * 0.37 - 5.0);
-        }
-        for (lo, hi) in [(0, n), (0, 1), (5, 30), (n - 2, n), (40, 40), (13, 71)] {
-            assert_eq!(
-                spilled.rows(lo, hi).unwrap().as_ref(),
-                &all[lo * width..hi * width]
-            );
-        }
-        let ranges = [(0, 2), (2, 10), (30, 31), (50, n)];
-        let expected: Vec<f32> = ranges
-            .iter()
-            .flat_map(|&(lo, hi)| all[lo * width..hi * width].iter().copied())
-            .collect();
-        for store in [&memory, &spilled] {
-            let (mut got, mut calls) = (Vec::new(), 0);
-            store
-                .for_rows(&ranges, &mut |rows| {
-                    assert_eq!(rows.len() % width, 0, "whole rows");
-                    calls += 1;
-                    got.extend_from_slice(rows);
-                })
-                .unwrap();
-            assert_eq!(got, expected);
-            assert_eq!(calls, 1, "ranges gathered into one block");
-        }
-        // Many blocks, ending inside ranges, over rows both on disk and in memory.
-        let big: usize = 3 * BLOCK_ROWS + 123;
-        let mut store = LowdimStore::new(2, 80_000, tmp.path().join("b"), big);
-        let values: Vec<f32> = (0..2 * big).map(|i| i as f32).collect();
-        for part in values.chunks(2 * 1000) {
-            store.push(part).unwrap();
-        }
-        assert!(store.is_spilled() && store.disk_rows() < big);
-        let ranges = [(5, BLOCK_ROWS + 7), (BLOCK_ROWS + 9, big - 1)];
-        let expected: Vec<f32> = ranges
-            .iter()
-            .flat_map(|&(lo, hi)| values[2 * lo..2 * hi].iter().copied())
-            .collect();
-        let mut got = Vec::new();
-        store
-            .for_rows(&ranges, &mut |rows| got.extend_from_slice(rows))
-            .unwrap();
-        assert_eq!(got, expected);
-        assert!(store.for_rows(&[(0, big + 1)], &mut |_| {}).is_err());
-        assert!(spilled.rows(0, n + 1).is_err());
-        // Every range, including those straddling the rows on disk and those in memory, read
-        // into a caller's buffer.
-        let disk = spilled.disk_rows();
-        assert!(0 < disk && disk < n, "rows both on disk and in memory");
-        for (lo, hi) in [(0, n), (disk - 1, disk + 1), (disk, n), (3, disk), (7, 7)] {
-            let mut out = vec![f32::NAN; (hi - lo) * width];
-            spilled.rows_into(lo, &mut out).unwrap();
-            assert_eq!(out, &all[lo * width..hi * width], "rows {lo}..{hi}");
-        }
-        assert!(spilled.rows_into(n - 1, &mut [0.0; 6]).is_err());
-    }
-}
+mod tests;
