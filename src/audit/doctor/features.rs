@@ -3,7 +3,7 @@
 //! in parallel; every check then judges these, never the raw values.
 
 use super::columns::{self, Columns};
-use super::{alignment, duplicates, signal};
+use super::{alignment, duplicates, returns, signal};
 
 /// What one episode reduces to: a fixed size per channel dimension, whatever the episode's
 /// length (about 5 KB for 14-D action and state), in a few exact-size allocations: every
@@ -101,8 +101,14 @@ fn reduce(action: &[f32], state: Option<&[f32]>, shape: Shape) -> Features {
     let mut scratch = signal::Scratch::default();
     let mut signal = Vec::with_capacity(a_dim);
     let mut action_moments = Vec::with_capacity(a_dim);
+    let mut cols = Vec::with_capacity(a_dim);
     for d in 0..a_dim {
-        signal.push(signal::dim_signal(a.col(d), &mut scratch));
+        cols.push(a.col(d));
+    }
+    // Where the action's dimensions leave a rest together (a teleoperator's input starting).
+    let onsets = returns::onsets(&cols, n);
+    for d in 0..a_dim {
+        signal.push(signal::dim_signal(a.col(d), &onsets, &mut scratch));
         action_moments.push(moments(a.col(d)));
     }
     let mut fits = Vec::new();

@@ -33,6 +33,7 @@ mod found;
 mod judge;
 mod judge_signal;
 mod lanes;
+mod returns;
 mod shift;
 mod short;
 mod signal;

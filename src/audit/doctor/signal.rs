@@ -28,9 +28,14 @@
 //!   the dimension moves: how much the dimension's real motion bends from one step to the next.
 //!   A still or quantized dimension has no step sigma to speak of, but a scale of its motion
 //!   all the same; a dimension whose range is its noise (an arm that is not used) has a motion
-//!   scale of the size of its range. Episodes in other units are measured in the dataset's.
+//!   scale of the size of its range. A spike that fails those tests (its neighbours carry a
+//!   fast motion's curvature besides its echo, or the dimension's steps make its motion scale
+//!   large) is judged again by its return ([`returns::largest`]): beyond `jump_range` of the
+//!   range and three quarters of `jump_threshold` times the dimension's return scale, how far
+//!   its real motion goes out and comes back in one step. Episodes in other units are measured
+//!   in the dataset's.
 
-use super::spikes;
+use super::{returns, spikes};
 
 /// One episode's per-dimension signal features, compact (kept for every episode until the
 /// judgement): the values are the source's own single precision, the shares are counts (the
@@ -53,6 +58,12 @@ pub struct DimSignal {
     /// The largest spikes (the distance from the line through the neighbours), largest first
     /// (size 0: none).
     pub spikes: [spikes::Spike; 3],
+    /// The largest returns ([`returns::largest`]), largest first (size 0: none).
+    pub returns: [spikes::Spike; 3],
+    /// The 90th percentile, at the steps where the dimension moves, of how far it goes out and
+    /// comes straight back ([`returns::scale_keys`]; NaN with fewer than [`MOTION_STEPS`] such
+    /// steps).
+    pub return_scale: f32,
     pub min: f32,
     pub max: f32,
 }
@@ -109,9 +120,10 @@ fn p90_of_bits(bits: &mut [u32], least: usize) -> f32 {
     f32::from_bits(*bits.select_nth_unstable(k).1)
 }
 
-/// The features of one column `x` (finite values).
+/// The features of one column `x` (finite values) of an action whose dimensions leave a rest at
+/// each step as `onsets` counts ([`returns::onsets`]).
 #[inline(always)]
-pub fn dim_signal(x: &[f32], scratch: &mut Scratch) -> DimSignal {
+pub fn dim_signal(x: &[f32], onsets: &[u32], scratch: &mut Scratch) -> DimSignal {
     let n = x.len();
     let (min, max) = bounds(x);
     let mut out = DimSignal {
@@ -140,55 +152,73 @@ pub fn dim_signal(x: &[f32], scratch: &mut Scratch) -> DimSignal {
     }
     out.motion = p90_of_bits(keys, MOTION_STEPS);
     if max > min {
-        // Steps in runs (two or more) at `bound` that the signal enters and leaves moving: a
-        // step of at least 0.15 times the episode's 90th percentile of its non-zero steps, and
-        // of three quanta (its smallest non-zero step), on each side (a joint at rest
-        // decelerates into its extreme, down to single servo ticks; a saturated command runs
-        // into it), away from the episode's ends (a rest pose).
-        keys.clear();
-        keys.extend(
-            steps
-                .iter()
-                .filter(|&&d| d != 0.0)
-                .map(|d| d.abs().to_bits()),
-        );
-        let quantum = keys.iter().copied().min().map_or(0.0, f32::from_bits);
-        let half = (CLIP_ENTRY * f64::from(p90_of_bits(keys, 1))).max(3.0 * f64::from(quantum));
-        let brisk = |t: usize, u: usize| (f64::from(x[t]) - f64::from(x[u])).abs() >= half;
-        let at = |bound: f32| {
-            let (mut count, mut runs) = (0, 0);
-            let mut t = 0;
-            while t < n {
-                if x[t] != bound {
-                    t += 1;
-                    continue;
-                }
-                let start = t;
-                while t < n && x[t] == bound {
-                    t += 1;
-                }
-                let enters = start >= 2 && brisk(start - 1, start - 2);
-                let leaves = t + 1 < n && brisk(t + 1, t);
-                if t - start >= 2 && enters && leaves {
-                    count += t - start;
-                    runs += 1;
-                }
-            }
-            (count as u32, runs)
-        };
-        // Runs of two or more need two values at the bound: most columns touch theirs once.
-        let count = |bound: f32| x.iter().map(|&v| u32::from(v == bound)).sum::<u32>();
-        let hi = if count(max) >= 2 { at(max) } else { (0, 0) };
-        let lo = if count(min) >= 2 { at(min) } else { (0, 0) };
-        let (best, is_max) = if hi.0 >= lo.0 {
-            (hi, true)
-        } else {
-            (lo, false)
-        };
-        (out.clip_steps, out.clip_runs, out.clip_max) = (best.0, best.1, is_max);
+        (out.clip_steps, out.clip_runs, out.clip_max) = clipped(x, steps, keys, (min, max));
     }
     out.spikes = spikes::largest(x, &mut scratch.spikes);
+    // The residuals the spike search left (of this column: it computes them from 3 steps on,
+    // and the returns need 5).
+    let (r, sizes) = scratch.spikes.parts();
+    out.returns = returns::largest(x, r, onsets, sizes);
+    returns::scale_keys(x, r, keys);
+    out.return_scale = p90_of_bits(keys, MOTION_STEPS);
     out
+}
+
+/// The steps of `x` (its `steps`, not constant) in runs (two or more) at its max or min (its
+/// `bounds`), whichever holds more, that the signal enters and leaves moving: a step of at least
+/// 0.15 times the episode's 90th percentile of its non-zero steps, and of three quanta (its
+/// smallest non-zero step), on each side (a joint at rest decelerates into its extreme, down to
+/// single servo ticks; a saturated command runs into it), away from the episode's ends (a rest
+/// pose). Returns the steps, the runs, and whether at the max; `keys` is a buffer.
+#[inline(always)]
+fn clipped(
+    x: &[f32],
+    steps: &[f32],
+    keys: &mut Vec<u32>,
+    (min, max): (f32, f32),
+) -> (u32, u32, bool) {
+    let n = x.len();
+    keys.clear();
+    keys.extend(
+        steps
+            .iter()
+            .filter(|&&d| d != 0.0)
+            .map(|d| d.abs().to_bits()),
+    );
+    let quantum = keys.iter().copied().min().map_or(0.0, f32::from_bits);
+    let half = (CLIP_ENTRY * f64::from(p90_of_bits(keys, 1))).max(3.0 * f64::from(quantum));
+    let brisk = |t: usize, u: usize| (f64::from(x[t]) - f64::from(x[u])).abs() >= half;
+    let at = |bound: f32| {
+        let (mut count, mut runs) = (0, 0);
+        let mut t = 0;
+        while t < n {
+            if x[t] != bound {
+                t += 1;
+                continue;
+            }
+            let start = t;
+            while t < n && x[t] == bound {
+                t += 1;
+            }
+            let enters = start >= 2 && brisk(start - 1, start - 2);
+            let leaves = t + 1 < n && brisk(t + 1, t);
+            if t - start >= 2 && enters && leaves {
+                count += t - start;
+                runs += 1;
+            }
+        }
+        (count as u32, runs)
+    };
+    // Runs of two or more need two values at the bound: most columns touch theirs once.
+    let count = |bound: f32| x.iter().map(|&v| u32::from(v == bound)).sum::<u32>();
+    let hi = if count(max) >= 2 { at(max) } else { (0, 0) };
+    let lo = if count(min) >= 2 { at(min) } else { (0, 0) };
+    let (best, is_max) = if hi.0 >= lo.0 {
+        (hi, true)
+    } else {
+        (lo, false)
+    };
+    (best.0, best.1, is_max)
 }
 
 /// The lowest and highest value (∞ and -∞ when empty), eight lanes at a time.
@@ -256,7 +286,7 @@ mod tests {
 
     fn of(x: &[f64]) -> DimSignal {
         let x: Vec<f32> = x.iter().map(|&v| v as f32).collect();
-        dim_signal(&x, &mut Scratch::default())
+        dim_signal(&x, &vec![0; x.len()], &mut Scratch::default())
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! One-step spikes of an action dimension (the `jump` check's evidence, see [`super::signal`]):
 //! every step's distance from the line through its neighbours, the conditions that tell a
-//! glitch from a motion, and the three largest.
+//! glitch from a motion, and the three largest. [`super::returns`] judges the same residuals a
+//! second way.
 
 /// A one-step spike: its size and step.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -14,6 +15,13 @@ pub struct Spike {
 pub struct Scratch {
     r: Vec<f64>,
     sizes: Vec<f64>,
+}
+
+impl Scratch {
+    /// The residuals of the last column searched ([`residuals`]), and the sizes' buffer.
+    pub fn parts(&mut self) -> (&[f64], &mut Vec<f64>) {
+        (&self.r, &mut self.sizes)
+    }
 }
 
 /// [`largest`]' sizes of the steps `2..n - 2` of `x` (`n` at least 5) into `sizes`, from the
@@ -67,21 +75,11 @@ fn interior_sizes(x: &[f32], r: &[f64], sizes: &mut [f64]) {
 #[inline(always)]
 pub fn largest(x: &[f32], scratch: &mut Scratch) -> [Spike; 3] {
     let n = x.len();
-    let mut top = [Spike::default(); 3];
     if n < 3 {
-        return top;
+        return [Spike::default(); 3];
     }
-    let r = &mut scratch.r;
-    r.clear();
-    r.push(0.0);
-    r.extend(
-        x[..n - 2]
-            .iter()
-            .zip(&x[1..n - 1])
-            .zip(&x[2..])
-            .map(|((&a, &b), &c)| f64::from(b) - 0.5 * (f64::from(a) + f64::from(c))),
-    );
-    r.push(0.0);
+    residuals(x, &mut scratch.r);
+    let r = &scratch.r;
     let size_at = |t: usize| -> f64 {
         let rt = r[t];
         let size = rt.abs();
@@ -111,9 +109,39 @@ pub fn largest(x: &[f32], scratch: &mut Scratch) -> [Spike; 3] {
     if n >= 5 {
         interior_sizes(x, r, &mut sizes[2..n - 2]);
     }
-    // The three largest, kept in order as the steps go by (size descending, then step).
+    top3(&sizes[..n - 1])
+}
+
+/// Every step's distance from the line through its neighbours,
+/// `r[t] = x[t] - (x[t-1] + x[t+1]) / 2`, into `r` (`n` values; 0 at the two ends). `-2 r[t]`
+/// is the second difference at `t`.
+#[inline(always)]
+pub fn residuals(x: &[f32], r: &mut Vec<f64>) {
+    let n = x.len();
+    r.clear();
+    if n < 3 {
+        r.resize(n, 0.0);
+        return;
+    }
+    r.push(0.0);
+    r.extend(
+        x[..n - 2]
+            .iter()
+            .zip(&x[1..n - 1])
+            .zip(&x[2..])
+            .map(|((&a, &b), &c)| f64::from(b) - 0.5 * (f64::from(a) + f64::from(c))),
+    );
+    r.push(0.0);
+}
+
+/// The three largest of every step's `sizes` but the first: (size, step), largest first (of
+/// equal sizes the earlier step; size 0: none).
+#[inline(always)]
+pub fn top3(sizes: &[f64]) -> [Spike; 3] {
+    let mut top = [Spike::default(); 3];
+    // Kept in order as the steps go by (size descending, then step).
     let mut kept = 0;
-    for (c, chunk) in sizes[..n - 1].chunks(8).enumerate() {
+    for (c, chunk) in sizes.chunks(8).enumerate() {
         // Most steps are no spike (size 0): a chunk below the third largest is skipped whole.
         let most = chunk.iter().fold(0.0f64, |m, &v| m.max(v));
         if kept == 3 && most as f32 <= top[2].size {
