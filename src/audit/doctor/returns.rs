@@ -29,50 +29,72 @@ const OVER_BUSY: f64 = 1.0;
 /// of the value).
 const STEP_SHARE: f64 = 0.4;
 
-/// A return at a step where this many other action dimensions leave a rest (the same value for
-/// the two steps before) and do not come back is the start of a teleoperator's input across the
-/// action (robosuite's spacemouse, issue 50), not a glitch of one value.
+/// A return at a step where this many other action dimensions leave a rest ...
 const ONSET_OTHERS: u32 = 2;
 
-/// Per step, how many of the action's dimensions leave a rest there: `x[t-2] == x[t-1] !=
-/// x[t]` and `x[t+1] != x[t-1]` (0 at the first two steps and the last).
+/// ... (the same value for this many steps before; a quantized command holds two or three
+/// samples as it moves) and do not come back is the start of a teleoperator's input across the
+/// action (robosuite's spacemouse, issue 50), not a glitch of one value.
+const REST: usize = 4;
+
+/// Per step, how many of the action's dimensions leave a rest there ([`leaves_rest`]).
 #[inline(always)]
 pub fn onsets(columns: &[&[f32]], n: usize) -> Vec<u32> {
     let mut count = vec![0u32; n];
-    if n >= 4 {
+    if n > REST + 1 {
+        // The steps `REST..n - 1`, from equally long slices, one per offset (the loop
+        // vectorizes).
+        let m = n - 1 - REST;
         for x in columns {
-            for (t, c) in count.iter_mut().enumerate().take(n - 1).skip(2) {
-                *c += u32::from(leaves_rest(x, t));
+            let (a, b, c, d) = (&x[..m], &x[1..m + 1], &x[2..m + 2], &x[3..m + 3]);
+            let (now, next) = (&x[4..m + 4], &x[5..m + 5]);
+            for (i, out) in count[REST..n - 1].iter_mut().enumerate() {
+                let rest = (a[i] == d[i]) & (b[i] == d[i]) & (c[i] == d[i]);
+                *out += u32::from(rest & (now[i] != d[i]) & (next[i] != d[i]));
             }
         }
     }
     count
 }
 
-/// Whether `x` leaves a rest at step `t` (in `2..n - 1`) and does not come back at `t + 1`.
+/// Whether `x` leaves a rest at step `t`: `x[t-4] == .. == x[t-1] != x[t]`, and `x[t+1] !=
+/// x[t-1]` (it does not come back; false at the first four steps and the last).
 #[inline(always)]
 fn leaves_rest(x: &[f32], t: usize) -> bool {
-    (x[t - 1] == x[t - 2]) & (x[t] != x[t - 1]) & (x[t + 1] != x[t - 1])
+    t >= REST
+        && t + 1 < x.len()
+        && x[t - REST..t].iter().all(|&v| v == x[t - 1])
+        && x[t] != x[t - 1]
+        && x[t + 1] != x[t - 1]
 }
 
-/// The excursion at step `t` when it returns, from the residuals `r` of
-/// [`spikes::residuals`] (`-2 r[u]` is the second difference at `u`), else 0. `calm` and `busy`
-/// are the smaller and the larger of the residuals two steps away (0 where a side is missing).
+/// The smaller of two finite values (`f64::min` also orders NaN, which costs a blend a step).
 #[inline(always)]
-fn excursion(x: &[f32], r: &[f64], t: usize, calm: f64, busy: f64, others: u32) -> f64 {
-    let (rl, rr) = (r[t - 1], r[t + 1]);
-    let half = rl.abs().min(rr.abs());
+fn lesser(a: f64, b: f64) -> f64 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+/// The excursion at a step (its value and its neighbours' `x`) when it returns, from the
+/// residuals of [`spikes::residuals`] at its neighbours, `rl` and `rr` (`-2 r[u]` is the second
+/// difference at `u`), else 0. `calm` and `busy` are the smaller and the larger of the residuals
+/// two steps away (0 where a side is missing).
+#[inline(always)]
+fn excursion(x: [f32; 3], rl: f64, rr: f64, calm: f64, busy: f64) -> f64 {
+    let half = lesser(rl.abs(), rr.abs());
     let (before, after) = (
-        f64::from(x[t]) - f64::from(x[t - 1]),
-        f64::from(x[t]) - f64::from(x[t + 1]),
+        f64::from(x[1]) - f64::from(x[0]),
+        f64::from(x[1]) - f64::from(x[2]),
     );
     let spike = (rl * rr > 0.0)
         & (before * rl < 0.0)
         & (before * after > 0.0)
-        & (before.abs().min(after.abs()) >= STEP_SHARE * 2.0 * half)
+        & (lesser(before.abs(), after.abs()) >= STEP_SHARE * 2.0 * half)
         & (half > OVER_CALM * calm)
-        & (half > OVER_BUSY * busy)
-        & (others < ONSET_OTHERS);
+        & (half > OVER_BUSY * busy);
     if spike {
         2.0 * half
     } else {
@@ -95,7 +117,6 @@ pub fn largest(x: &[f32], r: &[f64], onsets: &[u32], sizes: &mut Vec<f64>) -> [S
     if n < 5 {
         return spikes::top3(sizes);
     }
-    let others = |t: usize| onsets[t].saturating_sub(u32::from(leaves_rest(x, t)));
     // The ends: a side whose second difference two steps away lies outside the episode is
     // missing (the other alone is the calm one, and there is no busy one).
     let side = |u: Option<usize>| u.filter(|&u| u >= 1 && u + 1 < n).map(|u| r[u].abs());
@@ -105,33 +126,67 @@ pub fn largest(x: &[f32], r: &[f64], onsets: &[u32], sizes: &mut Vec<f64>) -> [S
             (Some(s), None) | (None, Some(s)) => (s, 0.0),
             (None, None) => (0.0, 0.0),
         };
-        sizes[t] = excursion(x, r, t, calm, busy, others(t));
+        let around = [x[t - 1], x[t], x[t + 1]];
+        sizes[t] = excursion(around, r[t - 1], r[t + 1], calm, busy);
     }
-    // The steps with both sides inside the episode.
-    for t in 3..n.saturating_sub(3) {
-        let (a, b) = (r[t - 2].abs(), r[t + 2].abs());
-        sizes[t] = excursion(x, r, t, a.min(b), a.max(b), others(t));
+    // The steps with both sides inside the episode, without branches (the loop vectorizes).
+    if n > 6 {
+        interior(x, r, &mut sizes[3..n - 3]);
     }
-    spikes::top3(sizes)
+    // Not at an onset across the action: the three largest are looked at (returns are rare,
+    // onsets rarer), and taken again without one that is.
+    loop {
+        let top = spikes::top3(sizes);
+        let at_onset = |s: &&Spike| {
+            let t = s.step as usize;
+            s.size > 0.0 && onsets[t].saturating_sub(u32::from(leaves_rest(x, t))) >= ONSET_OTHERS
+        };
+        match top.iter().find(at_onset) {
+            Some(s) => sizes[s.step as usize] = 0.0,
+            None => return top,
+        }
+    }
 }
 
-/// The keys of the episode's return scale (see [`super::signal::DimSignal::return_scale`])
-/// into `keys`: at the steps `2..n - 2` where the dimension moves, `min(|e_l|, |e_r|)` where the
-/// two are of one sign (else 0), as the bits of a single-precision value.
+/// [`largest`]' sizes of the steps `3..n - 3` of `x` into `sizes`, from the residuals `r`:
+/// equally long slices, one per offset, so that the loop runs without bounds checks.
 #[inline(always)]
-pub fn scale_keys(x: &[f32], r: &[f64], keys: &mut Vec<u32>) {
-    let n = x.len();
-    keys.clear();
-    for t in 2..n.saturating_sub(2) {
-        if x[t] != x[t - 1] || x[t + 1] != x[t] {
-            let (rl, rr) = (r[t - 1], r[t + 1]);
-            let q = if rl * rr > 0.0 {
-                2.0 * rl.abs().min(rr.abs())
-            } else {
-                0.0
-            };
-            keys.push((q as f32).to_bits());
-        }
+fn interior(x: &[f32], r: &[f64], sizes: &mut [f64]) {
+    let m = sizes.len();
+    let (r1, r2, r4, r5) = (&r[1..m + 1], &r[2..m + 2], &r[4..m + 4], &r[5..m + 5]);
+    let (xb, xt, xa) = (&x[2..m + 2], &x[3..m + 3], &x[4..m + 4]);
+    for (i, out) in sizes.iter_mut().enumerate() {
+        let (a, b) = (r1[i].abs(), r5[i].abs());
+        let (calm, busy) = if a < b { (a, b) } else { (b, a) };
+        *out = excursion([xb[i], xt[i], xa[i]], r2[i], r4[i], calm, busy);
+    }
+}
+
+/// How far a step goes out and comes back, from its neighbours' residuals: `min(|e_l|, |e_r|)`
+/// where the two are of one sign, else 0 (what the return scale,
+/// [`super::signal::DimSignal::return_scale`], takes the 90th percentile of).
+#[inline(always)]
+pub fn back(rl: f64, rr: f64) -> f64 {
+    if rl * rr > 0.0 {
+        2.0 * lesser(rl.abs(), rr.abs())
+    } else {
+        0.0
+    }
+}
+
+/// [`back`] of every step `2..n - 2` of a column from its residuals `r` (`n` values), in single
+/// precision, into `out` (`n - 4` values; the loop vectorizes).
+#[inline(always)]
+pub fn backs(r: &[f64], out: &mut Vec<f32>) {
+    out.clear();
+    let n = r.len();
+    if n >= 5 {
+        out.extend(
+            r[1..n - 3]
+                .iter()
+                .zip(&r[3..n - 1])
+                .map(|(&rl, &rr)| back(rl, rr) as f32),
+        );
     }
 }
 
@@ -147,10 +202,12 @@ mod tests {
         spikes::residuals(&x, &mut r);
         let onsets = onsets(&[&x], x.len());
         let top = largest(&x, &r, &onsets, &mut Vec::new());
-        let mut keys = Vec::new();
-        scale_keys(&x, &r, &mut keys);
-        keys.sort_unstable();
-        (top[0], f32::from_bits(keys[9 * (keys.len() - 1) / 10]))
+        let mut keys: Vec<f64> = (2..x.len() - 2)
+            .filter(|&t| x[t] != x[t - 1] || x[t + 1] != x[t])
+            .map(|t| back(r[t - 1], r[t + 1]))
+            .collect();
+        keys.sort_by(f64::total_cmp);
+        (top[0], keys[9 * (keys.len() - 1) / 10] as f32)
     }
 
     /// A fast joint: swings of 100 and back in 30 steps each (minimum jerk), resting 10 steps
@@ -229,7 +286,8 @@ mod tests {
         assert_eq!(of(&v).0.size, 0.0);
     }
 
-    /// A one-step excursion where two other dimensions start to move is the start of an input.
+    /// A one-step excursion where two other dimensions start to move from rest is the start of
+    /// an input.
     #[test]
     fn an_onset_across_the_action_is_not_a_glitch() {
         let n = 60;
@@ -253,5 +311,9 @@ mod tests {
         assert_eq!(largest(&spike, &r, &alone, &mut Vec::new())[0].step, 30);
         let both = onsets(&[&spike, &a, &b], n);
         assert_eq!(largest(&spike, &r, &both, &mut Vec::new())[0].size, 0.0);
+        // Quantized commands that move on, each value held for two samples, are no onset.
+        let ticks: Vec<f32> = (0..n).map(|t| 0.1 * (t / 2) as f32).collect();
+        let moving = onsets(&[&spike, &ticks, &ticks], n);
+        assert_eq!(largest(&spike, &r, &moving, &mut Vec::new())[0].step, 30);
     }
 }

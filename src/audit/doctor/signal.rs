@@ -61,7 +61,7 @@ pub struct DimSignal {
     /// The largest returns ([`returns::largest`]), largest first (size 0: none).
     pub returns: [spikes::Spike; 3],
     /// The 90th percentile, at the steps where the dimension moves, of how far it goes out and
-    /// comes straight back ([`returns::scale_keys`]; NaN with fewer than [`MOTION_STEPS`] such
+    /// comes straight back ([`returns::back`]; NaN with fewer than [`MOTION_STEPS`] such
     /// steps).
     pub return_scale: f32,
     pub min: f32,
@@ -105,6 +105,8 @@ pub fn unchanged_share(unchanged: u32, n: usize) -> f64 {
 pub struct Scratch {
     steps: Vec<f32>,
     keys: Vec<u32>,
+    back: Vec<u32>,
+    backs: Vec<f32>,
     spikes: spikes::Scratch,
 }
 
@@ -118,6 +120,21 @@ fn p90_of_bits(bits: &mut [u32], least: usize) -> f32 {
     }
     let k = (9 * (m - 1)) / 10;
     f32::from_bits(*bits.select_nth_unstable(k).1)
+}
+
+/// [`p90_of_bits`] of `bits` and `zeros` more values of 0 (the smallest), without them.
+#[inline(always)]
+fn p90_above_zeros(bits: &mut [u32], zeros: usize, least: usize) -> f32 {
+    let m = bits.len() + zeros;
+    if m < least.max(1) {
+        return f32::NAN;
+    }
+    let k = (9 * (m - 1)) / 10;
+    if k < zeros {
+        0.0
+    } else {
+        f32::from_bits(*bits.select_nth_unstable(k - zeros).1)
+    }
 }
 
 /// The features of one column `x` (finite values) of an action whose dimensions leave a rest at
@@ -140,27 +157,40 @@ pub fn dim_signal(x: &[f32], onsets: &[u32], scratch: &mut Scratch) -> DimSignal
     // A step of 0 is a value equal to the one before (finite values).
     out.unchanged = steps.iter().map(|&d| u32::from(d == 0.0)).sum();
     out.run = longest_run(x, out.unchanged);
+    out.spikes = spikes::largest(x, &mut scratch.spikes);
+    // The residuals the spike search left (of this column: it computes them from 3 steps on).
+    let (r, sizes) = scratch.spikes.parts();
+    out.returns = returns::largest(x, r, onsets, sizes);
     // The motion scale: the distance from the line through the neighbours at the steps where
-    // the dimension moves (either neighbour differs).
-    let keys = &mut scratch.keys;
+    // the dimension moves (either neighbour differs); the return scale: how far it goes out
+    // and comes back there ([`returns::back`]), its zeros counted, not kept.
+    let (keys, back, backs) = (&mut scratch.keys, &mut scratch.back, &mut scratch.backs);
+    returns::backs(r, backs);
     keys.clear();
+    back.clear();
+    keys.resize(n, 0);
+    back.resize(n, 0);
+    // Written without branches: each value goes to the next place, which only a kept one
+    // takes.
+    let moving = |t: usize| (x[t] != x[t - 1]) | (x[t + 1] != x[t]);
+    let (mut kept, mut returned, mut back_zeros) = (0, 0, 0);
     for t in 1..n.saturating_sub(1) {
-        if x[t] != x[t - 1] || x[t + 1] != x[t] {
-            let r = f64::from(x[t]) - 0.5 * (f64::from(x[t - 1]) + f64::from(x[t + 1]));
-            keys.push((r.abs() as f32).to_bits());
-        }
+        keys[kept] = (r[t].abs() as f32).to_bits();
+        kept += usize::from(moving(t));
     }
+    for (i, &q) in backs.iter().enumerate() {
+        let moving = moving(i + 2);
+        back[returned] = q.to_bits();
+        returned += usize::from(moving & (q > 0.0));
+        back_zeros += usize::from(moving & (q <= 0.0));
+    }
+    keys.truncate(kept);
+    back.truncate(returned);
     out.motion = p90_of_bits(keys, MOTION_STEPS);
+    out.return_scale = p90_above_zeros(back, back_zeros, MOTION_STEPS);
     if max > min {
         (out.clip_steps, out.clip_runs, out.clip_max) = clipped(x, steps, keys, (min, max));
     }
-    out.spikes = spikes::largest(x, &mut scratch.spikes);
-    // The residuals the spike search left (of this column: it computes them from 3 steps on,
-    // and the returns need 5).
-    let (r, sizes) = scratch.spikes.parts();
-    out.returns = returns::largest(x, r, onsets, sizes);
-    returns::scale_keys(x, r, keys);
-    out.return_scale = p90_of_bits(keys, MOTION_STEPS);
     out
 }
 
