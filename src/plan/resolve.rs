@@ -60,6 +60,7 @@ pub fn resolve(
         audit: AuditSummary::default(),
         profiles,
         scripts: estimate::script_sizes(spec)?,
+        memory: spec.spec.build.memory.map(|m| m.0),
     };
     estimate::fill(&mut plan, &estimate::FrameMeasures::new());
     Ok(plan)

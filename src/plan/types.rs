@@ -32,6 +32,10 @@ pub struct Plan {
     /// The size of each generated script, from its template (the embedded one or the user's).
     #[serde(skip)]
     pub scripts: BTreeMap<String, super::estimate::ScriptSize>,
+    /// The memory the build may keep values in, in bytes (`[build] memory`, or `chunkc build
+    /// --memory` once the command sets it); `None`: exec's default.
+    #[serde(skip)]
+    pub memory: Option<u64>,
 }
 
 /// What the temporal audit found and what `build` does about it.

@@ -32,6 +32,7 @@ pub mod export_keys;
 mod image_storage;
 pub mod lerobot_version;
 mod load;
+mod memory;
 pub mod model;
 mod observations;
 mod output_location;

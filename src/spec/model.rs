@@ -12,6 +12,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 pub use super::image_storage::ImageCompression;
+pub use super::memory::MemorySize;
 pub use super::transform::{StatsPopulation, TransformSpec};
 
 /// A chunkc build spec (`chunkc.toml`): one source (or a mixture of several), one split, one
@@ -39,6 +40,9 @@ pub struct Spec {
     pub audit: AuditSpec,
     /// Where the outputs go.
     pub output: OutputSpec,
+    /// How the build runs (outputs never depend on it).
+    #[serde(default, skip_serializing_if = "BuildSpec::is_default")]
+    pub build: BuildSpec,
     /// One entry per target architecture: `[profiles.<name>]`. Each writes `<output.dir>/<name>/`.
     pub profiles: BTreeMap<String, ProfileSpec>,
 }
@@ -607,6 +611,26 @@ pub struct OutputSpec {
     /// Writing into the source is refused either way.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub follow_symlinks: bool,
+}
+
+/// `[build]`: how the build runs, on this machine; the outputs are the same bytes whatever it
+/// says.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BuildSpec {
+    /// The memory the build may keep low-dimensional values in until they are written, with a
+    /// unit (`"2GiB"`, `"512MiB"`); what does not fit goes to a file in the staging directory.
+    /// Default: a quarter of the memory available when the build starts. `chunkc build
+    /// --memory` overrides it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(with = "Option<String>")]
+    pub memory: Option<MemorySize>,
+}
+
+impl BuildSpec {
+    pub fn is_default(&self) -> bool {
+        self == &BuildSpec::default()
+    }
 }
 
 /// `[profiles.<name>]`: one training-ready dataset. Every value left out comes from the profile it

@@ -372,6 +372,7 @@ mod tests {
                 "[audit]",
                 "[audit.doctor]",
                 "[output]",
+                "[build]",
                 "[profiles.<name>]",
                 "[profiles.<name>.normalize]",
                 "[profiles.<name>.export_keys]",
