@@ -10,8 +10,8 @@ use std::collections::BTreeMap;
 
 use super::camera;
 use super::model::{
-    Alignment, Compression, ImageCompression, Layout, NormalizeMode, OutputFormat, Padding,
-    ProfileSpec, StatsFormat, StatsPopulation, TransformSpec,
+    Alignment, Compression, ImageCompression, Layout, LerobotVersion, NormalizeMode, OutputFormat,
+    Padding, ProfileSpec, StatsFormat, StatsPopulation, TransformSpec,
 };
 use super::preset_values::{preset_values, PresetValues};
 
@@ -132,7 +132,7 @@ pub fn expand(
     let stride = resolve!(stride, |_: &PresetValues| None, 1, std::convert::identity);
     let format = resolve!(
         format,
-        |_: &PresetValues| None,
+        |b: &PresetValues| b.format,
         OutputFormat::Hdf5,
         std::convert::identity
     );
@@ -163,6 +163,18 @@ pub fn expand(
     let video_crf = pick!(video_crf);
     let video_gop = pick!(video_gop);
     let video_copy = pick!(video_copy);
+    // Set by the chain or the preset only: the default (v3.0) gets no origin, so that the plan
+    // of a profile that never names it reads as before.
+    let lerobot_version = match pick!(lerobot_version) {
+        Some(v) => v,
+        None => match base.as_ref().and_then(|b| b.lerobot_version) {
+            Some(v) => {
+                origins.insert("lerobot_version", from_preset.clone().unwrap());
+                v
+            }
+            None => LerobotVersion::V30,
+        },
+    };
     let zarr_version = resolve!(
         zarr_version,
         |_: &PresetValues| None,
@@ -250,6 +262,7 @@ pub fn expand(
         video_gop,
         video_copy,
         zarr_version,
+        lerobot_version,
         stats_formats,
         segment,
         hierarchy,
@@ -317,6 +330,34 @@ mod tests {
         assert_eq!(p.origins["chunk"], "profiles.base");
         assert_eq!(p.origins["stride"], "profiles.child");
         assert_eq!(p.origins["obs_history"], "preset diffusion_policy");
+    }
+
+    #[test]
+    fn lerobot_version_comes_from_the_nearest_profile_that_sets_it() {
+        let spec = |v: Option<LerobotVersion>, extends: Option<&str>| ProfileSpec {
+            preset: Some(Preset::Pi0),
+            format: Some(OutputFormat::Parquet),
+            lerobot_version: v,
+            extends: extends.map(str::to_string),
+            ..Default::default()
+        };
+        let all = profiles(&[
+            ("base", spec(Some(LerobotVersion::V21), None)),
+            ("child", spec(None, Some("base"))),
+            ("own", spec(Some(LerobotVersion::V30), Some("base"))),
+            ("plain", spec(None, None)),
+        ]);
+        let child = expand("child", &all).unwrap();
+        assert_eq!(child.lerobot_version, LerobotVersion::V21);
+        assert_eq!(child.origins["lerobot_version"], "profiles.base");
+        assert!(child.writes_lerobot_v21());
+        assert_eq!(
+            expand("own", &all).unwrap().lerobot_version,
+            LerobotVersion::V30
+        );
+        let plain = expand("plain", &all).unwrap();
+        assert_eq!(plain.lerobot_version, LerobotVersion::V30);
+        assert!(!plain.origins.contains_key("lerobot_version"));
     }
 
     #[test]

@@ -2,7 +2,10 @@
 //! from (see TARGETS.md, "Default chunk parameters"). [`super::preset`] expands a profile over
 //! them.
 
-use super::model::{Alignment, NormalizeMode, Padding, Preset, StatsFormat, StatsPopulation};
+use super::model::{
+    Alignment, LerobotVersion, NormalizeMode, OutputFormat, Padding, Preset, StatsFormat,
+    StatsPopulation,
+};
 
 /// The values a preset supplies (see TARGETS.md, "Default chunk parameters").
 pub(super) struct PresetValues {
@@ -16,6 +19,10 @@ pub(super) struct PresetValues {
     pub(super) normalize_multidim: NormalizeMode,
     pub(super) stats_formats: &'static [StatsFormat],
     pub(super) stats_population: Option<StatsPopulation>,
+    /// The output format a preset implies (`None`: the default, `hdf5`).
+    pub(super) format: Option<OutputFormat>,
+    /// The LeRobot layout a preset implies (`None`: the default, v3.0).
+    pub(super) lerobot_version: Option<LerobotVersion>,
 }
 
 // Long function: one table of values per preset, each with where it comes from.
@@ -32,6 +39,8 @@ pub(super) fn preset_values(preset: Preset) -> PresetValues {
         normalize_multidim: N::None,
         stats_formats: &[],
         stats_population: None,
+        format: None,
+        lerobot_version: None,
     };
     // openpi: the action horizon at the dataset rate, statistics over every sample's chunk
     // (`compute_norm_stats`), quantiles for every model but pi0 (`use_quantile_norm`).

@@ -7,9 +7,9 @@ use serde::Serialize;
 
 use super::camera::Camera;
 use super::model::{
-    Alignment, Compression, HierarchySpec, ImageCompression, ImageEncoding, Layout, NormalizeMode,
-    OutputFormat, Padding, Preset, SegmentSpec, StatsFormat, StatsPopulation, TransformSpec,
-    VideoCodec,
+    Alignment, Compression, HierarchySpec, ImageCompression, ImageEncoding, Layout, LerobotVersion,
+    NormalizeMode, OutputFormat, Padding, Preset, SegmentSpec, StatsFormat, StatsPopulation,
+    TransformSpec, VideoCodec,
 };
 use super::video_settings::{
     StreamCopy, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP, STORAGE_VIDEO,
@@ -67,6 +67,11 @@ pub struct Profile {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub video_copy: Option<bool>,
     pub zarr_version: u32,
+    /// The LeRobot layout `format = "parquet"` writes: the nearest profile of the `extends`
+    /// chain that sets `lerobot_version`, else the preset's (`groot`: v2.1), else v3.0. Left out
+    /// of the serialized profile when it is v3.0, so that those fingerprints stay.
+    #[serde(skip_serializing_if = "is_v30")]
+    pub lerobot_version: LerobotVersion,
     pub stats_formats: Vec<StatsFormat>,
     pub segment: Option<SegmentSpec>,
     pub hierarchy: Option<HierarchySpec>,
@@ -94,7 +99,17 @@ fn is_frames(p: &StatsPopulation) -> bool {
     *p == StatsPopulation::Frames
 }
 
+fn is_v30(v: &LerobotVersion) -> bool {
+    *v == LerobotVersion::V30
+}
+
 impl Profile {
+    /// Whether the profile writes a LeRobot v2.1 dataset (`format = "parquet"`,
+    /// `lerobot_version = "v2.1"`).
+    pub fn writes_lerobot_v21(&self) -> bool {
+        self.format == OutputFormat::Parquet && self.lerobot_version == LerobotVersion::V21
+    }
+
     /// The encoder settings when frames are stored as video, else `None`: parquet's
     /// `image_encoding = "video"` (LeRobot's defaults) or hdf5's `image_compression = "video"`
     /// ([`STORAGE_VIDEO`]'s).
