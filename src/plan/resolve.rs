@@ -214,6 +214,7 @@ fn resolve_profile(
             action.normalize = NormalizeMode::DpAbsAction;
         }
     }
+    let groot = super::groot::resolve(spec, manifest, profile, &channels, &widths)?;
     let used = episodes_of(spec, manifest, split, profile, fps, conv, &sampling)?;
 
     let fingerprint = freshness::profile_fingerprint(spec, manifest, profile);
@@ -236,6 +237,7 @@ fn resolve_profile(
         channels,
         transforms,
         widths,
+        groot,
         episodes: used.episodes,
         excluded: Vec::new(),
         repaired: Vec::new(),

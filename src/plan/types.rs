@@ -129,6 +129,10 @@ pub struct ProfilePlan {
     /// Per channel (manifest order): its widths through the transforms, per source.
     #[serde(skip)]
     pub widths: Vec<crate::transform::Widths>,
+    /// A `groot` profile's GR00T modality, per dataset (one per source, in mixture order);
+    /// empty (and left out of the plan's JSON) for other profiles.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub groot: Vec<super::groot::GrootModality>,
     pub episodes: Vec<ProfileEpisode>,
     pub excluded: Vec<Excluded>,
     /// Episodes the audit repaired (re-gridded or resampled) before they were used.

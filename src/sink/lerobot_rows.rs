@@ -34,6 +34,10 @@ pub(super) struct DataTable<'a> {
     pub fps: f64,
     /// A training mixture's (a `source_index` column).
     pub mixture: bool,
+    /// A mixture source's dataset of its own: per channel, the source's own width (the first
+    /// values of each stored row; 0: the source lacks the channel, which has no column).
+    /// `None`: every channel as stored.
+    pub own: Option<&'a [usize]>,
 }
 
 /// One episode's rows: where they are in the stored arrays and the values of its index columns.
@@ -55,14 +59,59 @@ impl DataTable<'_> {
         !(self.video && kind == ChannelKind::Image)
     }
 
+    /// The per-step shape channel `c` is written at: a mixture source's own width of a padded
+    /// vector; `None` where the source lacks the channel.
+    pub(super) fn shape_of(&self, c: usize) -> Option<Vec<usize>> {
+        let (_, shape, kind) = &self.channels[c];
+        match (self.own, kind) {
+            (Some(own), ChannelKind::Lowdim) => match own[c] {
+                0 => None,
+                w if w != shape.iter().product::<usize>() => Some(vec![w]),
+                _ => Some(shape.clone()),
+            },
+            _ => Some(shape.clone()),
+        }
+    }
+
+    /// The channels written, with the shapes they are written at, by channel position.
+    pub(super) fn written(&self) -> impl Iterator<Item = (usize, &str, Vec<usize>, ChannelKind)> {
+        self.channels
+            .iter()
+            .enumerate()
+            .filter_map(|(c, (name, _, kind))| Some((c, name.as_str(), self.shape_of(c)?, *kind)))
+    }
+
+    /// Stored rows `lo..hi` of low-dim channel `c` at its written width.
+    pub(super) fn rows(
+        &self,
+        raw: &LowdimStore,
+        c: usize,
+        lo: usize,
+        hi: usize,
+    ) -> Result<Vec<f32>> {
+        let rows = raw.rows(lo, hi)?;
+        let stored = raw.width();
+        let width = self
+            .shape_of(c)
+            .map_or(0, |s| s.iter().product::<usize>().max(1));
+        if width >= stored || stored == 0 {
+            return Ok(rows.into_owned());
+        }
+        Ok(rows
+            .chunks_exact(stored)
+            .flat_map(|row| &row[..width])
+            .copied()
+            .collect())
+    }
+
     pub(super) fn schema(&self) -> Arc<Schema> {
         let mut fields = Vec::new();
-        for (name, shape, kind) in self.channels {
-            if !self.has_column(*kind) {
+        for (_, name, shape, kind) in self.written() {
+            if !self.has_column(kind) {
                 continue;
             }
             let dt = match kind {
-                ChannelKind::Lowdim => lowdim_type(shape),
+                ChannelKind::Lowdim => lowdim_type(&shape),
                 ChannelKind::Image => DataType::Struct(image_fields()),
             };
             fields.push(Field::new(name, dt, false));
@@ -91,9 +140,12 @@ impl DataTable<'_> {
     ) -> Result<RecordBatch> {
         let (lo, hi) = (ep.rows.start, ep.rows.end);
         let mut cols: Vec<ArrayRef> = Vec::new();
-        for ((name, shape, kind), (raw, frames)) in
-            self.channels.iter().zip(raw.iter().zip(frames.iter_mut()))
+        for (c, ((name, _, kind), (raw, frames))) in
+            (self.channels.iter().zip(raw.iter().zip(frames.iter_mut()))).enumerate()
         {
+            let Some(shape) = self.shape_of(c) else {
+                continue;
+            };
             if !self.has_column(*kind) {
                 continue;
             }
@@ -102,7 +154,7 @@ impl DataTable<'_> {
                     let raw = raw
                         .as_ref()
                         .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
-                    cols.push(lowdim_column(raw.rows(lo, hi)?.into_owned(), shape)?);
+                    cols.push(lowdim_column(self.rows(raw, c, lo, hi)?, &shape)?);
                 }
                 (ChannelKind::Image, Some(frames)) => {
                     cols.push(Arc::new(frames.next(hi - lo, name)?));

@@ -223,6 +223,13 @@ pub fn expand(
             export_keys.extend(map.iter().map(|(k, v)| (k.clone(), v.clone())));
         }
     }
+    let mut modality = BTreeMap::new();
+    for (_, p) in chain.iter().rev() {
+        if let Some(map) = &p.modality {
+            modality.extend(map.iter().map(|(k, v)| (k.clone(), v.clone())));
+        }
+    }
+    let relative_actions = pick!(relative_actions).unwrap_or_default();
     let cameras = camera::merged(chain.iter().map(|(_, p)| &p.cameras));
     let (normalize_lowdim, normalize_multidim) = base
         .as_ref()
@@ -263,6 +270,8 @@ pub fn expand(
         video_copy,
         zarr_version,
         lerobot_version,
+        modality,
+        relative_actions,
         stats_formats,
         segment,
         hierarchy,

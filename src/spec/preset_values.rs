@@ -121,5 +121,18 @@ pub(super) fn preset_values(preset: Preset) -> PresetValues {
             chunk: Some(32),
             ..openpi
         },
+        // GR00T N1.7 (Isaac-GR00T's modality configs: action `delta_indices` range(16), state
+        // and video [0]): a sample only where its whole chunk is in the episode (length - 16 + 1
+        // per episode), q01/q99 min-max normalization clipped to [-1, 1], and the LeRobot v2.1
+        // dataset its loader reads.
+        Preset::Groot => PresetValues {
+            chunk: Some(16),
+            padding: Padding::Truncate,
+            normalize_lowdim: N::GrootQuantile,
+            normalize_multidim: N::GrootQuantile,
+            format: Some(OutputFormat::Parquet),
+            lerobot_version: Some(LerobotVersion::V21),
+            ..base
+        },
     }
 }

@@ -72,6 +72,14 @@ pub struct Profile {
     /// of the serialized profile when it is v3.0, so that those fingerprints stay.
     #[serde(skip_serializing_if = "is_v30")]
     pub lerobot_version: LerobotVersion,
+    /// GR00T's parts of each low-dimensional channel as written (`[start, end)` by part name),
+    /// merged along the `extends` chain channel by channel; empty (and left out of the
+    /// serialized profile) when none is given.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub modality: BTreeMap<String, BTreeMap<String, [u32; 2]>>,
+    /// The action parts GR00T makes relative (the nearest list along the `extends` chain).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub relative_actions: Vec<String>,
     pub stats_formats: Vec<StatsFormat>,
     pub segment: Option<SegmentSpec>,
     pub hierarchy: Option<HierarchySpec>,
@@ -108,6 +116,11 @@ impl Profile {
     /// `lerobot_version = "v2.1"`).
     pub fn writes_lerobot_v21(&self) -> bool {
         self.format == OutputFormat::Parquet && self.lerobot_version == LerobotVersion::V21
+    }
+
+    /// Whether the profile writes GR00T's dataset (`preset = "groot"`, nearest in the chain).
+    pub fn is_groot(&self) -> bool {
+        self.preset == Some(Preset::Groot)
     }
 
     /// The encoder settings when frames are stored as video, else `None`: parquet's
