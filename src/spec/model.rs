@@ -750,7 +750,7 @@ pub struct ProfileSpec {
     /// keys (`observation.images.top` as `top`) and the task its
     /// `annotation.human.task_description`. Merged along `extends`, channel by channel.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub modality: Option<BTreeMap<String, BTreeMap<String, [u32; 2]>>>,
+    pub modality: Option<BTreeMap<String, ModalityParts>>,
     /// The action parts (of `modality`) GR00T fine-tunes as relative actions
     /// (`ActionRepresentation.RELATIVE`; `preset = "groot"` only): `meta/relative_stats.json`
     /// holds their statistics over every action chunk of `chunk` steps that fits in its
@@ -788,6 +788,19 @@ pub struct ProfileSpec {
     /// `[profiles.<name>.cameras."observation.image"] size = [H, W]`. Merged along `extends`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cameras: Option<BTreeMap<String, super::camera::CameraSpec>>,
+}
+
+/// One channel's parts in GR00T's `meta/modality.json`: `<part> = [start, end]`, each the
+/// slice `[start, end)` of the channel's vector; together they tile it from 0 to its width.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(transparent)]
+pub struct ModalityParts(pub BTreeMap<String, [u32; 2]>);
+
+impl std::ops::Deref for ModalityParts {
+    type Target = BTreeMap<String, [u32; 2]>;
+    fn deref(&self) -> &Self::Target {
+        &self.0
+    }
 }
 
 /// Target-architecture presets (values and sources in the book's presets chapter).

@@ -76,7 +76,7 @@ pub struct Profile {
     /// merged along the `extends` chain channel by channel; empty (and left out of the
     /// serialized profile) when none is given.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub modality: BTreeMap<String, BTreeMap<String, [u32; 2]>>,
+    pub modality: BTreeMap<String, super::model::ModalityParts>,
     /// The action parts GR00T makes relative (the nearest list along the `extends` chain).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub relative_actions: Vec<String>,
