@@ -244,6 +244,9 @@ fn write_documents(
     for (name, text) in render::profile_files(renderer, p)? {
         write(name, text)?;
     }
+    for (path, text) in render::groot::configs(renderer, p, &plan.source.parts)? {
+        write(&path, text)?;
+    }
     Ok(())
 }
 

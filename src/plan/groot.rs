@@ -13,6 +13,10 @@ use crate::spec::modality::{default_part, problems, Parts};
 use crate::spec::{LoadedSpec, Preset, Profile};
 use crate::transform::Widths;
 
+/// The annotation GR00T's language modality reads the task from (`meta/modality.json`'s
+/// `annotation` key; `annotation.human.task_description` in its modality config).
+pub const TASK_ANNOTATION: &str = "human.task_description";
+
 /// GR00T's `meta/modality.json` of one dataset, and its relative action parts.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct GrootModality {

@@ -25,13 +25,10 @@ use serde_json::{json, Map, Value};
 use super::lerobot_files::DatasetFiles;
 use super::lerobot_rows::{timestamp, DataTable};
 use crate::error::{Error, Result};
-use crate::plan::groot::{GrootModality, GrootPart};
+use crate::plan::groot::{GrootModality, GrootPart, TASK_ANNOTATION};
 use crate::source::ChannelKind;
 use crate::stats::{lowdim_from_rows, shaped, ChannelStats, Moments};
 use crate::store::LowdimStore;
-
-/// The annotation GR00T's language modality reads (`annotation.human.task_description`).
-pub const TASK_ANNOTATION: &str = "human.task_description";
 
 /// What one dataset's GR00T files are made from.
 pub(super) struct Dataset<'a> {

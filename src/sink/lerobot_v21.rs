@@ -68,6 +68,8 @@ pub struct LerobotV21Writer {
     /// A `groot` profile's modality per source, and its action horizon.
     groot: Vec<crate::plan::groot::GrootModality>,
     horizon: usize,
+    /// The file `meta.json` names as the data.
+    first_file: String,
     /// Per stored episode: its part and its `episode_index` there.
     place: Vec<(usize, usize)>,
     /// Per stored episode, per channel: the camera's statistics over the episode's frames.
@@ -108,7 +110,12 @@ impl LerobotV21Writer {
             })
             .collect::<Result<_>>()?;
         let (parts, place) = parts(ctx);
+        let first = parts
+            .iter()
+            .find(|p| !p.episodes.is_empty())
+            .unwrap_or(&parts[0]);
         Ok(LerobotV21Writer {
+            first_file: first.path(&data_file(0)),
             own: ctx.source_parts.iter().map(|s| s.widths.clone()).collect(),
             groot: ctx.profile.groot.clone(),
             horizon: ctx.profile.window().chunk,
@@ -302,8 +309,9 @@ fn hf_feature(dt: &arrow_schema::DataType) -> Value {
 }
 
 impl Sink for LerobotV21Writer {
+    /// The first dataset's first episode (a `groot` mixture's first source's).
     fn data_file(&self) -> &str {
-        "data/chunk-000/episode_000000.parquet"
+        &self.first_file
     }
 
     fn frame_encoding(&self) -> FrameEncoding {

@@ -120,3 +120,66 @@ class GrootDataset:
                     chunks.append((action[t:t + horizon] - state[t]).astype(np.float32))
             out[key] = six(np.stack(chunks).astype(dtype))
         return out
+
+
+def registered_config(path):
+    """Runs a `groot_config.py` against stand-ins of the GR00T modules it imports (their names
+    as Isaac-GR00T N1.7 has them) and returns what it registers: (embodiment tag name, config
+    with each ModalityConfig as a dict, action configs as (rep, type, format) names)."""
+    import sys
+    import types
+
+    registered = []
+
+    class Names:
+        def __getattr__(self, name):
+            return name
+
+    def modality_config(**kwargs):
+        return kwargs
+
+    def action_config(rep, type, format):
+        return (rep, type, format)
+
+    stubs = {
+        "gr00t": types.ModuleType("gr00t"),
+        "gr00t.configs": types.ModuleType("gr00t.configs"),
+        "gr00t.configs.data": types.ModuleType("gr00t.configs.data"),
+        "gr00t.configs.data.embodiment_configs": types.ModuleType("e"),
+        "gr00t.data": types.ModuleType("gr00t.data"),
+        "gr00t.data.embodiment_tags": types.ModuleType("t"),
+        "gr00t.data.types": types.ModuleType("y"),
+    }
+    stubs["gr00t.configs.data.embodiment_configs"].register_modality_config = (
+        lambda config, embodiment_tag: registered.append((embodiment_tag, config)))
+    stubs["gr00t.data.embodiment_tags"].EmbodimentTag = Names()
+    y = stubs["gr00t.data.types"]
+    y.ActionConfig, y.ModalityConfig = action_config, modality_config
+    y.ActionFormat = y.ActionRepresentation = y.ActionType = Names()
+    saved = {k: sys.modules.get(k) for k in stubs}
+    sys.modules.update(stubs)
+    try:
+        exec(compile(Path(path).read_text(), str(path), "exec"), {"__name__": "groot_config"})
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                sys.modules.pop(k, None)
+            else:
+                sys.modules[k] = v
+    assert len(registered) == 1, registered
+    return registered[0]
+
+
+def check_config(path, g, horizon, relative=()):
+    """The registered config names exactly the dataset's modality keys, with N1.7's offsets."""
+    tag, config = registered_config(path)
+    assert tag == "NEW_EMBODIMENT"
+    assert config["video"] == {"delta_indices": [0], "modality_keys": list(g.modality["video"])}
+    assert config["state"] == {"delta_indices": [0], "modality_keys": list(g.modality["state"])}
+    action = config["action"]
+    assert action["delta_indices"] == list(range(horizon))
+    assert action["modality_keys"] == list(g.modality["action"])
+    reps = ["RELATIVE" if k in relative else "ABSOLUTE" for k in action["modality_keys"]]
+    assert action["action_configs"] == [(r, "NON_EEF", "DEFAULT") for r in reps]
+    for key in g.modality["annotation"]:
+        assert config["language"] == {"delta_indices": [0], "modality_keys": [f"annotation.{key}"]}

@@ -18,7 +18,7 @@ import pytest
 import zarr
 
 from conftest import G1, PUSHT, build_with_video, run_chunkc, write_mixture_spec
-from groot_oracle import STATS, GrootDataset
+from groot_oracle import STATS, GrootDataset, check_config
 from test_lerobot_v21 import (TOP, VIDEO_V21, assert_lerobot_layout, chunk_of, decode, lerobot21,
                               read_v21, sample_indices, source_episodes, spec_text, v21_places)
 
@@ -103,6 +103,9 @@ action = {G1_PARTS}
         assert meta["num_samples"][name] == len(g.samples(16)) > 0
         assert_stats_are_groots(g, relative=["arms"])
     g = GrootDataset(root)
+    # The modality config GR00T's fine-tuning script takes (`--modality-config-path`).
+    check_config(root / "groot_config.py", g, 16, relative=["arms"])
+    assert not (root / "val" / "groot_config.py").exists()
     lengths = [e["length"] for e in g.episodes]
     (got,) = read_v21(lerobot21, tmp_path / "lr", [
         {"root": str(root), "repo_id": "groot", "horizon": 16, "indices": sample_indices(lengths, 16, every=13)}])
@@ -144,6 +147,7 @@ action = { xy = [0, 2] }
             source = decode(VIDEO_V21 / "videos" / "chunk-000" / TOP / f"episode_{e:06d}.mp4")
             np.testing.assert_array_equal(frames, source)
         assert_stats_are_groots(g, relative=["xy"], horizon=5)
+    check_config(root / "groot_config.py", GrootDataset(root), 5, relative=["xy"])
 
 
 def test_a_groot_mixture_is_a_dataset_per_source(tmp_path, lerobot21):
@@ -187,9 +191,10 @@ chunk = 8
                 np.testing.assert_array_equal(g.part(df, "action", "action"), want)
                 assert len(df) == g.episodes[i]["length"]
             assert_stats_are_groots(g)
-        # chunkc's per-source statistics stay beside GR00T's dataset.
+        # chunkc's per-source statistics stay beside GR00T's dataset, and its config.
         for f in ("stats.json", "lerobot_stats.json"):
             assert (root / "sources" / src / f).exists()
+        check_config(root / "sources" / src / "groot_config.py", GrootDataset(root / "sources" / src), 8)
     sim = GrootDataset(root / "sources" / "sim")
     (got,) = read_v21(lerobot21, tmp_path / "lr", [
         {"root": str(root / "sources" / "sim"), "repo_id": "sim", "horizon": 8}])
