@@ -79,6 +79,21 @@ pub(super) fn resolve(
     if profile.preset != Some(Preset::Groot) {
         return Ok(Vec::new());
     }
+    let cameras = channels.iter().any(|c| c.kind == ChannelKind::Image);
+    if cameras && profile.image_encoding != Some(crate::spec::ImageEncoding::Video) {
+        let at = At {
+            spec,
+            profile: &profile.name,
+            source: String::new(),
+        };
+        return Err(at.error(
+            &["image_encoding"],
+            "GR00T decodes cameras from one mp4 per episode; PNG frames in the parquet rows \
+             are not read"
+                .into(),
+            Some("leave `image_encoding` out: the preset's is `video`".into()),
+        ));
+    }
     for channel in profile.modality.keys() {
         let at = At {
             spec,
@@ -164,20 +179,7 @@ fn one(
         if width == 0 {
             continue;
         }
-        if ch.shape.len() > 1 {
-            return Err(at.error(
-                &["preset"],
-                format!(
-                    "GR00T slices vectors, and `{}` holds a {:?} array per step",
-                    ch.name, ch.shape
-                ),
-                Some(format!("leave `{}` out of `[source.channels]`", ch.name)),
-            ));
-        }
-        let parts = match profile.modality.get(&ch.name) {
-            Some(parts) => tiled(at, &ch.name, parts, width)?,
-            None => vec![(default_part(&ch.name).to_string(), 0, width)],
-        };
+        let parts = parts_of(at, profile, ch, width)?;
         let group = if ch.name == "action" {
             &mut m.action
         } else {
@@ -210,6 +212,12 @@ fn one(
             });
         }
     }
+    relative(at, &m)?;
+    Ok(m)
+}
+
+/// Each relative action part has a state part of the same name and width to subtract.
+fn relative(at: &At, m: &GrootModality) -> Result<()> {
     for name in &m.relative_actions {
         let action = m.action_part(name);
         let state = m.state_part(name);
@@ -236,7 +244,31 @@ fn one(
             return Err(at.error(&["relative_actions"], message, None));
         }
     }
-    Ok(m)
+    Ok(())
+}
+
+/// The parts of low-dimensional channel `ch`, `width` wide (its own in a mixture source), in
+/// order: as named in `modality`, else one.
+fn parts_of(
+    at: &At,
+    profile: &Profile,
+    ch: &ProfileChannel,
+    width: usize,
+) -> Result<Vec<(String, usize, usize)>> {
+    if ch.shape.len() > 1 {
+        return Err(at.error(
+            &["preset"],
+            format!(
+                "GR00T slices vectors, and `{}` holds a {:?} array per step",
+                ch.name, ch.shape
+            ),
+            Some(format!("leave `{}` out of `[source.channels]`", ch.name)),
+        ));
+    }
+    Ok(match profile.modality.get(&ch.name) {
+        Some(parts) => tiled(at, &ch.name, parts, width)?,
+        None => vec![(default_part(&ch.name).to_string(), 0, width)],
+    })
 }
 
 /// The parts of `channel`, `width` wide, in order; an error at the first problem.

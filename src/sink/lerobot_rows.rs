@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use arrow_array::{ArrayRef, Float32Array, RecordBatch};
 use arrow_schema::{DataType, Field, Schema};
+use serde_json::{json, Value};
 
 use super::lerobot_columns::{err, i64_col, image_fields, lowdim_column, lowdim_type, Channel};
 use super::lerobot_spill::SpillReader;
@@ -182,4 +183,36 @@ impl DataTable<'_> {
 /// The `timestamp` of an episode's row `i`: `i / fps`, as float32.
 pub(super) fn timestamp(i: usize, fps: f64) -> f32 {
     (i as f64 / fps) as f32
+}
+
+/// The data files' schema: nullable columns, as `datasets` writes them, with its features in
+/// the `huggingface` metadata, so that lerobot 0.3.3 (which reads the files with
+/// `load_dataset("parquet")`, no features given) gets PNG frames as images.
+pub(super) fn with_hf_features(table: &DataTable) -> Arc<Schema> {
+    let schema = table.schema();
+    let mut features = serde_json::Map::new();
+    let fields: Vec<arrow_schema::Field> = schema
+        .fields()
+        .iter()
+        .map(|f| {
+            features.insert(f.name().clone(), hf_feature(f.data_type()));
+            f.as_ref().clone().with_nullable(true)
+        })
+        .collect();
+    let info = json!({"info": {"features": Value::Object(features)}});
+    let metadata = [("huggingface".to_string(), info.to_string())].into();
+    Arc::new(Schema::new_with_metadata(fields, metadata))
+}
+
+/// The `datasets` feature of a column of arrow type `dt`.
+fn hf_feature(dt: &arrow_schema::DataType) -> Value {
+    use arrow_schema::DataType as D;
+    match dt {
+        D::Float32 => json!({"dtype": "float32", "_type": "Value"}),
+        D::Int64 => json!({"dtype": "int64", "_type": "Value"}),
+        D::FixedSizeList(item, n) => {
+            json!({"feature": hf_feature(item.data_type()), "length": n, "_type": "Sequence"})
+        }
+        _ => json!({"_type": "Image"}),
+    }
 }

@@ -27,7 +27,6 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use arrow_schema::Schema;
 use serde_json::{json, Value};
 
 use super::lerobot_cameras::camera;
@@ -35,7 +34,9 @@ use super::lerobot_columns::Channel;
 use super::lerobot_episode_stats::FeatureStats;
 use super::lerobot_features::features;
 use super::lerobot_files::DatasetFiles;
-use super::lerobot_rows::{timestamp, DataTable, EpisodeRows, INDEX_COLUMNS, SOURCE_COLUMN};
+use super::lerobot_rows::{
+    timestamp, with_hf_features, DataTable, EpisodeRows, INDEX_COLUMNS, SOURCE_COLUMN,
+};
 use super::lerobot_spill::{FrameSpill, SpillReader};
 use super::lerobot_tasks::Tasks;
 use super::lerobot_v21_meta::{data_file, layout_of, video_file, Meta, Part};
@@ -274,38 +275,6 @@ fn parts(ctx: &SinkContext) -> (Vec<Part>, Vec<(usize, usize)>) {
         })
         .collect();
     (parts, place)
-}
-
-/// The data files' schema: nullable columns, as `datasets` writes them, with its features in
-/// the `huggingface` metadata, so that lerobot 0.3.3 (which reads the files with
-/// `load_dataset("parquet")`, no features given) gets PNG frames as images.
-fn with_hf_features(table: &DataTable) -> Arc<Schema> {
-    let schema = table.schema();
-    let mut features = serde_json::Map::new();
-    let fields: Vec<arrow_schema::Field> = schema
-        .fields()
-        .iter()
-        .map(|f| {
-            features.insert(f.name().clone(), hf_feature(f.data_type()));
-            f.as_ref().clone().with_nullable(true)
-        })
-        .collect();
-    let info = json!({"info": {"features": Value::Object(features)}});
-    let metadata = [("huggingface".to_string(), info.to_string())].into();
-    Arc::new(Schema::new_with_metadata(fields, metadata))
-}
-
-/// The `datasets` feature of a column of arrow type `dt`.
-fn hf_feature(dt: &arrow_schema::DataType) -> Value {
-    use arrow_schema::DataType as D;
-    match dt {
-        D::Float32 => json!({"dtype": "float32", "_type": "Value"}),
-        D::Int64 => json!({"dtype": "int64", "_type": "Value"}),
-        D::FixedSizeList(item, n) => {
-            json!({"feature": hf_feature(item.data_type()), "length": n, "_type": "Sequence"})
-        }
-        _ => json!({"_type": "Image"}),
-    }
 }
 
 impl Sink for LerobotV21Writer {

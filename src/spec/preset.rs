@@ -158,23 +158,28 @@ pub fn expand(
     let image_compression_level =
         resolve!(image_compression_level, |_: &PresetValues| None, None, Some);
     let image_quality = pick!(image_quality);
-    let image_encoding = pick!(image_encoding);
+    let image_encoding = pick!(image_encoding).or_else(|| {
+        let preset = base.as_ref().and_then(|b| b.image_encoding)?;
+        origins.insert("image_encoding", from_preset.clone().unwrap());
+        Some(preset)
+    });
     let video_codec = pick!(video_codec);
     let video_crf = pick!(video_crf);
     let video_gop = pick!(video_gop);
     let video_copy = pick!(video_copy);
-    // Set by the chain or the preset only: the default (v3.0) gets no origin, so that the plan
-    // of a profile that never names it reads as before.
-    let lerobot_version = match pick!(lerobot_version) {
-        Some(v) => v,
-        None => match base.as_ref().and_then(|b| b.lerobot_version) {
-            Some(v) => {
-                origins.insert("lerobot_version", from_preset.clone().unwrap());
-                v
-            }
-            None => LerobotVersion::V30,
-        },
-    };
+    let lerobot_version = resolve!(
+        lerobot_version,
+        |b: &PresetValues| b.lerobot_version,
+        LerobotVersion::V30,
+        std::convert::identity
+    );
+    // The default gets no origin: the plans of profiles that never name it stay as they were.
+    if origins
+        .get("lerobot_version")
+        .is_some_and(|o| o == "default")
+    {
+        origins.remove("lerobot_version");
+    }
     let zarr_version = resolve!(
         zarr_version,
         |_: &PresetValues| None,
@@ -223,12 +228,10 @@ pub fn expand(
             export_keys.extend(map.iter().map(|(k, v)| (k.clone(), v.clone())));
         }
     }
-    let mut modality = BTreeMap::new();
-    for (_, p) in chain.iter().rev() {
-        if let Some(map) = &p.modality {
-            modality.extend(map.iter().map(|(k, v)| (k.clone(), v.clone())));
-        }
-    }
+    // Farthest first: a nearer profile's parts of a channel replace its parent's.
+    let modality = (chain.iter().rev().filter_map(|(_, p)| p.modality.clone()))
+        .flatten()
+        .collect();
     let relative_actions = pick!(relative_actions).unwrap_or_default();
     let cameras = camera::merged(chain.iter().map(|(_, p)| &p.cameras));
     let (normalize_lowdim, normalize_multidim) = base
@@ -339,34 +342,6 @@ mod tests {
         assert_eq!(p.origins["chunk"], "profiles.base");
         assert_eq!(p.origins["stride"], "profiles.child");
         assert_eq!(p.origins["obs_history"], "preset diffusion_policy");
-    }
-
-    #[test]
-    fn lerobot_version_comes_from_the_nearest_profile_that_sets_it() {
-        let spec = |v: Option<LerobotVersion>, extends: Option<&str>| ProfileSpec {
-            preset: Some(Preset::Pi0),
-            format: Some(OutputFormat::Parquet),
-            lerobot_version: v,
-            extends: extends.map(str::to_string),
-            ..Default::default()
-        };
-        let all = profiles(&[
-            ("base", spec(Some(LerobotVersion::V21), None)),
-            ("child", spec(None, Some("base"))),
-            ("own", spec(Some(LerobotVersion::V30), Some("base"))),
-            ("plain", spec(None, None)),
-        ]);
-        let child = expand("child", &all).unwrap();
-        assert_eq!(child.lerobot_version, LerobotVersion::V21);
-        assert_eq!(child.origins["lerobot_version"], "profiles.base");
-        assert!(child.writes_lerobot_v21());
-        assert_eq!(
-            expand("own", &all).unwrap().lerobot_version,
-            LerobotVersion::V30
-        );
-        let plain = expand("plain", &all).unwrap();
-        assert_eq!(plain.lerobot_version, LerobotVersion::V30);
-        assert!(!plain.origins.contains_key("lerobot_version"));
     }
 
     #[test]

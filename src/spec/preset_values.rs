@@ -3,8 +3,8 @@
 //! them.
 
 use super::model::{
-    Alignment, LerobotVersion, NormalizeMode, OutputFormat, Padding, Preset, StatsFormat,
-    StatsPopulation,
+    Alignment, ImageEncoding, LerobotVersion, NormalizeMode, OutputFormat, Padding, Preset,
+    StatsFormat, StatsPopulation,
 };
 
 /// The values a preset supplies (see TARGETS.md, "Default chunk parameters").
@@ -23,6 +23,8 @@ pub(super) struct PresetValues {
     pub(super) format: Option<OutputFormat>,
     /// The LeRobot layout a preset implies (`None`: the default, v3.0).
     pub(super) lerobot_version: Option<LerobotVersion>,
+    /// How a parquet profile stores frames (`None`: the default, PNG).
+    pub(super) image_encoding: Option<ImageEncoding>,
 }
 
 // Long function: one table of values per preset, each with where it comes from.
@@ -41,6 +43,7 @@ pub(super) fn preset_values(preset: Preset) -> PresetValues {
         stats_population: None,
         format: None,
         lerobot_version: None,
+        image_encoding: None,
     };
     // openpi: the action horizon at the dataset rate, statistics over every sample's chunk
     // (`compute_norm_stats`), quantiles for every model but pi0 (`use_quantile_norm`).
@@ -124,7 +127,7 @@ pub(super) fn preset_values(preset: Preset) -> PresetValues {
         // GR00T N1.7 (Isaac-GR00T's modality configs: action `delta_indices` range(16), state
         // and video [0]): a sample only where its whole chunk is in the episode (length - 16 + 1
         // per episode), q01/q99 min-max normalization clipped to [-1, 1], and the LeRobot v2.1
-        // dataset its loader reads.
+        // dataset its loader reads, cameras as the mp4s it decodes.
         Preset::Groot => PresetValues {
             chunk: Some(16),
             padding: Padding::Truncate,
@@ -132,6 +135,7 @@ pub(super) fn preset_values(preset: Preset) -> PresetValues {
             normalize_multidim: N::GrootQuantile,
             format: Some(OutputFormat::Parquet),
             lerobot_version: Some(LerobotVersion::V21),
+            image_encoding: Some(ImageEncoding::Video),
             ..base
         },
     }

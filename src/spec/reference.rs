@@ -352,7 +352,7 @@ mod tests {
         let values: Vec<_> = padding.allowed.iter().map(|(v, _)| v.as_str()).collect();
         assert_eq!(values, ["edge", "zero", "mask", "truncate"]);
         let mode = lookup(&["profiles", "act", "normalize", "action"]).unwrap();
-        assert_eq!(mode.allowed.len(), 9);
+        assert_eq!(mode.allowed.len(), 10);
         let path = lookup(&["source", "path"]).unwrap();
         assert!(path.required);
         assert_eq!(path.ty, "string");
@@ -379,6 +379,7 @@ mod tests {
                 "[profiles.<name>]",
                 "[profiles.<name>.normalize]",
                 "[profiles.<name>.export_keys]",
+                "[profiles.<name>.modality.<name>]",
                 "[profiles.<name>.segment]",
                 "[profiles.<name>.hierarchy]",
                 "[profiles.<name>.cameras.<name>]",

@@ -202,7 +202,7 @@ chunk = 8
     assert "source_index" not in got
 
 
-def test_groot_parts_past_the_channel_are_refused_and_nothing_is_written(tmp_path):
+def test_groot_parts_past_the_channel_and_png_cameras_are_refused_and_nothing_is_written(tmp_path):
     spec = tmp_path / "spec.toml"
     spec.write_text(spec_text(G1, """
 [profiles.g]
@@ -214,6 +214,12 @@ action = { arms = [0, 14], hands = [14, 27] }
     assert proc.returncode == 2, proc.stderr
     assert "part `hands` of `action` ends at 27, and `action` has 26 dimensions" in proc.stderr
     assert "spec.toml:" in proc.stderr
+    assert not (tmp_path / "out").exists()
+    # GR00T decodes cameras from mp4s: PNG frames are refused.
+    spec.write_text(spec_text(VIDEO_V21, '[profiles.g]\npreset = "groot"\nchunk = 5\nimage_encoding = "png"\n'))
+    proc = run_chunkc("build", "-q", spec, check=False)
+    assert proc.returncode == 2, proc.stderr
+    assert "GR00T decodes cameras from one mp4 per episode" in proc.stderr
     assert not (tmp_path / "out").exists()
 
 

@@ -76,6 +76,11 @@ impl Checker<'_> {
                 self.value(&at, problem.message, problem.label, help);
             }
         }
+        self.relative_actions(name, own);
+    }
+
+    /// `relative_actions` names each part once (the parts themselves are the plan's to find).
+    fn relative_actions(&mut self, name: &str, own: &ProfileSpec) {
         let mut seen: Vec<&str> = Vec::new();
         for part in own.relative_actions.iter().flatten() {
             if seen.contains(&part.as_str()) {
