@@ -40,6 +40,30 @@ pub struct GrootPart {
 }
 
 impl GrootModality {
+    /// One line for `chunkc plan`: `state arms 0..14, hands 14..26 (observation.state);
+    /// action ...; video top; relative arms`.
+    pub fn summary(&self) -> String {
+        let parts = |parts: &[GrootPart]| -> String {
+            let each: Vec<String> = (parts.iter())
+                .map(|p| format!("{} {}..{} ({})", p.name, p.start, p.end, p.channel))
+                .collect();
+            each.join(", ")
+        };
+        let mut out = format!(
+            "state {}; action {}",
+            parts(&self.state),
+            parts(&self.action)
+        );
+        if !self.video.is_empty() {
+            let keys: Vec<&str> = self.video.iter().map(|(k, _)| k.as_str()).collect();
+            out += &format!("; video {}", keys.join(", "));
+        }
+        if !self.relative_actions.is_empty() {
+            out += &format!("; relative {}", self.relative_actions.join(", "));
+        }
+        out
+    }
+
     /// The state part named `name`.
     pub fn state_part(&self, name: &str) -> Option<&GrootPart> {
         self.state.iter().find(|p| p.name == name)
