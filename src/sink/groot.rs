@@ -193,7 +193,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn modality_json_is_grootss_schema() {
+    fn modality_json_is_groots_schema() {
         let part = |name: &str, channel: &str, start, end| GrootPart {
             name: name.into(),
             channel: channel.into(),

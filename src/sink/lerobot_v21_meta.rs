@@ -4,9 +4,11 @@
 //!
 //! The export is two datasets: the profile folder itself holds the training episodes, and
 //! `val/` the validation episodes (openpi and GR00T train on every episode of the dataset they
-//! are given, so the validation episodes cannot share it). In each, `episode_index` runs
-//! 0..N-1 in stored order, the position LeRobot and GR00T index by; `meta.json` keeps each
-//! stored episode's source id beside its dataset and `episode_index`.
+//! are given, so the validation episodes cannot share it). A `groot` profile over a mixture
+//! writes that pair once per source instead, in `sources/<name>/` (GR00T mixes datasets
+//! itself), and none in the profile folder. In each, `episode_index` runs 0..N-1 in stored
+//! order, the position LeRobot and GR00T index by; `meta.json` keeps each stored episode's
+//! source id beside its dataset and `episode_index`.
 
 use serde_json::{json, Map, Value};
 
