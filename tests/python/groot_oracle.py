@@ -69,8 +69,10 @@ class GrootDataset:
     def part(self, df, group, key):
         """A state or action part of an episode: (rows, end - start), GR00T's slice."""
         p = self.modality[group][key]
-        default = {"state": "observation.state", "action": "action"}[group]
-        return self.column(df, p.get("original_key", default))[:, p["start"]:p["end"]]
+        original = p.get("original_key", {"state": "observation.state", "action": "action"}[group])
+        # GR00T slices a row only where pandas gives it as an array (else it takes the scalar).
+        assert isinstance(df[original].iloc[0], np.ndarray), f"{original} is not a vector column"
+        return self.column(df, original)[:, p["start"]:p["end"]]
 
     def language(self, df):
         """Each row's task description (`annotation.human.task_description`)."""
