@@ -11,9 +11,12 @@
 //! - `card`: the dataset card, written once the build's audit has judged.
 //! - `codebase`: statistics files in each target codebase's own format.
 //! - `pickle`: the minimal pickle writer behind ACT's `dataset_stats.pkl`.
+//! - `groot`: a `groot` profile's `groot_config.py` (GR00T's modality config of each training
+//!   dataset), from the plan's modality.
 
 pub mod card;
 pub mod codebase;
+pub mod groot;
 pub mod pickle;
 
 use std::path::Path;
@@ -40,6 +43,10 @@ pub const TEMPLATES: &[(&str, &str)] = &[
     (
         "dp_normalizer.py",
         include_str!("../../templates/dp_normalizer.py.j2"),
+    ),
+    (
+        "groot_config.py",
+        include_str!("../../templates/groot_config.py.j2"),
     ),
 ];
 

@@ -10,8 +10,8 @@ use std::collections::BTreeMap;
 
 use super::camera;
 use super::model::{
-    Alignment, Compression, ImageCompression, Layout, NormalizeMode, OutputFormat, Padding,
-    ProfileSpec, StatsFormat, StatsPopulation, TransformSpec,
+    Alignment, Compression, ImageCompression, Layout, LerobotVersion, NormalizeMode, OutputFormat,
+    Padding, ProfileSpec, StatsFormat, StatsPopulation, TransformSpec,
 };
 use super::preset_values::{preset_values, PresetValues};
 
@@ -132,7 +132,7 @@ pub fn expand(
     let stride = resolve!(stride, |_: &PresetValues| None, 1, std::convert::identity);
     let format = resolve!(
         format,
-        |_: &PresetValues| None,
+        |b: &PresetValues| b.format,
         OutputFormat::Hdf5,
         std::convert::identity
     );
@@ -158,11 +158,29 @@ pub fn expand(
     let image_compression_level =
         resolve!(image_compression_level, |_: &PresetValues| None, None, Some);
     let image_quality = pick!(image_quality);
-    let image_encoding = pick!(image_encoding);
+    let image_encoding = pick!(image_encoding).or_else(|| {
+        let preset = base.as_ref().and_then(|b| b.image_encoding)?;
+        (format == OutputFormat::Parquet).then_some(())?;
+        origins.insert("image_encoding", from_preset.clone().unwrap());
+        Some(preset)
+    });
     let video_codec = pick!(video_codec);
     let video_crf = pick!(video_crf);
     let video_gop = pick!(video_gop);
     let video_copy = pick!(video_copy);
+    let lerobot_version = resolve!(
+        lerobot_version,
+        |b: &PresetValues| b.lerobot_version,
+        LerobotVersion::V30,
+        std::convert::identity
+    );
+    // The default gets no origin: the plans of profiles that never name it stay as they were.
+    if origins
+        .get("lerobot_version")
+        .is_some_and(|o| o == "default")
+    {
+        origins.remove("lerobot_version");
+    }
     let zarr_version = resolve!(
         zarr_version,
         |_: &PresetValues| None,
@@ -211,6 +229,11 @@ pub fn expand(
             export_keys.extend(map.iter().map(|(k, v)| (k.clone(), v.clone())));
         }
     }
+    // Farthest first: a nearer profile's parts of a channel replace its parent's.
+    let modality = (chain.iter().rev().filter_map(|(_, p)| p.modality.clone()))
+        .flatten()
+        .collect();
+    let relative_actions = pick!(relative_actions).unwrap_or_default();
     let cameras = camera::merged(chain.iter().map(|(_, p)| &p.cameras));
     let (normalize_lowdim, normalize_multidim) = base
         .as_ref()
@@ -250,6 +273,9 @@ pub fn expand(
         video_gop,
         video_copy,
         zarr_version,
+        lerobot_version,
+        modality,
+        relative_actions,
         stats_formats,
         segment,
         hierarchy,
@@ -262,114 +288,4 @@ pub fn expand(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::spec::Preset;
-
-    fn profiles(items: &[(&str, ProfileSpec)]) -> BTreeMap<String, ProfileSpec> {
-        items
-            .iter()
-            .map(|(n, p)| (n.to_string(), p.clone()))
-            .collect()
-    }
-
-    #[test]
-    fn override_wins_over_preset() {
-        let spec = ProfileSpec {
-            preset: Some(Preset::Act),
-            fps: Some(10.0),
-            chunk: Some(20),
-            ..Default::default()
-        };
-        let p = expand("act", &profiles(&[("act", spec)])).unwrap();
-        assert_eq!((p.fps, p.chunk, p.obs_history), (Some(10.0), 20, 1));
-        assert_eq!(p.normalize_lowdim, NormalizeMode::Zscore);
-        assert_eq!(p.origins["chunk"], "profiles.act");
-        assert_eq!(p.origins["obs_history"], "preset act");
-        assert_eq!(p.origins["stride"], "default");
-    }
-
-    #[test]
-    fn no_preset_needs_chunk() {
-        let all = profiles(&[("x", ProfileSpec::default())]);
-        assert_eq!(expand("x", &all), Err(ExpandError::Missing("chunk")));
-    }
-
-    #[test]
-    fn extends_inherits_and_overrides() {
-        let base = ProfileSpec {
-            preset: Some(Preset::DiffusionPolicy),
-            chunk: Some(24),
-            normalize: Some([("action".to_string(), NormalizeMode::Minmax)].into()),
-            ..Default::default()
-        };
-        let child = ProfileSpec {
-            extends: Some("base".into()),
-            stride: Some(4),
-            ..Default::default()
-        };
-        let all = profiles(&[("base", base), ("child", child)]);
-        let p = expand("child", &all).unwrap();
-        assert_eq!((p.chunk, p.stride, p.obs_history), (24, 4, 2));
-        assert_eq!(p.preset, Some(Preset::DiffusionPolicy));
-        assert_eq!(p.alignment, Alignment::DiffusionPolicy);
-        assert_eq!(p.normalize["action"], NormalizeMode::Minmax);
-        assert_eq!(p.origins["chunk"], "profiles.base");
-        assert_eq!(p.origins["stride"], "profiles.child");
-        assert_eq!(p.origins["obs_history"], "preset diffusion_policy");
-    }
-
-    #[test]
-    fn export_keys_merge_along_extends() {
-        let map = |pairs: &[(&str, &str)]| {
-            Some(
-                pairs
-                    .iter()
-                    .map(|(k, v)| (k.to_string(), v.to_string()))
-                    .collect(),
-            )
-        };
-        let base = ProfileSpec {
-            preset: Some(Preset::DiffusionPolicy),
-            format: Some(OutputFormat::Zarr),
-            export_keys: map(&[("observation.image", "camera_0"), ("action", "act")]),
-            ..Default::default()
-        };
-        let child = ProfileSpec {
-            extends: Some("base".into()),
-            export_keys: map(&[("action", "action")]),
-            ..Default::default()
-        };
-        let all = profiles(&[("base", base), ("child", child)]);
-        let p = expand("child", &all).unwrap();
-        assert_eq!(p.export_keys["observation.image"], "camera_0");
-        assert_eq!(p.export_keys["action"], "action");
-        assert_eq!(p.export_keys.len(), 2);
-    }
-
-    #[test]
-    fn extends_cycles_and_unknown_parents_are_errors() {
-        let a = ProfileSpec {
-            extends: Some("b".into()),
-            ..Default::default()
-        };
-        let b = ProfileSpec {
-            extends: Some("a".into()),
-            ..Default::default()
-        };
-        let all = profiles(&[("a", a), ("b", b)]);
-        assert_eq!(
-            expand("a", &all),
-            Err(ExpandError::Cycle(vec!["a".into(), "b".into(), "a".into()]))
-        );
-        let orphan = ProfileSpec {
-            extends: Some("nope".into()),
-            ..Default::default()
-        };
-        let all = profiles(&[("x", orphan)]);
-        assert_eq!(
-            expand("x", &all),
-            Err(ExpandError::UnknownParent("nope".into()))
-        );
-    }
-}
+mod tests;
