@@ -183,6 +183,7 @@ impl LoaderParts {
             parts: *self,
             images: self.frames || self.jpeg || self.video || self.png || self.mp4,
             stored: self.jpeg || self.video,
+            tables: self.frames || self.jpeg || self.video,
             names: self
                 .named()
                 .into_iter()
@@ -208,6 +209,9 @@ pub struct PartsContext {
     images: bool,
     /// HDF5 cameras decoded on read (JPEG or video).
     stored: bool,
+    /// HDF5 frame tables: the cameras read frame by frame, from byte offsets (`frames`) or
+    /// decoded (`stored`).
+    tables: bool,
     /// The parts held, by name, in file order.
     names: Vec<&'static str>,
     /// (`data_format`, backend class) of each storage format read.
