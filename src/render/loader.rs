@@ -196,6 +196,7 @@ impl LoaderParts {
                 .map(|(format, class, _)| (format, class))
                 .collect(),
             lacking: self.lacking(),
+            every: *self == LoaderParts::every(),
         }
     }
 }
@@ -218,6 +219,8 @@ pub struct PartsContext {
     backends: Vec<(&'static str, &'static str)>,
     /// [`LoaderParts::lacking`].
     lacking: Vec<&'static str>,
+    /// Whether these are [`LoaderParts::every`] part.
+    every: bool,
 }
 
 impl Serialize for LoaderParts {

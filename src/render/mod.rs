@@ -223,4 +223,17 @@ mod tests {
             );
         }
     }
+
+    /// A low-dim HDF5 profile's loader (Push-T's `act` without its camera: no camera, transform,
+    /// mixture or segment) holds its own code and little else: at most 400 lines.
+    #[test]
+    fn a_low_dim_loader_is_short() {
+        let r = Renderer::new(None).unwrap();
+        let parts = LoaderParts {
+            hdf5: true,
+            ..LoaderParts::default()
+        };
+        let lines = loader_with(&r, parts).unwrap().lines().count();
+        assert!(lines <= 400, "{lines} lines");
+    }
 }
