@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use crate::plan::{Plan, ProfilePlan};
 use crate::source::ChannelKind;
-use crate::spec::{Compression, ImageCompression, OutputFormat, StatsPopulation};
+use crate::spec::{ImageCompression, OutputFormat, StatsPopulation};
 use crate::transform::Op;
 use crate::window::Sampling;
 
@@ -26,10 +26,8 @@ pub struct LoaderParts {
     pub zarr: bool,
     pub parquet: bool,
     /// HDF5 cameras stored as pixels (`image_compression` `none` or `gzip`): read with one pread
-    /// per frame; deflated frames (`gzip`: `image_compression`, or `compression` of the low-dim
-    /// arrays that the same table reads) inflated with zlib.
+    /// per frame, inflated with zlib where deflated.
     pub frames: bool,
-    pub gzip: bool,
     /// HDF5 cameras stored as JPEG, and as video.
     pub jpeg: bool,
     pub video: bool,
@@ -60,19 +58,15 @@ impl LoaderParts {
         let parquet = v.format == OutputFormat::Parquet && !p.writes_lerobot_v21();
         let hdf5_cameras = hdf5 && cameras;
         let parquet_video = v.video().is_some();
-        let frames = hdf5_cameras
-            && matches!(
-                v.image_compression,
-                ImageCompression::None | ImageCompression::Gzip
-            );
         LoaderParts {
             hdf5,
             zarr: v.format == OutputFormat::Zarr,
             parquet,
-            frames,
-            gzip: frames
-                && (v.image_compression == ImageCompression::Gzip
-                    || v.compression == Compression::Gzip),
+            frames: hdf5_cameras
+                && matches!(
+                    v.image_compression,
+                    ImageCompression::None | ImageCompression::Gzip
+                ),
             jpeg: hdf5_cameras && v.image_compression == ImageCompression::Jpeg,
             video: hdf5_cameras && v.image_compression == ImageCompression::Video,
             png: parquet && cameras && !parquet_video,
@@ -96,7 +90,6 @@ impl LoaderParts {
             zarr: true,
             parquet: true,
             frames: true,
-            gzip: true,
             jpeg: true,
             video: true,
             png: true,
@@ -111,13 +104,12 @@ impl LoaderParts {
     }
 
     /// Each part by name, and whether the loader holds it, in file order.
-    fn named(&self) -> [(&'static str, bool); 15] {
+    fn named(&self) -> [(&'static str, bool); 14] {
         [
             ("hdf5", self.hdf5),
             ("zarr", self.zarr),
             ("parquet", self.parquet),
             ("frames", self.frames),
-            ("gzip", self.gzip),
             ("png", self.png),
             ("mp4", self.mp4),
             ("jpeg", self.jpeg),
@@ -246,7 +238,6 @@ pub(super) mod tests {
             "zarr" => &mut p.zarr,
             "parquet" => &mut p.parquet,
             "frames" => &mut p.frames,
-            "gzip" => &mut p.gzip,
             "png" => &mut p.png,
             "mp4" => &mut p.mp4,
             "jpeg" => &mut p.jpeg,
@@ -270,12 +261,10 @@ pub(super) mod tests {
             let mut one = LoaderParts::default();
             *flag(&mut one, name) = true;
             one.transforms |= one.rotations;
-            one.frames |= one.gzip;
             out.push(one);
             let mut all_but = LoaderParts::every();
             *flag(&mut all_but, name) = false;
             all_but.rotations &= all_but.transforms;
-            all_but.gzip &= all_but.frames;
             out.push(all_but);
         }
         out

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import model_tier, import_loader, run_chunkc, write_spec
+from conftest import import_loader, loader_module, model_tier, run_chunkc, write_spec
 
 PROFILES = """
 [profiles.dp]
@@ -123,7 +123,8 @@ def test_full_epoch_with_two_workers_in_every_format(every_format, arch, fmt):
     loader = import_loader(root)
     assert loader.ChunkedDataset(str(root)).meta["data_format"] == fmt
     dl = loader.make_dataloader(str(root), "train", batch_size=256, num_workers=2, shuffle=False)
-    ref = loader.make_dataloader(str(reference), "train", batch_size=256, num_workers=2, shuffle=False)
+    ref = loader_module(reference).make_dataloader(str(reference), "train", batch_size=256, num_workers=2,
+                                                   shuffle=False)
     seen = 0
     for batch, want in zip(dl, ref):
         assert set(batch) == set(want)

@@ -18,9 +18,10 @@ Needs numpy and h5py.
 
 Reading: low-dim channels are read into memory once, when the dataset is created (up to
 LOWDIM_CACHE_BYTES in all); image frames are read per sample (HDF5 frames with one pread each at
-byte offsets looked up once), or all at once with `in_memory=True`. `ds.__getitems__(indices)`,
-which torch's DataLoader calls with each batch, returns the same samples as
-`[ds[i] for i in indices]`, built with whole-batch numpy; `ds[i]` is the batch of one.
+byte offsets looked up once, inflated with zlib when deflated), or all at once with
+`in_memory=True`. `ds.__getitems__(indices)`, which torch's DataLoader calls with each batch,
+returns the same samples as `[ds[i] for i in indices]`, built with whole-batch numpy; `ds[i]` is
+the batch of one.
 
 Samples: the sample at current step t of an episode has observations t-n_obs+1 .. t (the first
 frame repeated before the episode start, marked in `<name>_is_pad`) and actions starting at
@@ -368,9 +369,9 @@ class ChunkedDataset(_DatasetBase):
 
 def _frame_table(d):
     """Where each frame of an HDF5 dataset lies in the file, when every frame can be read with one
-    pread (contiguous storage, or one uncompressed chunk per frame); None otherwise."""
+    pread (contiguous storage, or one chunk per frame, deflated or not); None otherwise."""
     shape, n = tuple(d.shape[1:]), d.shape[0]
-    if n == 0 or not d.dtype.isnative or d.compression is not None or d.shuffle \
+    if n == 0 or not d.dtype.isnative or d.compression not in (None, "gzip") or d.shuffle \
             or d.fletcher32 or d.scaleoffset is not None:
         return None
     frame = int(np.prod(shape)) * d.dtype.itemsize
@@ -380,25 +381,33 @@ def _frame_table(d):
     if d.chunks != (1,) + shape or not hasattr(d.id, "chunk_iter"):  # chunk_iter: h5py >= 3.8
         return None
     offsets = np.full(n, -1, dtype=np.int64)
+    sizes = np.zeros(n, dtype=np.int64)
+    deflated = np.zeros(n, dtype=bool)
+    gzip = d.compression == "gzip"
 
     def visit(info):
-        offsets[info.chunk_offset[0]] = info.byte_offset
+        r = info.chunk_offset[0]
+        offsets[r], sizes[r] = info.byte_offset, info.size
+        # Bit 0 of the filter mask set: HDF5 skipped deflate for this chunk.
+        deflated[r] = gzip and not info.filter_mask & 1
 
     d.id.chunk_iter(visit)
     if (offsets < 0).any():  # frames never written (fill value): read through h5py
         return None
-    return _FrameTable(shape, d.dtype, offsets)
+    return _FrameTable(shape, d.dtype, offsets, sizes if gzip else None, deflated if gzip else None)
 
 
 class _FrameTable:
-    """Byte offsets of the frames of one channel in the HDF5 file; `reader(file)` reads frames
-    with one pread each."""
+    """Byte offsets of the frames of one channel in the HDF5 file (and, for deflated frames, their
+    stored sizes); `reader(file)` reads frames with one pread each, inflating with zlib."""
 
-    def __init__(self, shape, dtype, offsets):
+    def __init__(self, shape, dtype, offsets, sizes=None, deflated=None):
         self.shape, self.dtype = shape, np.dtype(dtype)
-        self.offsets = offsets
+        self.offsets, self.sizes, self.deflated = offsets, sizes, deflated
 
     def reader(self, raw):
+        import zlib
+
         fd = raw.fileno()
         frame = int(np.prod(self.shape)) * self.dtype.itemsize
 
@@ -412,8 +421,15 @@ class _FrameTable:
             out = np.empty((len(rows),) + self.shape, dtype=self.dtype)
             flat = out.reshape(len(rows), -1).view(np.uint8)
             offsets = self.offsets[rows].tolist()
-            for j, offset in enumerate(offsets):
-                flat[j] = np.frombuffer(pread(offset, frame), dtype=np.uint8)
+            if self.sizes is None:
+                for j, offset in enumerate(offsets):
+                    flat[j] = np.frombuffer(pread(offset, frame), dtype=np.uint8)
+                return out
+            sizes, deflated = self.sizes[rows].tolist(), self.deflated[rows].tolist()
+            for j, (offset, size, inflate) in enumerate(zip(offsets, sizes, deflated)):
+                data = pread(offset, size)
+                flat[j] = np.frombuffer(zlib.decompress(data, bufsize=frame) if inflate else data,
+                                        dtype=np.uint8)
             return out
 
         return read
