@@ -21,7 +21,8 @@ pub const FILES: &[(&str, &str)] = embedded![
 ];
 
 /// The parts that generated files' templates include, by the name they are included as
-/// (`loader/<part>.py`: the parts of `loader.py`, see `render::loader`).
+/// (`loader/<part>.py`, `validate/<part>.py`: the parts of `loader.py` and `validate.py`, see
+/// `render::parts`).
 pub const PARTS: &[(&str, &str)] = embedded![
     "loader/dataset.py",
     "loader/dataset_mixture.py",
@@ -39,6 +40,10 @@ pub const PARTS: &[(&str, &str)] = embedded![
     "loader/video.py",
     "loader/workers.py",
     "loader/zarr.py",
+    "validate/cameras_gif.py",
+    "validate/cameras_workspace.py",
+    "validate/mixture_sampler.py",
+    "validate/mixture_stats.py",
 ];
 
 /// The embedded template of generated file `name`.

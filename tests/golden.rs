@@ -3,8 +3,8 @@
 //! files and Zarr directories as canonical dumps (`<file>.txt`), other binary files as size and
 //! hash. The generated scripts that are the same file in every profile directory are kept once in
 //! `golden/_generated/`; a profile's `<script>.txt` says that its copy is that file. Its
-//! `loader.py`, generated for the profile from the parts it reads, is kept verbatim (and
-//! `golden/_generated/loader.py` is the loader with every part). A missing or an extra file
+//! `loader.py` and `validate.py`, generated for the profile from the parts it reads, are kept
+//! verbatim (and `golden/_generated/` holds them with every part). A missing or an extra file
 //! fails. The same builds with 1 and 2 threads, and with low-dim values spilled to
 //! disk, must give byte-identical files.
 //!
@@ -96,12 +96,15 @@ fn shared_scripts() -> BTreeMap<&'static str, String> {
         .collect()
 }
 
-/// What `golden/_generated/` holds: the shared scripts, and the loader with every part.
+/// What `golden/_generated/` holds: the shared scripts, and the scripts generated per profile
+/// with every part.
 fn generated_files() -> BTreeMap<&'static str, String> {
     let r = chunkc::render::Renderer::new(None).unwrap();
     let mut files = shared_scripts();
-    let every = chunkc::render::loader::LoaderParts::every();
-    files.insert("loader.py", chunkc::render::loader_with(&r, every).unwrap());
+    let every = chunkc::render::parts::Parts::every();
+    for name in chunkc::render::PROFILE_SCRIPTS {
+        files.insert(name, chunkc::render::script_with(&r, name, every).unwrap());
+    }
     files
 }
 
@@ -380,8 +383,8 @@ fn every_example_spec_is_listed() {
     );
 }
 
-/// `golden/_generated/` holds exactly the shared scripts and the loader with every part, as the
-/// embedded templates render them.
+/// `golden/_generated/` holds exactly the shared scripts and the per-profile scripts with every
+/// part, as the embedded templates render them.
 #[test]
 fn generated_scripts_match_golden() {
     let dir = Path::new(REPO).join("golden").join(GENERATED);

@@ -1,24 +1,23 @@
 //! Stage 6, render: generated files from minijinja templates embedded in the binary
 //! ([`crate::templates`]), each overridable by a file of the same name (plus `.j2`) in the
 //! spec's `[output] templates` directory, and so is each part a template includes
-//! (`loader/<part>.py.j2`).
+//! (`loader/<part>.py.j2`, `validate/<part>.py.j2`).
 //!
-//! `loader.py` is generated per profile: the parts of chunkc's loader that the profile reads
-//! ([`loader::LoaderParts`]), so that the file holds the code of its dataset and no other. The
-//! other scripts (`policy.py`, `validate.py`, `smoke_train.py`, `rollout.py` for profiles naming
-//! a simulator, `dp_normalizer.py`) are one static library per chunkc version: identical bytes in
-//! every profile directory, reading the profile from `meta.json` at run time
-//! ([`SHARED_SCRIPTS`]). What else differs per profile is in `meta.json`, the statistics files
-//! and the dataset card.
+//! `loader.py` and `validate.py` are generated per profile, from the parts that the profile
+//! reads ([`parts::Parts`]), so that each file holds the code of its dataset and no other. The
+//! other scripts (`policy.py`, `smoke_train.py`, `rollout.py` for profiles naming a simulator,
+//! `dp_normalizer.py`) are one static library per chunkc version: identical bytes in every
+//! profile directory, reading the profile from `meta.json` at run time ([`SHARED_SCRIPTS`]).
+//! What else differs per profile is in `meta.json`, the statistics files and the dataset card.
 //!
 //! - `card`: the dataset card, written once the build's audit has judged.
 //! - `codebase`: statistics files in each target codebase's own format.
-//! - `loader`: which parts of the loader a profile's `loader.py` holds.
+//! - `parts`: which parts of the loader (and of `validate.py`) a profile's files hold.
 //! - `pickle`: the minimal pickle writer behind ACT's `dataset_stats.pkl`.
 
 pub mod card;
 pub mod codebase;
-pub mod loader;
+pub mod parts;
 pub mod pickle;
 
 use std::path::Path;
@@ -28,7 +27,7 @@ use minijinja::{context, Environment, Value};
 use crate::error::{Error, IoContext, Result};
 use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
 use crate::templates::{FILES, PARTS};
-use loader::LoaderParts;
+use parts::Parts;
 
 /// The template environments: the embedded templates, with the user's overrides applied.
 pub struct Renderer {
@@ -132,7 +131,6 @@ fn override_files(dir: &Path) -> Result<Vec<(String, std::path::PathBuf)>> {
 /// read what they need of the profile from its `meta.json` at run time, so their templates see
 /// only `version`.
 pub const SHARED_SCRIPTS: &[&str] = &[
-    "validate.py",
     "smoke_train.py",
     "policy.py",
     "rollout.py",
@@ -148,36 +146,50 @@ pub fn shared_script(r: &Renderer, name: &str) -> Result<String> {
     r.render(name, context! { version => TOOL_VERSION })
 }
 
+/// The scripts generated per profile, from the parts it reads ([`Parts`]).
+pub const PROFILE_SCRIPTS: &[&str] = &["loader.py", "validate.py"];
+
 /// `loader.py` of profile `p`: the parts of chunkc's loader that it reads.
 pub fn loader(r: &Renderer, plan: &Plan, p: &ProfilePlan) -> Result<String> {
-    loader_with(r, LoaderParts::of(plan, p))
+    loader_with(r, Parts::of(plan, p))
 }
 
-/// `loader.py` with `parts`. Its templates also see `every` ([`LoaderParts::every`]), which a
-/// template override may render instead.
-pub fn loader_with(r: &Renderer, parts: LoaderParts) -> Result<String> {
+/// `loader.py` with `parts`.
+pub fn loader_with(r: &Renderer, parts: Parts) -> Result<String> {
+    script_with(r, "loader.py", parts)
+}
+
+/// One of [`PROFILE_SCRIPTS`] with `parts`. Its templates also see `every` ([`Parts::every`]),
+/// which a template override may render instead.
+pub fn script_with(r: &Renderer, name: &str, parts: Parts) -> Result<String> {
+    debug_assert!(
+        PROFILE_SCRIPTS.contains(&name),
+        "{name} is not generated per profile"
+    );
     r.render(
-        "loader.py",
+        name,
         context! {
             version => TOOL_VERSION,
             parts => parts.context(),
-            every => LoaderParts::every().context(),
+            every => Parts::every().context(),
         },
     )
 }
 
-/// `loader.py`, `policy.py`, `validate.py`, `smoke_train.py`, and `rollout.py` when the profile
-/// names an `env` (the same for every profile). The dataset card comes later ([`card::card`]):
-/// it says what the build's audit judged.
+/// `loader.py` and `validate.py` (from the parts the profile reads), `policy.py`,
+/// `smoke_train.py`, and `rollout.py` when the profile names an `env` (the same for every
+/// profile). The dataset card comes later ([`card::card`]): it says what the build's audit
+/// judged.
 pub fn profile_files(
     r: &Renderer,
     plan: &Plan,
     profile: &ProfilePlan,
 ) -> Result<Vec<(&'static str, String)>> {
+    let parts = Parts::of(plan, profile);
     let mut files = vec![
-        ("loader.py", loader(r, plan, profile)?),
+        ("loader.py", script_with(r, "loader.py", parts)?),
         ("policy.py", shared_script(r, "policy.py")?),
-        ("validate.py", shared_script(r, "validate.py")?),
+        ("validate.py", script_with(r, "validate.py", parts)?),
         ("smoke_train.py", shared_script(r, "smoke_train.py")?),
     ];
     if profile.values.env.is_some() {
@@ -203,24 +215,24 @@ mod tests {
         }
     }
 
-    /// Loaders with one part, all but one, none and every part: each within the plan's bound,
-    /// and valid template output (no tag left, no line of spaces).
+    /// Loaders and validate.py with one part, all but one, none and every part: each within
+    /// the plan's bound, and valid template output (no tag left, no line of spaces).
     #[test]
-    fn the_plan_bounds_every_loader() {
+    fn the_plan_bounds_every_profile_script() {
         let r = Renderer::new(None).unwrap();
-        let template = crate::templates::file("loader.py").unwrap();
-        let bound = script_bound(
-            template,
-            crate::templates::parts_of("loader.py").map(|(_, t)| *t),
-        );
-        for parts in loader::tests::combinations() {
-            let text = loader_with(&r, parts).unwrap();
-            assert!(text.len() as u64 <= bound, "{parts:?}");
-            assert!(!text.contains("{%") && !text.contains("{{") && !text.contains("{#"));
-            assert!(
-                !text.lines().any(|l| !l.is_empty() && l.trim().is_empty()),
-                "{parts:?}: a line of spaces"
-            );
+        for name in PROFILE_SCRIPTS {
+            let template = crate::templates::file(name).unwrap();
+            let bound = script_bound(template, crate::templates::parts_of(name).map(|(_, t)| *t));
+            assert!(crate::plan::estimate::SCRIPTS.contains(name), "{name}");
+            for parts in parts::tests::combinations() {
+                let text = script_with(&r, name, parts).unwrap();
+                assert!(text.len() as u64 <= bound, "{name} {parts:?}");
+                assert!(!text.contains("{%") && !text.contains("{{") && !text.contains("{#"));
+                assert!(
+                    !text.lines().any(|l| !l.is_empty() && l.trim().is_empty()),
+                    "{name} {parts:?}: a line of spaces"
+                );
+            }
         }
     }
 
@@ -229,9 +241,9 @@ mod tests {
     #[test]
     fn a_low_dim_loader_is_short() {
         let r = Renderer::new(None).unwrap();
-        let parts = LoaderParts {
+        let parts = Parts {
             hdf5: true,
-            ..LoaderParts::default()
+            ..Parts::default()
         };
         let lines = loader_with(&r, parts).unwrap().lines().count();
         assert!(lines <= 400, "{lines} lines");

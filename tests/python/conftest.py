@@ -161,30 +161,37 @@ dir = "out"
 
 
 
+# The scripts chunkc generates per profile, from the parts the profile reads (src/render/parts.rs).
+PROFILE_SCRIPTS = ("loader.py", "validate.py")
+
+
 def every_part_templates(directory: Path) -> Path:
     """`directory/tpl`, a template override directory (`[output] templates = "tpl"`) that renders
-    this checkout's loader with every part (`{% set parts = every %}` before templates/loader.py.j2,
-    and the parts of templates/loader/): a loader that reads any profile, so that a test can give
-    a built profile's meta.json what its build had not (a mixture, transforms)."""
+    this checkout's loader.py and validate.py with every part (`{% set parts = every %}` before
+    templates/<script>.j2, and the parts of templates/<script stem>/): scripts that read any
+    profile, so that a test can give a built profile's meta.json what its build had not (a
+    mixture, transforms)."""
     tpl = directory / "tpl"
     tpl.mkdir()
-    entry = (REPO / "templates" / "loader.py.j2").read_text()
-    (tpl / "loader.py.j2").write_text("{% set parts = every %}\n" + entry)
-    shutil.copytree(REPO / "templates" / "loader", tpl / "loader")
+    for script in PROFILE_SCRIPTS:
+        entry = (REPO / "templates" / f"{script}.j2").read_text()
+        (tpl / f"{script}.j2").write_text("{% set parts = every %}\n" + entry)
+        stem = script.removesuffix(".py")
+        shutil.copytree(REPO / "templates" / stem, tpl / stem)
     return tpl
 
 
 @functools.lru_cache(maxsize=None)
-def every_part_loader() -> str:
-    """The text of the loader with every part (`every_part_templates`), as the chunkc binary
-    renders it: from a small Push-T build, once per test process."""
+def every_part_scripts() -> dict:
+    """{script: text} of loader.py and validate.py with every part (`every_part_templates`), as
+    the chunkc binary renders them: from a small Push-T build, once per test process."""
     d = Path(tempfile.mkdtemp(prefix="chunkc_every_part_"))
     atexit.register(shutil.rmtree, d, True)
     every_part_templates(d)
     spec = write_spec(d, 'templates = "tpl"\n[profiles.p]\nchunk = 4\n',
                       channels={"action": "action", "observation.state": "state"})
     run_chunkc("build", "-q", spec)
-    return (d / "out" / "p" / "loader.py").read_text()
+    return {script: (d / "out" / "p" / script).read_text() for script in PROFILE_SCRIPTS}
 
 
 class RawSource:

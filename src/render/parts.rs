@@ -5,7 +5,7 @@
 //! the profile reads them, so that the file a user opens holds the code of their dataset and no
 //! other. The parts follow what `meta.json` describes (its `data_format`, each camera's
 //! `storage`, `transforms`, `sources`, `sampling`, `stats_population`), and the loader refuses a
-//! `meta.json` that needs a part it lacks ([`LoaderParts::lacking`]).
+//! `meta.json` that needs a part it lacks ([`Parts::lacking`]).
 
 use serde::Serialize;
 
@@ -18,13 +18,16 @@ use crate::window::Sampling;
 /// The optional parts of the loader, each a template in `templates/loader/` (or a few lines of
 /// one) that a profile's `loader.py` holds only when it reads that part.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct LoaderParts {
+pub struct Parts {
     /// The backend of each storage format: `data_format` `hdf5`, `zarr`, `parquet` (LeRobot
     /// v3.0). A native export (`act_episodes`, `robomimic_hdf5`, LeRobot v2.1) has none: it holds
     /// no window index, and its loader refuses it.
     pub hdf5: bool,
     pub zarr: bool,
     pub parquet: bool,
+    /// Cameras, whatever their storage: `validate.py`'s renders of the frames (the loader reads a
+    /// Zarr camera as any array; the storages below hold their own code).
+    pub cameras: bool,
     /// HDF5 cameras stored as pixels (`image_compression` `none` or `gzip`): read with one pread
     /// per frame, inflated with zlib where deflated.
     pub frames: bool,
@@ -49,7 +52,7 @@ pub struct LoaderParts {
     pub window_stats: bool,
 }
 
-impl LoaderParts {
+impl Parts {
     /// The parts `p` reads, from what its `meta.json` will say (`plan` tells a mixture).
     pub fn of(plan: &Plan, p: &ProfilePlan) -> Self {
         let v = &p.values;
@@ -58,10 +61,11 @@ impl LoaderParts {
         let parquet = v.format == OutputFormat::Parquet && !p.writes_lerobot_v21();
         let hdf5_cameras = hdf5 && cameras;
         let parquet_video = v.video().is_some();
-        LoaderParts {
+        Parts {
             hdf5,
             zarr: v.format == OutputFormat::Zarr,
             parquet,
+            cameras,
             frames: hdf5_cameras
                 && matches!(
                     v.image_compression,
@@ -85,10 +89,11 @@ impl LoaderParts {
 
     /// Every part: one loader that reads any profile of this chunkc version.
     pub fn every() -> Self {
-        LoaderParts {
+        Parts {
             hdf5: true,
             zarr: true,
             parquet: true,
+            cameras: true,
             frames: true,
             jpeg: true,
             video: true,
@@ -104,11 +109,12 @@ impl LoaderParts {
     }
 
     /// Each part by name, and whether the loader holds it, in file order.
-    fn named(&self) -> [(&'static str, bool); 14] {
+    fn named(&self) -> [(&'static str, bool); 15] {
         [
             ("hdf5", self.hdf5),
             ("zarr", self.zarr),
             ("parquet", self.parquet),
+            ("cameras", self.cameras),
             ("frames", self.frames),
             ("png", self.png),
             ("mp4", self.mp4),
@@ -173,7 +179,7 @@ impl LoaderParts {
         ];
         PartsContext {
             parts: *self,
-            images: self.frames || self.jpeg || self.video || self.png || self.mp4,
+            images: self.cameras,
             stored: self.jpeg || self.video,
             tables: self.frames || self.jpeg || self.video,
             names: self
@@ -188,17 +194,17 @@ impl LoaderParts {
                 .map(|(format, class, _)| (format, class))
                 .collect(),
             lacking: self.lacking(),
-            every: *self == LoaderParts::every(),
+            every: *self == Parts::every(),
         }
     }
 }
 
-/// [`LoaderParts`] as the templates read it: each part's flag, and what follows from them.
+/// [`Parts`] as the templates read it: each part's flag, and what follows from them.
 #[derive(Debug, Clone, Serialize)]
 pub struct PartsContext {
     #[serde(flatten)]
-    parts: LoaderParts,
-    /// Any camera (the `image_dtype` conversion).
+    parts: Parts,
+    /// Any camera.
     images: bool,
     /// HDF5 cameras decoded on read (JPEG or video).
     stored: bool,
@@ -209,13 +215,13 @@ pub struct PartsContext {
     names: Vec<&'static str>,
     /// (`data_format`, backend class) of each storage format read.
     backends: Vec<(&'static str, &'static str)>,
-    /// [`LoaderParts::lacking`].
+    /// [`Parts::lacking`].
     lacking: Vec<&'static str>,
-    /// Whether these are [`LoaderParts::every`] part.
+    /// Whether these are [`Parts::every`] part.
     every: bool,
 }
 
-impl Serialize for LoaderParts {
+impl Serialize for Parts {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         use serde::ser::SerializeMap;
         let named = self.named();
@@ -232,11 +238,12 @@ pub(super) mod tests {
     use super::*;
 
     /// Part `name`'s flag in `p`.
-    fn flag<'a>(p: &'a mut LoaderParts, name: &str) -> &'a mut bool {
+    fn flag<'a>(p: &'a mut Parts, name: &str) -> &'a mut bool {
         match name {
             "hdf5" => &mut p.hdf5,
             "zarr" => &mut p.zarr,
             "parquet" => &mut p.parquet,
+            "cameras" => &mut p.cameras,
             "frames" => &mut p.frames,
             "png" => &mut p.png,
             "mp4" => &mut p.mp4,
@@ -254,17 +261,22 @@ pub(super) mod tests {
 
     /// Sets of parts to render in tests: none, every one, each alone (with transforms under
     /// rotations), each left out of every.
-    pub fn combinations() -> Vec<LoaderParts> {
-        let names = LoaderParts::every().named().map(|(name, _)| name);
-        let mut out = vec![LoaderParts::default(), LoaderParts::every()];
+    pub fn combinations() -> Vec<Parts> {
+        let names = Parts::every().named().map(|(name, _)| name);
+        let mut out = vec![Parts::default(), Parts::every()];
         for name in names {
-            let mut one = LoaderParts::default();
+            let mut one = Parts::default();
             *flag(&mut one, name) = true;
             one.transforms |= one.rotations;
+            one.cameras |= one.frames || one.jpeg || one.video || one.png || one.mp4;
             out.push(one);
-            let mut all_but = LoaderParts::every();
+            let mut all_but = Parts::every();
             *flag(&mut all_but, name) = false;
             all_but.rotations &= all_but.transforms;
+            if !all_but.cameras {
+                (all_but.frames, all_but.jpeg, all_but.video) = (false, false, false);
+                (all_but.png, all_but.mp4) = (false, false);
+            }
             out.push(all_but);
         }
         out
@@ -272,7 +284,7 @@ pub(super) mod tests {
 
     #[test]
     fn every_part_is_named_once() {
-        let every = LoaderParts::every();
+        let every = Parts::every();
         let names: Vec<_> = every.named().iter().map(|(n, _)| *n).collect();
         let mut sorted = names.clone();
         sorted.sort();
