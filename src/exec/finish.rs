@@ -241,7 +241,7 @@ fn write_documents(
     }
     codebase_files(shared, p, rate, stats, &data.normalizers, dir)?;
     // The dataset card is written by `commands` once the dataset doctor has judged.
-    for (name, text) in render::profile_files(renderer, p)? {
+    for (name, text) in render::profile_files(renderer, plan, p)? {
         write(name, text)?;
     }
     for (path, text) in render::groot::configs(renderer, p, &plan.source.parts)? {

@@ -602,7 +602,8 @@ pub struct OutputSpec {
     /// Output directory, relative to the spec file. Each profile writes a subdirectory.
     pub dir: String,
     /// A directory of template overrides, relative to the spec file: `<file>.j2` replaces the
-    /// built-in template of that generated file (`loader.py.j2`, `README.md.j2`, ...).
+    /// built-in template of that generated file (`loader.py.j2`, `README.md.j2`, ...), and
+    /// `<file stem>/<part>.j2` one part of it (`loader/dataset.py.j2`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub templates: Option<String>,
     /// Allow `dir` (the part written in the spec) and the entries chunkc writes directly under it
