@@ -216,7 +216,7 @@ fn writers(c: &mut Criterion) {
                 episode_sources: &[],
                 source_parts: &[],
                 tasks: &Default::default(),
-                spill_budget: chunkc::exec::spill_budget(),
+                spill_budget: chunkc::exec::memory::budget(None),
             };
             sink::create(&ctx).expect("sink").frame_encoding()
         };
@@ -248,7 +248,7 @@ fn writers(c: &mut Criterion) {
                     episode_sources: &[],
                     source_parts: &[],
                     tasks: &Default::default(),
-                    spill_budget: chunkc::exec::spill_budget(),
+                    spill_budget: chunkc::exec::memory::budget(None),
                 };
                 let mut s = sink::create(&ctx).expect("sink");
                 for (c, ch) in p.channels.iter().enumerate() {

@@ -26,6 +26,8 @@
 //!   the aspect ratio with OpenCV's area or bilinear interpolation, then crop the centre).
 //! - [`rotation`]: rotations in the representations datasets store (axis-angle, quaternions,
 //!   Euler angles, matrices, 6D rows or columns) and the conversions between them.
+//! - [`templates`]: the minijinja templates embedded in the binary, and the parts they include
+//!   (`plan` bounds the generated files from them, `render` renders them).
 //!
 //! **The stages**, in order:
 //!
@@ -57,7 +59,8 @@
 //!    ACT episodes, robomimic), fed per-step arrays, frames and the window index, plus the
 //!    documents beside them (`meta.json`, `stats.json`).
 //! 9. **Render** ([`render`]): minijinja templates (embedded, overridable) for the generated
-//!    loader and scripts, and the codebases' own statistics files.
+//!    loader (per profile: the parts of it the profile reads) and scripts, and the codebases'
+//!    own statistics files.
 //! 10. **Execute** ([`exec`]): one pass over the source into the row stores and sinks, the
 //!     statistics per rate, each stale profile finished into a staging directory.
 //!
@@ -120,6 +123,7 @@ pub mod spec;
 pub mod stats;
 pub mod store;
 pub mod synth;
+pub mod templates;
 pub mod timings;
 pub mod transform;
 pub mod window;

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand, ValueEnum};
 
 use chunkc::commands::{self, BuildOptions};
-use chunkc::spec::{self, LoadedSpec, SourceFormat};
+use chunkc::spec::{self, LoadedSpec, MemorySize, SourceFormat};
 use chunkc::{analyze, init, plan, synth, Error};
 
 #[derive(Parser)]
@@ -55,6 +55,10 @@ enum Command {
         /// Where shards write their partials and `merge` reads them (shared by every worker).
         #[arg(long, requires = "shard")]
         partials: Option<PathBuf>,
+        /// The memory the build may keep values in before it writes them, with a unit
+        /// (`2GiB`); over `[build] memory`. Default: a quarter of the available memory.
+        #[arg(long)]
+        memory: Option<MemorySize>,
     },
     /// Build every profile from the partials of all N shards (`build --shard I/N`): the same
     /// bytes as `chunkc build`. Checks that every shard is there and from this plan first.
@@ -65,6 +69,9 @@ enum Command {
         /// No progress bars.
         #[arg(long, short)]
         quiet: bool,
+        /// As `build --memory`.
+        #[arg(long)]
+        memory: Option<MemorySize>,
     },
     /// Suggest an action chunk length K from the autocorrelation of the action signal, and check
     /// every profile's K; writes <output.dir>/audit/analyze.{json,html}.
@@ -219,10 +226,12 @@ fn run(cli: Cli) -> Result<(), Error> {
             quiet,
             shard: Some(shard),
             partials: Some(partials),
+            memory,
         } => {
             let opts = BuildOptions {
                 locked,
                 progress: !quiet,
+                memory: memory.map(|m| m.0),
             };
             shard_command(&LoadedSpec::load(&spec)?, shard, &partials, &opts)?;
         }
@@ -230,6 +239,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             spec,
             partials,
             quiet,
+            memory,
         } => {
             let spec = LoadedSpec::load(&spec)?;
             let report = commands::merge(
@@ -238,6 +248,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                 &BuildOptions {
                     locked: false,
                     progress: !quiet,
+                    memory: memory.map(|m| m.0),
                 },
             )?;
             print_build(&report);
@@ -246,6 +257,7 @@ fn run(cli: Cli) -> Result<(), Error> {
             spec,
             locked,
             quiet,
+            memory,
             ..
         } => {
             let spec = LoadedSpec::load(&spec)?;
@@ -254,6 +266,7 @@ fn run(cli: Cli) -> Result<(), Error> {
                 &BuildOptions {
                     locked,
                     progress: !quiet,
+                    memory: memory.map(|m| m.0),
                 },
             )?;
             print_build(&report);

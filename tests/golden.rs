@@ -1,9 +1,11 @@
 //! Every example spec in `specs/` is built, and its outputs are compared with `golden/<spec>/`:
 //! text files verbatim (JSON with each array of numbers on one line: `dump::json_text`), HDF5
 //! files and Zarr directories as canonical dumps (`<file>.txt`), other binary files as size and
-//! hash. The generated scripts, the same file in every profile directory, are kept once in
-//! `golden/_generated/`; a profile's `<script>.txt` says that its copy is that file. A missing or
-//! an extra file fails. The same builds with 1 and 2 threads, and with low-dim values spilled to
+//! hash. The generated scripts that are the same file in every profile directory are kept once in
+//! `golden/_generated/`; a profile's `<script>.txt` says that its copy is that file. Its
+//! `loader.py` and `validate.py`, generated for the profile from the parts it reads, are kept
+//! verbatim (and `golden/_generated/` holds them with every part). A missing or an extra file
+//! fails. The same builds with 1 and 2 threads, and with low-dim values spilled to
 //! disk, must give byte-identical files.
 //!
 //! Each spec is its own test case (`golden::<spec>::matches_golden`, `::thread_counts`,
@@ -92,6 +94,18 @@ fn shared_scripts() -> BTreeMap<&'static str, String> {
         .iter()
         .map(|&name| (name, chunkc::render::shared_script(&r, name).unwrap()))
         .collect()
+}
+
+/// What `golden/_generated/` holds: the shared scripts, and the scripts generated per profile
+/// with every part.
+fn generated_files() -> BTreeMap<&'static str, String> {
+    let r = chunkc::render::Renderer::new(None).unwrap();
+    let mut files = shared_scripts();
+    let every = chunkc::render::parts::Parts::every();
+    for name in chunkc::render::PROFILE_SCRIPTS {
+        files.insert(name, chunkc::render::script_with(&r, name, every).unwrap());
+    }
+    files
 }
 
 /// What the golden directory should hold for a built output directory.
@@ -369,15 +383,20 @@ fn every_example_spec_is_listed() {
     );
 }
 
-/// `golden/_generated/` holds exactly the generated scripts, as the embedded templates render
-/// them.
+/// `golden/_generated/` holds exactly the shared scripts and the per-profile scripts with every
+/// part, as the embedded templates render them.
 #[test]
 fn generated_scripts_match_golden() {
     let dir = Path::new(REPO).join("golden").join(GENERATED);
-    let shared = shared_scripts();
+    let shared = generated_files();
     if blessing() {
         for (name, text) in &shared {
             bless_file(&dir.join(name), text);
+        }
+        for stale in files_under(&dir) {
+            if !shared.contains_key(stale.to_str().unwrap()) {
+                std::fs::remove_file(dir.join(stale)).unwrap();
+            }
         }
     }
     let names: Vec<PathBuf> = shared.keys().map(PathBuf::from).collect();

@@ -20,6 +20,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("recycle", 0),
     ("resize", 0),
     ("rotation", 0),
+    ("templates", 0),
     // the pipeline, in order
     ("spec", 1),
     ("source", 2),

@@ -32,6 +32,8 @@ pub struct BuildOptions {
     pub locked: bool,
     /// Show progress bars (they are hidden anyway when stderr is not a terminal).
     pub progress: bool,
+    /// The memory the build may keep values in, in bytes (`--memory`; over `[build] memory`).
+    pub memory: Option<u64>,
 }
 
 #[derive(Debug, Clone)]
@@ -76,7 +78,8 @@ pub fn build(spec: &LoadedSpec, opts: &BuildOptions) -> Result<BuildReport> {
     let mut build_lock = BuildLock::acquire(&out_dir)?;
     // Repair what an interrupted build left, before the plan compares outputs with the lock.
     Staging::recover(&out_dir)?;
-    let (source, plan, report, riding) = super::plan::plan_audited(spec, false)?;
+    let (source, mut plan, report, riding) = super::plan::plan_audited(spec, false)?;
+    plan.memory = opts.memory.or(plan.memory);
     let (stale, up_to_date): (Vec<&ProfilePlan>, Vec<&ProfilePlan>) = plan
         .profiles
         .iter()

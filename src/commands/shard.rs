@@ -85,7 +85,8 @@ pub fn merge(spec: &LoadedSpec, partials: &Path, opts: &BuildOptions) -> Result<
     let (count, paths) = find_partials(partials)?;
     let mut build_lock = BuildLock::acquire(&out_dir)?;
     Staging::recover(&out_dir)?;
-    let (source, plan, report) = super::plan::plan_reported(spec)?;
+    let (source, mut plan, report) = super::plan::plan_reported(spec)?;
+    plan.memory = opts.memory.or(plan.memory);
     let id = shards::plan_id(&plan);
     let lens: Vec<usize> = source.manifest().episodes.iter().map(|e| e.len).collect();
     let assignment = shards::assign(&lens, count);

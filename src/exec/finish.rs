@@ -233,15 +233,19 @@ fn write_documents(
     )?;
     write(STATS_FILE, documents::stats_json(p, stats))?;
     super::source_files::write_source_stats(shared, p, all_stats.sources, dir)?;
-    if p.values.format == crate::spec::OutputFormat::Parquet {
-        // LeRobot v3.0 reads its statistics from `meta/stats.json`.
+    if p.values.format == crate::spec::OutputFormat::Parquet && !p.values.is_groot() {
+        // LeRobot v3.0 reads its statistics from `meta/stats.json` (a `groot` profile's are
+        // GR00T's, written with its datasets).
         let path = dir.join(sink::lerobot::STATS_PATH);
         std::fs::write(&path, render::codebase::lerobot(p, all_stats.stored)).at("write", &path)?;
     }
     codebase_files(shared, p, rate, stats, &data.normalizers, dir)?;
     // The dataset card is written by `commands` once the dataset doctor has judged.
-    for (name, text) in render::profile_files(renderer, p)? {
+    for (name, text) in render::profile_files(renderer, plan, p)? {
         write(name, text)?;
+    }
+    for (path, text) in render::groot::configs(renderer, p, &plan.source.parts)? {
+        write(&path, text)?;
     }
     Ok(())
 }

@@ -9,6 +9,7 @@
 //! episode ([`guard`]). The command drivers ([`crate::commands`]) decide what is stale, commit
 //! the staging directory and update the lock.
 //!
+//! - `memory`: how much memory the row stores may keep values in, and which stores do.
 //! - `rate`: what is kept per output rate while reading.
 //! - `rate_stats`: the statistics of every channel at a rate (a training mixture's per source,
 //!   and pooled over the union).
@@ -28,6 +29,7 @@
 mod doctor;
 mod finish;
 mod guard;
+pub mod memory;
 pub mod partial;
 mod process;
 mod progress;
@@ -51,7 +53,6 @@ use crate::resize::Resize;
 use crate::sink::{self, FrameEncoding, Sink, SinkContext};
 use crate::source::Source;
 use crate::spec::LoadedSpec;
-use crate::store;
 
 pub use crate::files::{BUILD_LOCK_FILE, STAGING_DIR};
 pub use doctor::{Doctor, Judge};
@@ -70,15 +71,6 @@ pub enum Outcome {
     /// `[audit] non_finite = "exclude_episode"`, or the dataset doctor (a check `= "exclude"`),
     /// found episodes to leave out; nothing was kept of this attempt.
     Exclude(Excluded),
-}
-
-/// The row store's memory budget: `CHUNKC_SPILL_BYTES` if set, else
-/// [`store::DEFAULT_BUDGET`]. Decided here and handed to the stores and the sinks.
-pub fn spill_budget() -> usize {
-    std::env::var("CHUNKC_SPILL_BYTES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(store::DEFAULT_BUDGET)
 }
 
 /// Where a build's episodes come from.
@@ -113,11 +105,13 @@ fn set_up(
         .iter()
         .filter(|r| stale.iter().any(|p| p.uses(r)))
         .collect();
-    let budget = spill_budget();
-    let rates: Vec<rate::RateState> = used
-        .iter()
-        .enumerate()
-        .map(|(r, job)| rate::RateState::new(r, job.conversion, manifest, staging, budget))
+    let budget = memory::budget(plan.memory);
+    let values: Vec<Vec<usize>> = (used.iter())
+        .map(|job| rate::store_values(job.conversion, manifest))
+        .collect();
+    let budgets = memory::share(budget, &values);
+    let rates: Vec<rate::RateState> = (used.iter().zip(&budgets).enumerate())
+        .map(|(r, (job, b))| rate::RateState::new(r, job.conversion, manifest, staging, b))
         .collect();
     let ids: Vec<u64> = manifest.episodes.iter().map(|e| e.id).collect();
     let sources: Vec<usize> = match manifest.parts.is_empty() {

@@ -40,14 +40,15 @@ pub(super) struct RateState {
 }
 
 impl RateState {
-    /// The empty state of rate number `r`; stores that outgrow `budget` spill under the
-    /// staging directory's scratch space.
+    /// The empty state of rate number `r`; channel `c`'s store keeps its values in memory when
+    /// they fit in `budgets[c]`, and spills under the staging directory's scratch space
+    /// otherwise (see [`store_values`]).
     pub fn new(
         r: usize,
         conversion: Conversion,
         manifest: &Manifest,
         staging: &Staging,
-        budget: usize,
+        budgets: &[usize],
     ) -> RateState {
         let mut ends = EpisodeEnds::default();
         for e in &manifest.episodes {
@@ -82,12 +83,8 @@ impl RateState {
                 .enumerate()
                 .map(|(c, ch)| {
                     let dir = staging.scratch_dir().join(format!("rate{r}-channel{c}"));
-                    // A mixture's sources keep their own dimensions only (`push_narrow`).
-                    let values: usize = (manifest.episodes.iter())
-                        .map(|ep| conversion.len(ep.len) * own_width(manifest, c, ep.id))
-                        .sum();
-                    let values = if width(ch) == 0 { 0 } else { values };
-                    Arc::new(LowdimStore::with_values(width(ch), budget, dir, values))
+                    let values = store_values(conversion, manifest)[c];
+                    Arc::new(LowdimStore::with_values(width(ch), budgets[c], dir, values))
                 })
                 .collect(),
             high: channels
@@ -114,6 +111,19 @@ impl RateState {
     pub fn start(&self, e: usize) -> usize {
         self.ends.start(e)
     }
+}
+
+/// The values each channel's store will hold at this rate (0 for cameras): every episode's
+/// converted rows, a mixture source's at its own width (`push_narrow`).
+pub(super) fn store_values(conversion: Conversion, manifest: &Manifest) -> Vec<usize> {
+    (manifest.channels.iter().enumerate())
+        .map(|(c, ch)| match ch.kind {
+            ChannelKind::Image => 0,
+            ChannelKind::Lowdim => (manifest.episodes.iter())
+                .map(|ep| conversion.len(ep.len) * own_width(manifest, c, ep.id))
+                .sum(),
+        })
+        .collect()
 }
 
 /// The values per row that episode `id` keeps in channel `c`'s store: a mixture source's own

@@ -18,7 +18,7 @@ use super::TOOL_VERSION;
 use crate::error::Result;
 use crate::lock::{self, SpecLock};
 use crate::source::Manifest;
-use crate::spec::{LerobotVersion, LoadedSpec, Profile};
+use crate::spec::{LoadedSpec, Profile};
 
 /// Whether a profile must be built.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
@@ -118,7 +118,6 @@ pub(super) fn profile_fingerprint(
     spec: &LoadedSpec,
     manifest: &Manifest,
     profile: &Profile,
-    lerobot_version: LerobotVersion,
 ) -> String {
     let mut h = blake3::Hasher::new();
     let parts = [
@@ -137,11 +136,7 @@ pub(super) fn profile_fingerprint(
             serde_json::to_string(&spec.spec.mixture).unwrap(),
         ]
     });
-    // A LeRobot layout other than the default (nothing for v3.0: its fingerprint is as before).
-    let version = (lerobot_version != LerobotVersion::V30)
-        .then(|| format!("lerobot_version={}", lerobot_version.name()));
-    let parts = parts.into_iter().chain(version);
-    for p in parts.chain(mixture.into_iter().flatten()) {
+    for p in parts.into_iter().chain(mixture.into_iter().flatten()) {
         h.update(&(p.len() as u64).to_le_bytes());
         h.update(p.as_bytes());
     }
@@ -151,16 +146,8 @@ pub(super) fn profile_fingerprint(
 /// The spec values [`profile_fingerprint`] covers, one per leaf, by dotted key
 /// (`profiles.act.chunk`, `source.channels.action`, `output.dir`) as JSON text; unset values
 /// are absent. The lock keeps them so that a changed fingerprint can name the value.
-pub(super) fn inputs(
-    spec: &LoadedSpec,
-    profile: &Profile,
-    lerobot_version: LerobotVersion,
-) -> BTreeMap<String, String> {
+pub(super) fn inputs(spec: &LoadedSpec, profile: &Profile) -> BTreeMap<String, String> {
     let mut out = BTreeMap::new();
-    if lerobot_version != LerobotVersion::V30 {
-        let key = format!("profiles.{}.lerobot_version", profile.name);
-        out.insert(key, json(&lerobot_version).to_string());
-    }
     let tables = [
         (format!("profiles.{}", profile.name), json(profile)),
         ("source".into(), json(&spec.spec.source)),

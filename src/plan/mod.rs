@@ -11,6 +11,8 @@
 //! - `sampling`: windows, segments or hierarchical chunks, checked against the channels.
 //! - `estimate`: the files a profile writes, with an upper bound or an estimate of their sizes.
 //! - `freshness`: whether a profile is up to date, and the typed reason when it is not.
+//! - `groot`: a `groot` profile's GR00T modality (state, action and video keys, relative
+//!   actions) per dataset, checked against the channels' widths.
 //! - `split`: the deterministic train/validation split.
 //! - `mixture`: a training mixture's split (per source) and its sources' sampling weights.
 //! - `export`: where each channel's array lives in the profile's container (native exports
@@ -25,6 +27,7 @@ mod cameras;
 pub mod estimate;
 pub mod export;
 pub mod freshness;
+pub mod groot;
 pub mod mixture;
 mod resolve;
 mod sampling;

@@ -60,6 +60,7 @@ pub fn resolve(
         audit: AuditSummary::default(),
         profiles,
         scripts: estimate::script_sizes(spec)?,
+        memory: spec.spec.build.memory.map(|m| m.0),
     };
     estimate::fill(&mut plan, &estimate::FrameMeasures::new());
     Ok(plan)
@@ -214,11 +215,11 @@ fn resolve_profile(
             action.normalize = NormalizeMode::DpAbsAction;
         }
     }
+    let groot = super::groot::resolve(spec, manifest, profile, &channels, &widths)?;
     let used = episodes_of(spec, manifest, split, profile, fps, conv, &sampling)?;
 
-    let lerobot_version = crate::spec::lerobot_version::resolve(name, &spec.spec.profiles);
-    let fingerprint = freshness::profile_fingerprint(spec, manifest, profile, lerobot_version);
-    let inputs = freshness::inputs(spec, profile, lerobot_version);
+    let fingerprint = freshness::profile_fingerprint(spec, manifest, profile);
+    let inputs = freshness::inputs(spec, profile);
     let current = freshness::Current {
         name,
         fingerprint: &fingerprint,
@@ -227,16 +228,9 @@ fn resolve_profile(
         dir: &out_dir.join(name),
     };
     let status = freshness::status_of(&current, lock)?;
-    let mut values = profile.clone();
-    if let Some((at, _)) = crate::spec::lerobot_version::set_at(name, &spec.spec.profiles) {
-        values
-            .origins
-            .insert("lerobot_version", format!("profiles.{at}"));
-    }
     Ok(ProfilePlan {
         name: name.clone(),
-        values,
-        lerobot_version,
+        values: profile.clone(),
         fps,
         conversion: conv,
         rate: super::text::rate_line(manifest.fps, fps, conv),
@@ -244,6 +238,7 @@ fn resolve_profile(
         channels,
         transforms,
         widths,
+        groot,
         episodes: used.episodes,
         excluded: Vec::new(),
         repaired: Vec::new(),

@@ -176,6 +176,13 @@ pub fn render_text(plan: &Plan) -> String {
         for ch in &p.channels {
             let _ = writeln!(s, "  normalize {:<24} {}", ch.name, ch.normalize.name());
         }
+        for (k, m) in p.groot.iter().enumerate() {
+            let at = match plan.source.parts.get(k) {
+                Some(part) if p.groot.len() > 1 => format!(" (sources/{})", part.name),
+                _ => String::new(),
+            };
+            let _ = writeln!(s, "  groot modality{at}: {}", m.summary());
+        }
         for (ch, r) in p.channels.iter().filter_map(|c| Some((c, c.resize?))) {
             let [[fh, fw], [sh, sw], [h, w]] = [r.from, r.scaled, r.size];
             let _ = writeln!(

@@ -8,7 +8,7 @@ use serde::Serialize;
 use super::{CameraResize, Conversion, Split, Status};
 use crate::audit::Verdict;
 use crate::source::{ChannelInfo, ChannelKind, SourcePart};
-use crate::spec::{LerobotVersion, MixtureSpec, NormalizeMode, OutputFormat, Profile};
+use crate::spec::{LerobotVersion, MixtureSpec, NormalizeMode, Profile};
 use crate::window::{Sampling, Window};
 
 #[derive(Debug, Clone, Serialize)]
@@ -32,6 +32,10 @@ pub struct Plan {
     /// The size of each generated script, from its template (the embedded one or the user's).
     #[serde(skip)]
     pub scripts: BTreeMap<String, super::estimate::ScriptSize>,
+    /// The memory the build may keep values in, in bytes (`[build] memory`, or `chunkc build
+    /// --memory` once the command sets it); `None`: exec's default.
+    #[serde(skip)]
+    pub memory: Option<u64>,
 }
 
 /// What the temporal audit found and what `build` does about it.
@@ -117,10 +121,6 @@ pub struct ProfilePlan {
     pub name: String,
     /// Every value, fully resolved.
     pub values: Profile,
-    /// The LeRobot layout a `format = "parquet"` profile writes (`lerobot_version`); left out
-    /// of the plan's JSON when it is the default (v3.0), so that plans stay as they were.
-    #[serde(skip_serializing_if = "is_v30")]
-    pub lerobot_version: LerobotVersion,
     pub fps: f64,
     pub conversion: Conversion,
     pub rate: String,
@@ -133,6 +133,10 @@ pub struct ProfilePlan {
     /// Per channel (manifest order): its widths through the transforms, per source.
     #[serde(skip)]
     pub widths: Vec<crate::transform::Widths>,
+    /// A `groot` profile's GR00T modality, per dataset (one per source, in mixture order);
+    /// empty (and left out of the plan's JSON) for other profiles.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub groot: Vec<super::groot::GrootModality>,
     pub episodes: Vec<ProfileEpisode>,
     pub excluded: Vec<Excluded>,
     /// Episodes the audit repaired (re-gridded or resampled) before they were used.
@@ -223,15 +227,11 @@ pub struct ResolvedValue {
     pub origin: String,
 }
 
-fn is_v30(v: &LerobotVersion) -> bool {
-    *v == LerobotVersion::V30
-}
-
 impl ProfilePlan {
     /// Whether the profile writes a LeRobot v2.1 dataset (`format = "parquet"`,
     /// `lerobot_version = "v2.1"`).
     pub fn writes_lerobot_v21(&self) -> bool {
-        self.values.format == OutputFormat::Parquet && self.lerobot_version == LerobotVersion::V21
+        self.values.writes_lerobot_v21()
     }
 
     /// The transforms of channel `c` (a manifest position), in order.
@@ -292,8 +292,8 @@ impl ProfilePlan {
         .into_iter()
         .chain(
             // Only where it is not the default, so that other profiles' lines stay.
-            (self.lerobot_version != LerobotVersion::V30)
-                .then(|| ("lerobot_version", self.lerobot_version.name().to_string())),
+            (v.lerobot_version != LerobotVersion::V30)
+                .then(|| ("lerobot_version", v.lerobot_version.name().to_string())),
         )
         .map(|(key, value)| {
             let origin = v.origins.get(key).cloned().unwrap_or_else(|| {

@@ -313,7 +313,26 @@ pub fn card(r: &Renderer, c: &CardContext) -> Result<String> {
         stats_hints => stats_hints(&p.values.stats_formats),
         output_hint => c.output_hint,
         chunk => p.window().chunk,
-        lerobot => p.writes_lerobot_v21().then(|| context! { fps => p.fps, repo_id => p.name }),
+        lerobot => p.writes_lerobot_v21().then(|| lerobot(c)),
+        groot => p.values.is_groot(),
     };
     r.render("README.md", ctx)
+}
+
+/// A v2.1 profile's datasets as the card shows them: (repo id, folder) of each training
+/// dataset (its validation one is `<folder>/val`; a `groot` mixture's per source).
+fn lerobot(c: &CardContext) -> Value {
+    let p = c.profile;
+    let datasets: Vec<Value> = match p.groot.len() {
+        0 | 1 => vec![context! { repo_id => p.name, root => c.output_hint }],
+        _ => (c.plan.source.parts.iter())
+            .map(|s| {
+                context! {
+                    repo_id => format!("{}-{}", p.name, s.name),
+                    root => format!("{}/sources/{}", c.output_hint, s.name),
+                }
+            })
+            .collect(),
+    };
+    context! { fps => p.fps, datasets }
 }

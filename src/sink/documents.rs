@@ -166,7 +166,7 @@ pub fn meta_json(
         super::meta_sources::add(&mut doc, plan, profile, built.source_normalizers);
     }
     if profile.writes_lerobot_v21() {
-        super::lerobot_v21_meta::describe(&mut doc, profile);
+        super::lerobot_v21_meta::describe(&mut doc, profile, &plan.source.parts);
     }
     pretty(&doc)
 }

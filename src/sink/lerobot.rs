@@ -145,6 +145,7 @@ impl LerobotWriter {
             video: self.videos.is_some(),
             fps: self.fps,
             mixture: !self.sources.is_empty(),
+            own: None,
         }
     }
 

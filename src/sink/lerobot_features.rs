@@ -22,12 +22,14 @@ pub(super) fn features(
     video_info: impl Fn(&str, &[usize]) -> Value,
 ) -> Map<String, Value> {
     let mut features = Map::new();
-    for (name, shape, kind) in table.channels {
-        if !table.has_column(*kind) {
+    for (_, name, shape, kind) in table.written() {
+        let name = name.to_string();
+        if !table.has_column(kind) {
+            let info = video_info(&name, &shape);
             features.insert(
-                name.clone(),
+                name,
                 json!({"dtype": "video", "shape": shape,
-                       "names": CAMERA_AXES, "info": video_info(name, shape)}),
+                       "names": CAMERA_AXES, "info": info}),
             );
             continue;
         }
@@ -35,18 +37,14 @@ pub(super) fn features(
             ChannelKind::Lowdim => "float32",
             ChannelKind::Image => "image",
         };
-        let shape = if shape.is_empty() {
-            vec![1]
-        } else {
-            shape.clone()
-        };
+        let shape = if shape.is_empty() { vec![1] } else { shape };
         let names = if named {
-            names_of(name, &shape, *kind)
+            names_of(&name, &shape, kind)
         } else {
             Value::Null
         };
         features.insert(
-            name.clone(),
+            name,
             json!({"dtype": dtype, "shape": shape, "names": names}),
         );
     }
@@ -104,6 +102,7 @@ mod tests {
             video: false,
             fps: 10.0,
             mixture: false,
+            own: None,
         };
         let f = features(&table, true, |_, _| Value::Null);
         assert_eq!(f["action"]["names"], json!(["action_0", "action_1"]));

@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use arrow_array::{ArrayRef, Float32Array, RecordBatch};
 use arrow_schema::{DataType, Field, Schema};
+use serde_json::{json, Value};
 
 use super::lerobot_columns::{err, i64_col, image_fields, lowdim_column, lowdim_type, Channel};
 use super::lerobot_spill::SpillReader;
@@ -34,6 +35,10 @@ pub(super) struct DataTable<'a> {
     pub fps: f64,
     /// A training mixture's (a `source_index` column).
     pub mixture: bool,
+    /// A mixture source's dataset of its own: per channel, the source's own width (the first
+    /// values of each stored row; 0: the source lacks the channel, which has no column).
+    /// `None`: every channel as stored.
+    pub own: Option<&'a [usize]>,
 }
 
 /// One episode's rows: where they are in the stored arrays and the values of its index columns.
@@ -55,14 +60,59 @@ impl DataTable<'_> {
         !(self.video && kind == ChannelKind::Image)
     }
 
+    /// The per-step shape channel `c` is written at: a mixture source's own width of a padded
+    /// vector; `None` where the source lacks the channel.
+    pub(super) fn shape_of(&self, c: usize) -> Option<Vec<usize>> {
+        let (_, shape, kind) = &self.channels[c];
+        match (self.own, kind) {
+            (Some(own), ChannelKind::Lowdim) => match own[c] {
+                0 => None,
+                w if w != shape.iter().product::<usize>() => Some(vec![w]),
+                _ => Some(shape.clone()),
+            },
+            _ => Some(shape.clone()),
+        }
+    }
+
+    /// The channels written, with the shapes they are written at, by channel position.
+    pub(super) fn written(&self) -> impl Iterator<Item = (usize, &str, Vec<usize>, ChannelKind)> {
+        self.channels
+            .iter()
+            .enumerate()
+            .filter_map(|(c, (name, _, kind))| Some((c, name.as_str(), self.shape_of(c)?, *kind)))
+    }
+
+    /// Stored rows `lo..hi` of low-dim channel `c` at its written width.
+    pub(super) fn rows(
+        &self,
+        raw: &LowdimStore,
+        c: usize,
+        lo: usize,
+        hi: usize,
+    ) -> Result<Vec<f32>> {
+        let rows = raw.rows(lo, hi)?;
+        let stored = raw.width();
+        let width = self
+            .shape_of(c)
+            .map_or(0, |s| s.iter().product::<usize>().max(1));
+        if width >= stored || stored == 0 {
+            return Ok(rows.into_owned());
+        }
+        Ok(rows
+            .chunks_exact(stored)
+            .flat_map(|row| &row[..width])
+            .copied()
+            .collect())
+    }
+
     pub(super) fn schema(&self) -> Arc<Schema> {
         let mut fields = Vec::new();
-        for (name, shape, kind) in self.channels {
-            if !self.has_column(*kind) {
+        for (_, name, shape, kind) in self.written() {
+            if !self.has_column(kind) {
                 continue;
             }
             let dt = match kind {
-                ChannelKind::Lowdim => lowdim_type(shape),
+                ChannelKind::Lowdim => lowdim_type(&shape),
                 ChannelKind::Image => DataType::Struct(image_fields()),
             };
             fields.push(Field::new(name, dt, false));
@@ -91,9 +141,12 @@ impl DataTable<'_> {
     ) -> Result<RecordBatch> {
         let (lo, hi) = (ep.rows.start, ep.rows.end);
         let mut cols: Vec<ArrayRef> = Vec::new();
-        for ((name, shape, kind), (raw, frames)) in
-            self.channels.iter().zip(raw.iter().zip(frames.iter_mut()))
+        for (c, ((name, _, kind), (raw, frames))) in
+            (self.channels.iter().zip(raw.iter().zip(frames.iter_mut()))).enumerate()
         {
+            let Some(shape) = self.shape_of(c) else {
+                continue;
+            };
             if !self.has_column(*kind) {
                 continue;
             }
@@ -102,7 +155,7 @@ impl DataTable<'_> {
                     let raw = raw
                         .as_ref()
                         .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
-                    cols.push(lowdim_column(raw.rows(lo, hi)?.into_owned(), shape)?);
+                    cols.push(lowdim_column(self.rows(raw, c, lo, hi)?, &shape)?);
                 }
                 (ChannelKind::Image, Some(frames)) => {
                     cols.push(Arc::new(frames.next(hi - lo, name)?));
@@ -130,4 +183,36 @@ impl DataTable<'_> {
 /// The `timestamp` of an episode's row `i`: `i / fps`, as float32.
 pub(super) fn timestamp(i: usize, fps: f64) -> f32 {
     (i as f64 / fps) as f32
+}
+
+/// The data files' schema: nullable columns, as `datasets` writes them, with its features in
+/// the `huggingface` metadata, so that lerobot 0.3.3 (which reads the files with
+/// `load_dataset("parquet")`, no features given) gets PNG frames as images.
+pub(super) fn with_hf_features(table: &DataTable) -> Arc<Schema> {
+    let schema = table.schema();
+    let mut features = serde_json::Map::new();
+    let fields: Vec<arrow_schema::Field> = schema
+        .fields()
+        .iter()
+        .map(|f| {
+            features.insert(f.name().clone(), hf_feature(f.data_type()));
+            f.as_ref().clone().with_nullable(true)
+        })
+        .collect();
+    let info = json!({"info": {"features": Value::Object(features)}});
+    let metadata = [("huggingface".to_string(), info.to_string())].into();
+    Arc::new(Schema::new_with_metadata(fields, metadata))
+}
+
+/// The `datasets` feature of a column of arrow type `dt`.
+fn hf_feature(dt: &arrow_schema::DataType) -> Value {
+    use arrow_schema::DataType as D;
+    match dt {
+        D::Float32 => json!({"dtype": "float32", "_type": "Value"}),
+        D::Int64 => json!({"dtype": "int64", "_type": "Value"}),
+        D::FixedSizeList(item, n) => {
+            json!({"feature": hf_feature(item.data_type()), "length": n, "_type": "Sequence"})
+        }
+        _ => json!({"_type": "Image"}),
+    }
 }

@@ -15,6 +15,10 @@
 //! meta/stats.json                           written by `exec`: chunkc's training statistics
 //! val/…                                     the validation episodes, a v2.1 dataset of their own
 //! ```
+//! A `groot` profile adds GR00T's `meta/modality.json` and `meta/relative_stats.json` to each
+//! dataset and writes GR00T's `meta/stats.json` itself ([`super::groot`]); over a mixture, each
+//! source is a pair of datasets of its own, `sources/<name>/` and `sources/<name>/val/`, at its
+//! own widths (GR00T mixes datasets itself), and the profile folder holds none.
 //! Frames arrive raw: their per-episode statistics are taken here, then they go to the
 //! episode's video (copied or encoded, [`super::video_episodes`]) or, PNG-encoded, to a scratch
 //! file until `finish` writes the episode's data file. A camera whose frames are not one per
@@ -23,7 +27,6 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use arrow_schema::Schema;
 use serde_json::{json, Value};
 
 use super::lerobot_cameras::camera;
@@ -31,10 +34,12 @@ use super::lerobot_columns::Channel;
 use super::lerobot_episode_stats::FeatureStats;
 use super::lerobot_features::features;
 use super::lerobot_files::DatasetFiles;
-use super::lerobot_rows::{timestamp, DataTable, EpisodeRows, INDEX_COLUMNS, SOURCE_COLUMN};
+use super::lerobot_rows::{
+    timestamp, with_hf_features, DataTable, EpisodeRows, INDEX_COLUMNS, SOURCE_COLUMN,
+};
 use super::lerobot_spill::{FrameSpill, SpillReader};
 use super::lerobot_tasks::Tasks;
-use super::lerobot_v21_meta::{data_file, placement, video_file, Meta, Part, PART_DIRS};
+use super::lerobot_v21_meta::{data_file, layout_of, video_file, Meta, Part};
 use super::video_episodes::{Encoders, EpisodeCamera};
 use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
 use crate::error::{Error, Result};
@@ -56,8 +61,16 @@ pub struct LerobotV21Writer {
     /// Per channel: the camera's videos (cameras stored as video only).
     cameras: Vec<Option<EpisodeCamera>>,
     encoders: Encoders,
-    /// The training dataset (the profile folder) and the validation one (`val/`).
+    /// The datasets: the training one (the profile folder) and the validation one (`val/`), or
+    /// a `groot` mixture's pair per source.
     parts: Vec<Part>,
+    /// Per mixture source, per channel: its own width (for a source's dataset of its own).
+    own: Vec<Vec<usize>>,
+    /// A `groot` profile's modality per source, and its action horizon.
+    groot: Vec<crate::plan::groot::GrootModality>,
+    horizon: usize,
+    /// The file `meta.json` names as the data.
+    first_file: String,
     /// Per stored episode: its part and its `episode_index` there.
     place: Vec<(usize, usize)>,
     /// Per stored episode, per channel: the camera's statistics over the episode's frames.
@@ -98,7 +111,15 @@ impl LerobotV21Writer {
             })
             .collect::<Result<_>>()?;
         let (parts, place) = parts(ctx);
+        let first = parts
+            .iter()
+            .find(|p| !p.episodes.is_empty())
+            .unwrap_or(&parts[0]);
         Ok(LerobotV21Writer {
+            first_file: first.path(&data_file(0)),
+            own: ctx.source_parts.iter().map(|s| s.widths.clone()).collect(),
+            groot: ctx.profile.groot.clone(),
+            horizon: ctx.profile.window().chunk,
             files,
             fps: ctx.profile.fps,
             ends: Ends::new(ctx.episode_ends.to_vec()),
@@ -115,12 +136,16 @@ impl LerobotV21Writer {
         })
     }
 
-    fn table(&self) -> DataTable<'_> {
+    /// The data table of part `p`: a source's dataset of its own has the source's widths and no
+    /// `source_index`.
+    fn table(&self, p: usize) -> DataTable<'_> {
+        let own = self.parts[p].set.source.map(|s| self.own[s].as_slice());
         DataTable {
             channels: &self.channels,
             video: self.cameras.iter().any(Option::is_some),
             fps: self.fps,
-            mixture: !self.sources.is_empty(),
+            mixture: !self.sources.is_empty() && own.is_none(),
+            own,
         }
     }
 
@@ -141,45 +166,54 @@ impl LerobotV21Writer {
             .into_iter()
             .map(|f| f.map(FrameSpill::into_reader).transpose())
             .collect::<Result<_>>()?;
-        let table = self.table();
-        let schema = with_hf_features(&table);
+        let schemas: Vec<_> = (0..self.parts.len())
+            .map(|p| with_hf_features(&self.table(p)))
+            .collect();
         let mut first_index = vec![0i64; self.parts.len()];
         let mut stats = Vec::with_capacity(self.ends.len());
         for e in 0..self.ends.len() {
             let (p, index) = self.place[e];
             let part = &self.parts[p];
+            let table = self.table(p);
             let ep = EpisodeRows {
                 rows: self.ends.range(e),
                 episode_index: index as i64,
                 first_index: first_index[p],
                 task: part.tasks.of_episode[index] as i64,
-                source: self.sources.get(e).copied(),
+                source: self.sources.get(e).copied().filter(|_| table.mixture),
             };
             first_index[p] += ep.rows.len() as i64;
-            let batch = table.batch(&schema, &self.raw, &mut frames, &ep);
+            let batch = table.batch(&schemas[p], &self.raw, &mut frames, &ep);
             self.files
-                .parquet(&part.path(&data_file(index)), schema.clone(), [batch])?;
-            stats.push(self.episode_stats(e, &ep)?);
+                .parquet(&part.path(&data_file(index)), schemas[p].clone(), [batch])?;
+            stats.push(self.episode_stats(e, &table, &ep)?);
         }
         Ok(stats)
     }
 
-    /// Every feature's statistics over stored episode `e` (its rows `ep`), in `features` order.
-    fn episode_stats(&self, e: usize, ep: &EpisodeRows) -> Result<Vec<(String, FeatureStats)>> {
+    /// Every feature's statistics over stored episode `e` (its rows `ep`, in `table`), in
+    /// `features` order.
+    fn episode_stats(
+        &self,
+        e: usize,
+        table: &DataTable,
+        ep: &EpisodeRows,
+    ) -> Result<Vec<(String, FeatureStats)>> {
         let mut out = Vec::new();
-        for (c, (name, shape, kind)) in self.channels.iter().enumerate() {
+        for (c, name, shape, kind) in table.written() {
+            let name = name.to_string();
             let s = match kind {
                 ChannelKind::Lowdim => {
                     let raw = self.raw[c]
                         .as_ref()
                         .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
-                    FeatureStats::of_rows(&raw.rows(ep.rows.start, ep.rows.end)?, shape)
+                    FeatureStats::of_rows(&table.rows(raw, c, ep.rows.start, ep.rows.end)?, &shape)
                 }
                 ChannelKind::Image => self.image_stats[e].get(&c).cloned().ok_or_else(|| {
                     Error::Internal(format!("no frames of {name} in episode {}", self.ids[e]))
                 })?,
             };
-            out.push((name.clone(), s));
+            out.push((name, s));
         }
         let n = ep.rows.len();
         let constant = |v: i64| vec![v as f64; n];
@@ -224,25 +258,17 @@ impl LerobotV21Writer {
     }
 }
 
-/// The training episodes (the profile folder) and the validation ones (`val/`), each with its
-/// tasks; per stored episode, its part and `episode_index`.
+/// The export's datasets (see [`layout_of`]), each with its episodes and tasks; per stored
+/// episode, its dataset and `episode_index`.
 fn parts(ctx: &SinkContext) -> (Vec<Part>, Vec<(usize, usize)>) {
-    let val: std::collections::BTreeSet<u64> = ctx
-        .profile
-        .episodes
-        .iter()
-        .filter(|e| e.split != "train")
-        .map(|e| e.id)
-        .collect();
-    let place = placement(ctx.episode_ids, |id| val.contains(&id));
-    let parts = PART_DIRS
-        .iter()
-        .enumerate()
-        .map(|(p, &dir)| {
+    let layout = layout_of(ctx.profile, ctx.source_parts);
+    let place = layout.place;
+    let parts = (layout.datasets.into_iter().enumerate())
+        .map(|(p, set)| {
             let episodes: Vec<usize> = (0..place.len()).filter(|&e| place[e].0 == p).collect();
             let ids: Vec<u64> = episodes.iter().map(|&e| ctx.episode_ids[e]).collect();
             Part {
-                dir,
+                set,
                 tasks: Tasks::of(&ids, ctx.tasks),
                 episodes,
             }
@@ -251,41 +277,10 @@ fn parts(ctx: &SinkContext) -> (Vec<Part>, Vec<(usize, usize)>) {
     (parts, place)
 }
 
-/// The data files' schema: nullable columns, as `datasets` writes them, with its features in
-/// the `huggingface` metadata, so that lerobot 0.3.3 (which reads the files with
-/// `load_dataset("parquet")`, no features given) gets PNG frames as images.
-fn with_hf_features(table: &DataTable) -> Arc<Schema> {
-    let schema = table.schema();
-    let mut features = serde_json::Map::new();
-    let fields: Vec<arrow_schema::Field> = schema
-        .fields()
-        .iter()
-        .map(|f| {
-            features.insert(f.name().clone(), hf_feature(f.data_type()));
-            f.as_ref().clone().with_nullable(true)
-        })
-        .collect();
-    let info = json!({"info": {"features": Value::Object(features)}});
-    let metadata = [("huggingface".to_string(), info.to_string())].into();
-    Arc::new(Schema::new_with_metadata(fields, metadata))
-}
-
-/// The `datasets` feature of a column of arrow type `dt`.
-fn hf_feature(dt: &arrow_schema::DataType) -> Value {
-    use arrow_schema::DataType as D;
-    match dt {
-        D::Float32 => json!({"dtype": "float32", "_type": "Value"}),
-        D::Int64 => json!({"dtype": "int64", "_type": "Value"}),
-        D::FixedSizeList(item, n) => {
-            json!({"feature": hf_feature(item.data_type()), "length": n, "_type": "Sequence"})
-        }
-        _ => json!({"_type": "Image"}),
-    }
-}
-
 impl Sink for LerobotV21Writer {
+    /// The first dataset's first episode (a `groot` mixture's first source's).
     fn data_file(&self) -> &str {
-        "data/chunk-000/episode_000000.parquet"
+        &self.first_file
     }
 
     fn frame_encoding(&self) -> FrameEncoding {
@@ -350,11 +345,14 @@ impl Sink for LerobotV21Writer {
         self.encoders.finish()?;
         let stats = self.data()?;
         let videos = self.cameras.iter().flatten().count();
+        let groot = !self.groot.is_empty();
         for (p, part) in self.parts.iter().enumerate() {
-            if p > 0 && part.episodes.is_empty() {
+            // The profile folder, when it is a dataset, is one even without an episode; another
+            // folder only when it has episodes.
+            if part.episodes.is_empty() && !part.set.dir.is_empty() {
                 continue;
             }
-            let table = self.table();
+            let table = self.table(p);
             let info = |name: &str, shape: &[usize]| self.video_info(part, name, shape);
             let meta = Meta {
                 part,
@@ -366,7 +364,23 @@ impl Sink for LerobotV21Writer {
                 videos,
                 stats: part.episodes.iter().map(|&e| stats[e].clone()).collect(),
             };
-            meta.write(&self.files, p > 0)?;
+            // The training dataset's `meta/stats.json` is chunkc's (written by `exec`); a
+            // `groot` dataset's is GR00T's.
+            meta.write(&self.files, !part.set.dir.is_empty() && !groot)?;
+            if groot {
+                let dataset = super::groot::Dataset {
+                    modality: &self.groot[part.set.source.unwrap_or(0)],
+                    table: &table,
+                    raw: &self.raw,
+                    episodes: part.episodes.iter().map(|&e| self.ends.range(e)).collect(),
+                    horizon: self.horizon,
+                };
+                let files = match part.set.dir.as_str() {
+                    "" => self.files.clone(),
+                    dir => self.files.under(dir),
+                };
+                super::groot::write(&files, &dataset)?;
+            }
         }
         Ok(())
     }

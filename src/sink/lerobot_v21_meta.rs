@@ -4,9 +4,11 @@
 //!
 //! The export is two datasets: the profile folder itself holds the training episodes, and
 //! `val/` the validation episodes (openpi and GR00T train on every episode of the dataset they
-//! are given, so the validation episodes cannot share it). In each, `episode_index` runs
-//! 0..N-1 in stored order, the position LeRobot and GR00T index by; `meta.json` keeps each
-//! stored episode's source id beside its dataset and `episode_index`.
+//! are given, so the validation episodes cannot share it). A `groot` profile over a mixture
+//! writes that pair once per source instead, in `sources/<name>/` (GR00T mixes datasets
+//! itself), and none in the profile folder. In each, `episode_index` runs 0..N-1 in stored
+//! order, the position LeRobot and GR00T index by; `meta.json` keeps each stored episode's
+//! source id beside its dataset and `episode_index`.
 
 use serde_json::{json, Map, Value};
 
@@ -40,49 +42,136 @@ pub fn video_file(key: &str, index: usize) -> String {
     )
 }
 
-/// The folder of each part, in part order: the training episodes' dataset is the profile
-/// folder itself, the validation episodes' is [`VAL_DIR`].
-pub const PART_DIRS: [&str; 2] = ["", VAL_DIR];
-
-/// Per stored episode (`ids` in stored order): its part (0 training, 1 validation, as
-/// `is_val` says) and its `episode_index` there, the episode's position among its part's.
-pub fn placement(ids: &[u64], is_val: impl Fn(u64) -> bool) -> Vec<(usize, usize)> {
-    let mut counts = [0usize; 2];
-    ids.iter()
-        .map(|&id| {
-            let p = usize::from(is_val(id));
-            counts[p] += 1;
-            (p, counts[p] - 1)
-        })
-        .collect()
+/// The export's datasets and where each stored episode goes.
+pub struct Layout {
+    pub datasets: Vec<Dataset>,
+    /// Per stored episode: its dataset and its `episode_index` there.
+    pub place: Vec<(usize, usize)>,
 }
 
-/// `meta.json` of a v2.1 export: `data_format` `"lerobot_v2.1"` (chunkc's `loader.py` does not
-/// read it: LeRobot's `LeRobotDataset` does), and `lerobot`: the version, each dataset's folder,
-/// and per stored episode (`episodes`, the source ids) its dataset and `episode_index`.
-pub fn describe(doc: &mut Value, profile: &crate::plan::ProfilePlan) {
+/// One dataset of the export.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Dataset {
+    /// Its name in `meta.json`: `train` and `val`, or a `groot` mixture's `sources/<name>` and
+    /// `sources/<name>/val`.
+    pub name: String,
+    /// Its folder in the profile folder (`""`: the profile folder itself).
+    pub dir: String,
+    /// A `groot` mixture's: the source whose dataset it is (at the source's own widths).
+    pub source: Option<usize>,
+    /// Whether it holds training episodes (else validation ones).
+    pub train: bool,
+}
+
+/// The datasets of a v2.1 export of stored episodes `ids` (mixture ids in a mixture), `is_val`
+/// saying which are validation episodes: the profile folder (training) and `val/`; a `groot`
+/// profile over a mixture (`per_source`, the sources' names in order, each with the mixture id
+/// of its first episode) instead one pair per source in `sources/<name>/`, since GR00T mixes
+/// datasets itself. An episode's `episode_index` is its position among its dataset's.
+pub fn layout(ids: &[u64], is_val: impl Fn(u64) -> bool, per_source: &[(&str, u64)]) -> Layout {
+    let mut datasets = Vec::new();
+    if per_source.is_empty() {
+        for (train, name, dir) in [(true, "train", ""), (false, "val", VAL_DIR)] {
+            let (name, dir) = (name.to_string(), dir.to_string());
+            datasets.push(Dataset {
+                name,
+                dir,
+                source: None,
+                train,
+            });
+        }
+    }
+    for (s, (source, _)) in per_source.iter().enumerate() {
+        let dir = format!("sources/{source}");
+        for train in [true, false] {
+            let dir = if train {
+                dir.clone()
+            } else {
+                format!("{dir}/{VAL_DIR}")
+            };
+            datasets.push(Dataset {
+                name: dir.clone(),
+                dir,
+                source: Some(s),
+                train,
+            });
+        }
+    }
+    let mut counts = vec![0usize; datasets.len()];
+    let place = ids
+        .iter()
+        .map(|&id| {
+            let source = per_source
+                .iter()
+                .rposition(|&(_, first)| first <= id)
+                .unwrap_or(0);
+            let d = 2 * source + usize::from(is_val(id));
+            counts[d] += 1;
+            (d, counts[d] - 1)
+        })
+        .collect();
+    Layout { datasets, place }
+}
+
+/// The layout of `profile`'s export (`sources`: the mixture's, empty for one source).
+pub fn layout_of(
+    profile: &crate::plan::ProfilePlan,
+    sources: &[crate::source::SourcePart],
+) -> Layout {
     let ids: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();
     let val: std::collections::BTreeSet<u64> = (profile.episodes.iter())
         .filter(|e| e.split != "train")
         .map(|e| e.id)
         .collect();
-    let places = placement(&ids, |id| val.contains(&id));
+    let per_source: Vec<(&str, u64)> = match profile.values.preset {
+        Some(crate::spec::Preset::Groot) => sources
+            .iter()
+            .map(|s| (s.name.as_str(), s.id_offset))
+            .collect(),
+        _ => Vec::new(),
+    };
+    layout(&ids, |id| val.contains(&id), &per_source)
+}
+
+/// `meta.json` of a v2.1 export: `data_format` `"lerobot_v2.1"` (chunkc's `loader.py` does not
+/// read it: LeRobot's `LeRobotDataset` does), and `lerobot`: the version, each dataset's folder,
+/// and per stored episode (`episodes`, the source ids) its dataset and `episode_index`.
+pub fn describe(
+    doc: &mut Value,
+    profile: &crate::plan::ProfilePlan,
+    sources: &[crate::source::SourcePart],
+) {
+    let layout = layout_of(profile, sources);
+    let used: Vec<&Dataset> = (layout.datasets.iter().enumerate())
+        .filter(|(d, set)| set.dir.is_empty() || layout.place.iter().any(|p| p.0 == *d))
+        .map(|(_, set)| set)
+        .collect();
+    let folders: Map<String, Value> = used
+        .iter()
+        .map(|set| {
+            let dir = if set.dir.is_empty() {
+                "."
+            } else {
+                set.dir.as_str()
+            };
+            (set.name.clone(), json!(dir))
+        })
+        .collect();
     doc["data_format"] = json!(DATA_FORMAT);
     doc["lerobot"] = json!({
         "version": "v2.1",
-        "datasets": {"train": ".", "val": VAL_DIR},
-        "dataset": places.iter().map(|&(p, _)| ["train", "val"][p]).collect::<Vec<_>>(),
-        "episode_index": places.iter().map(|&(_, i)| i).collect::<Vec<_>>(),
+        "datasets": folders,
+        "dataset": layout.place.iter().map(|&(d, _)| layout.datasets[d].name.as_str()).collect::<Vec<_>>(),
+        "episode_index": layout.place.iter().map(|&(_, i)| i).collect::<Vec<_>>(),
     });
 }
 
 /// `meta.json`'s `data_format` of a v2.1 export.
 pub const DATA_FORMAT: &str = "lerobot_v2.1";
 
-/// One of the export's datasets: its folder and its episodes.
+/// One of the export's datasets as the writer fills it: its place and its episodes.
 pub(super) struct Part {
-    /// Its folder in the profile folder (`""`: the profile folder itself).
-    pub dir: &'static str,
+    pub set: Dataset,
     /// The stored positions of its episodes, in order: an episode's `episode_index` is its
     /// position here.
     pub episodes: Vec<usize>,
@@ -92,7 +181,7 @@ pub(super) struct Part {
 impl Part {
     /// `rel` (a path in the dataset) as a path in the profile folder.
     pub(super) fn path(&self, rel: &str) -> String {
-        match self.dir {
+        match self.set.dir.as_str() {
             "" => rel.to_string(),
             dir => format!("{dir}/{rel}"),
         }
@@ -126,7 +215,7 @@ impl Meta<'_> {
     /// `with_stats` `meta/stats.json` (the episodes' statistics aggregated, as LeRobot's
     /// `aggregate_stats` does; the training dataset's is chunkc's exact one, written by `exec`).
     pub(super) fn write(&self, files: &DatasetFiles, with_stats: bool) -> Result<()> {
-        let files = match self.part.dir {
+        let files = match self.part.set.dir.as_str() {
             "" => files.clone(),
             dir => files.under(dir),
         };
@@ -196,8 +285,33 @@ mod tests {
 
     #[test]
     fn episodes_are_numbered_within_their_dataset_in_stored_order() {
-        let places = placement(&[3, 5, 8, 9, 12], |id| id == 5 || id == 12);
-        assert_eq!(places, [(0, 0), (1, 0), (0, 1), (0, 2), (1, 1)]);
+        let l = layout(&[3, 5, 8, 9, 12], |id| id == 5 || id == 12, &[]);
+        assert_eq!(l.place, [(0, 0), (1, 0), (0, 1), (0, 2), (1, 1)]);
+        assert_eq!(
+            (l.datasets[0].dir.as_str(), l.datasets[1].dir.as_str()),
+            ("", "val")
+        );
+    }
+
+    #[test]
+    fn a_groot_mixture_has_a_pair_of_datasets_per_source() {
+        let l = layout(
+            &[0, 1, 2, 100, 101],
+            |id| id == 1 || id == 101,
+            &[("own", 0), ("sim", 100)],
+        );
+        let dirs: Vec<&str> = l.datasets.iter().map(|d| d.dir.as_str()).collect();
+        assert_eq!(
+            dirs,
+            [
+                "sources/own",
+                "sources/own/val",
+                "sources/sim",
+                "sources/sim/val"
+            ]
+        );
+        assert_eq!(l.place, [(0, 0), (1, 0), (0, 1), (2, 0), (3, 0)]);
+        assert_eq!(l.datasets[3].source, Some(1));
     }
 
     #[test]

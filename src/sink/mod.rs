@@ -19,6 +19,8 @@
 //! - `lerobot_v21`: a LeRobot v2.1 dataset (`lerobot_version = "v2.1"`): a parquet file and a
 //!   video per episode, the validation episodes a second dataset in `val/`; its layout and
 //!   `meta/` files (`lerobot_v21_meta`), its per-episode statistics (`lerobot_episode_stats`).
+//! - `groot`: GR00T's files of a `groot` profile's v2.1 datasets (`meta/modality.json`, its
+//!   `meta/stats.json` and `meta/relative_stats.json`).
 //! - `lerobot_cameras`: how either LeRobot export encodes (or copies) a camera's video;
 //!   `lerobot_v3_videos`: v3.0's video files (one of every episode, or one per episode).
 //! - `png`: the PNG encoding of frames that `lerobot` stores.
@@ -41,6 +43,7 @@ pub mod act_episodes;
 pub mod documents;
 pub mod dump;
 pub mod encoder_record;
+mod groot;
 pub mod hdf5;
 mod hdf5_chunks;
 mod hdf5_jpeg;

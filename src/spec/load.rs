@@ -264,6 +264,19 @@ chunk = 20
     }
 
     #[test]
+    fn lerobot_version_comes_from_the_chain_then_the_preset() {
+        let text = SPEC.replace("[profiles.dp]", "[profiles.v21]\npreset = \"pi0\"\nformat = \"parquet\"\nlerobot_version = \"v2.1\"\n[profiles.child]\nextends = \"v21\"\n[profiles.g]\npreset = \"groot\"\n[profiles.dp]");
+        let spec = parse(&text).unwrap();
+        let p = |name: &str| spec.profiles.iter().find(|p| p.name == name).unwrap();
+        let origin = |name: &str| p(name).origins.get("lerobot_version").cloned();
+        assert!(p("child").writes_lerobot_v21() && p("g").writes_lerobot_v21());
+        assert_eq!(origin("child").as_deref(), Some("profiles.v21"));
+        assert_eq!(origin("g").as_deref(), Some("preset groot"));
+        assert_eq!(p("act").lerobot_version, crate::spec::LerobotVersion::V30);
+        assert_eq!(origin("act"), None);
+    }
+
+    #[test]
     fn error_at_points_at_the_value() {
         let loaded = parse(SPEC).unwrap();
         let err = loaded.error_at(

@@ -12,7 +12,8 @@
 //!   defaults.
 //! - `image_storage`: how the HDF5 layout stores frames (`image_compression`) and its defaults.
 //! - `export_keys`: the names native exports give their arrays (default rule and overrides).
-//! - `lerobot_version`: the LeRobot layout of a parquet profile, resolved along `extends`.
+//! - `modality`: GR00T's parts of each channel (`[profiles.<name>.modality]`), the tiling they
+//!   must make, and the name of a channel's one part when none are given.
 //! - `camera`: `[profiles.<name>.cameras.<channel>]`, a camera's stored size, as written and
 //!   resolved; `validate_camera` checks it (the checks against the source's frames are the
 //!   plan's).
@@ -30,8 +31,9 @@ mod diagnostic;
 pub mod env;
 pub mod export_keys;
 mod image_storage;
-pub mod lerobot_version;
 mod load;
+mod memory;
+pub mod modality;
 pub mod model;
 mod observations;
 mod output_location;

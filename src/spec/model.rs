@@ -12,6 +12,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 pub use super::image_storage::ImageCompression;
+pub use super::memory::MemorySize;
 pub use super::transform::{StatsPopulation, TransformSpec};
 
 /// A chunkc build spec (`chunkc.toml`): one source (or a mixture of several), one split, one
@@ -39,6 +40,9 @@ pub struct Spec {
     pub audit: AuditSpec,
     /// Where the outputs go.
     pub output: OutputSpec,
+    /// How the build runs (outputs never depend on it).
+    #[serde(default, skip_serializing_if = "BuildSpec::is_default")]
+    pub build: BuildSpec,
     /// One entry per target architecture: `[profiles.<name>]`. Each writes `<output.dir>/<name>/`.
     pub profiles: BTreeMap<String, ProfileSpec>,
 }
@@ -598,7 +602,8 @@ pub struct OutputSpec {
     /// Output directory, relative to the spec file. Each profile writes a subdirectory.
     pub dir: String,
     /// A directory of template overrides, relative to the spec file: `<file>.j2` replaces the
-    /// built-in template of that generated file (`loader.py.j2`, `README.md.j2`, ...).
+    /// built-in template of that generated file (`loader.py.j2`, `README.md.j2`, ...), and
+    /// `<file stem>/<part>.j2` one part of it (`loader/dataset.py.j2`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub templates: Option<String>,
     /// Allow `dir` (the part written in the spec) and the entries chunkc writes directly under it
@@ -607,6 +612,26 @@ pub struct OutputSpec {
     /// Writing into the source is refused either way.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub follow_symlinks: bool,
+}
+
+/// `[build]`: how the build runs, on this machine; the outputs are the same bytes whatever it
+/// says.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BuildSpec {
+    /// The memory the build may keep low-dimensional values in until they are written, with a
+    /// unit (`"2GiB"`, `"512MiB"`); what does not fit goes to a file in the staging directory.
+    /// Default: a quarter of the memory available when the build starts. `chunkc build
+    /// --memory` overrides it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(with = "Option<String>")]
+    pub memory: Option<MemorySize>,
+}
+
+impl BuildSpec {
+    pub fn is_default(&self) -> bool {
+        self == &BuildSpec::default()
+    }
 }
 
 /// `[profiles.<name>]`: one training-ready dataset. Every value left out comes from the profile it
@@ -741,6 +766,23 @@ pub struct ProfileSpec {
     /// `formats.md`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lerobot_version: Option<LerobotVersion>,
+    /// GR00T's `meta/modality.json` (`preset = "groot"` only): per low-dimensional channel, its
+    /// named parts, `"observation.state" = { arm = [0, 7], gripper = [7, 8] }`, each a `[start,
+    /// end)` slice of the channel's vector (GR00T's `start` / `end`). The parts of a channel
+    /// tile it: from 0 to its width, without overlap or gap. A channel left out is one part,
+    /// named after its last dotted component (`state`, `action`). `action`'s parts are GR00T's
+    /// action keys, every other low-dimensional channel's its state keys; cameras are its video
+    /// keys (`observation.images.top` as `top`) and the task its
+    /// `annotation.human.task_description`. Merged along `extends`, channel by channel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub modality: Option<BTreeMap<String, ModalityParts>>,
+    /// The action parts (of `modality`) GR00T fine-tunes as relative actions
+    /// (`ActionRepresentation.RELATIVE`; `preset = "groot"` only): `meta/relative_stats.json`
+    /// holds their statistics over every action chunk of `chunk` steps that fits in its
+    /// episode, each the action minus the state part of the same name at the chunk's first step.
+    /// The dataset keeps absolute actions: GR00T makes them relative itself.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub relative_actions: Option<Vec<String>>,
     /// Statistics files in target codebases' own formats, written beside `stats.json`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stats_formats: Option<Vec<StatsFormat>>,
@@ -773,6 +815,19 @@ pub struct ProfileSpec {
     pub cameras: Option<BTreeMap<String, super::camera::CameraSpec>>,
 }
 
+/// One channel's parts in GR00T's `meta/modality.json`: `<part> = [start, end]`, each the
+/// slice `[start, end)` of the channel's vector; together they tile it from 0 to its width.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(transparent)]
+pub struct ModalityParts(pub BTreeMap<String, [u32; 2]>);
+
+impl std::ops::Deref for ModalityParts {
+    type Target = BTreeMap<String, [u32; 2]>;
+    fn deref(&self) -> &Self::Target {
+        &self.0
+    }
+}
+
 /// Target-architecture presets (values and sources in the book's presets chapter).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
@@ -801,10 +856,15 @@ pub enum Preset {
     /// The name before openpi's models had presets of their own: an alias of `pi05` (quantile
     /// normalization, as openpi normalizes pi0.5 and pi0-FAST; pi0 z-scores: use `pi0`).
     Openpi,
+    /// NVIDIA GR00T N1.7: action horizon 16, state and cameras at offset 0, only chunks that fit
+    /// in the episode, absolute actions and states; a LeRobot v2.1 dataset (`format =
+    /// "parquet"`, `lerobot_version = "v2.1"`) with GR00T's `meta/modality.json` and
+    /// `meta/stats.json`, normalized q01/q99 to [-1, 1], clipped.
+    Groot,
 }
 
 impl Preset {
-    pub const ALL: [Preset; 10] = [
+    pub const ALL: [Preset; 11] = [
         Preset::Act,
         Preset::DiffusionPolicy,
         Preset::Dp3,
@@ -815,6 +875,7 @@ impl Preset {
         Preset::Pi05,
         Preset::Pi0Fast,
         Preset::Openpi,
+        Preset::Groot,
     ];
 
     pub fn name(self) -> &'static str {
@@ -829,6 +890,7 @@ impl Preset {
             Preset::Pi05 => "pi05",
             Preset::Pi0Fast => "pi0_fast",
             Preset::Openpi => "openpi",
+            Preset::Groot => "groot",
         }
     }
 }
@@ -904,6 +966,10 @@ pub enum NormalizeMode {
     LerobotMeanStd,
     /// LeRobot's MIN_MAX: `(x - min) / (max - min + 1e-8) * 2 - 1`.
     LerobotMinMax,
+    /// GR00T N1.7's (`use_percentiles`, `clip_outliers`): `(x - q01) / (q99 - q01) * 2 - 1`,
+    /// clipped to [-1, 1]; a dimension whose q01 and q99 are close (numpy's `isclose`) maps its
+    /// q01 to 0 with scale 1.
+    GrootQuantile,
     /// Stored as read.
     None,
 }
@@ -919,6 +985,7 @@ impl NormalizeMode {
             NormalizeMode::DpAbsAction => "dp_abs_action",
             NormalizeMode::LerobotMeanStd => "lerobot_mean_std",
             NormalizeMode::LerobotMinMax => "lerobot_min_max",
+            NormalizeMode::GrootQuantile => "groot_quantile",
             NormalizeMode::None => "none",
         }
     }

@@ -20,7 +20,8 @@ fn needs_observations(preset: Preset) -> bool {
         | Preset::Pi0
         | Preset::Pi05
         | Preset::Pi0Fast
-        | Preset::Openpi => true,
+        | Preset::Openpi
+        | Preset::Groot => true,
     }
 }
 

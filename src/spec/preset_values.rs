@@ -2,7 +2,10 @@
 //! from (see TARGETS.md, "Default chunk parameters"). [`super::preset`] expands a profile over
 //! them.
 
-use super::model::{Alignment, NormalizeMode, Padding, Preset, StatsFormat, StatsPopulation};
+use super::model::{
+    Alignment, ImageEncoding, LerobotVersion, NormalizeMode, OutputFormat, Padding, Preset,
+    StatsFormat, StatsPopulation,
+};
 
 /// The values a preset supplies (see TARGETS.md, "Default chunk parameters").
 pub(super) struct PresetValues {
@@ -16,6 +19,12 @@ pub(super) struct PresetValues {
     pub(super) normalize_multidim: NormalizeMode,
     pub(super) stats_formats: &'static [StatsFormat],
     pub(super) stats_population: Option<StatsPopulation>,
+    /// The output format a preset implies (`None`: the default, `hdf5`).
+    pub(super) format: Option<OutputFormat>,
+    /// The LeRobot layout a preset implies (`None`: the default, v3.0).
+    pub(super) lerobot_version: Option<LerobotVersion>,
+    /// How a parquet profile stores frames (`None`: the default, PNG).
+    pub(super) image_encoding: Option<ImageEncoding>,
 }
 
 // Long function: one table of values per preset, each with where it comes from.
@@ -32,6 +41,9 @@ pub(super) fn preset_values(preset: Preset) -> PresetValues {
         normalize_multidim: N::None,
         stats_formats: &[],
         stats_population: None,
+        format: None,
+        lerobot_version: None,
+        image_encoding: None,
     };
     // openpi: the action horizon at the dataset rate, statistics over every sample's chunk
     // (`compute_norm_stats`), quantiles for every model but pi0 (`use_quantile_norm`).
@@ -111,6 +123,20 @@ pub(super) fn preset_values(preset: Preset) -> PresetValues {
         Preset::Pi0Fast => PresetValues {
             chunk: Some(32),
             ..openpi
+        },
+        // GR00T N1.7 (Isaac-GR00T's modality configs: action `delta_indices` range(16), state
+        // and video [0]): a sample only where its whole chunk is in the episode (length - 16 + 1
+        // per episode), q01/q99 min-max normalization clipped to [-1, 1], and the LeRobot v2.1
+        // dataset its loader reads, cameras as the mp4s it decodes.
+        Preset::Groot => PresetValues {
+            chunk: Some(16),
+            padding: Padding::Truncate,
+            normalize_lowdim: N::GrootQuantile,
+            normalize_multidim: N::GrootQuantile,
+            format: Some(OutputFormat::Parquet),
+            lerobot_version: Some(LerobotVersion::V21),
+            image_encoding: Some(ImageEncoding::Video),
+            ..base
         },
     }
 }

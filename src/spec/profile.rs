@@ -7,9 +7,9 @@ use serde::Serialize;
 
 use super::camera::Camera;
 use super::model::{
-    Alignment, Compression, HierarchySpec, ImageCompression, ImageEncoding, Layout, NormalizeMode,
-    OutputFormat, Padding, Preset, SegmentSpec, StatsFormat, StatsPopulation, TransformSpec,
-    VideoCodec,
+    Alignment, Compression, HierarchySpec, ImageCompression, ImageEncoding, Layout, LerobotVersion,
+    NormalizeMode, OutputFormat, Padding, Preset, SegmentSpec, StatsFormat, StatsPopulation,
+    TransformSpec, VideoCodec,
 };
 use super::video_settings::{
     StreamCopy, VideoSettings, DEFAULT_VIDEO_CRF, DEFAULT_VIDEO_GOP, STORAGE_VIDEO,
@@ -67,6 +67,19 @@ pub struct Profile {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub video_copy: Option<bool>,
     pub zarr_version: u32,
+    /// The LeRobot layout `format = "parquet"` writes: the nearest profile of the `extends`
+    /// chain that sets `lerobot_version`, else the preset's (`groot`: v2.1), else v3.0. Left out
+    /// of the serialized profile when it is v3.0, so that those fingerprints stay.
+    #[serde(skip_serializing_if = "is_v30")]
+    pub lerobot_version: LerobotVersion,
+    /// GR00T's parts of each low-dimensional channel as written (`[start, end)` by part name),
+    /// merged along the `extends` chain channel by channel; empty (and left out of the
+    /// serialized profile) when none is given.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub modality: BTreeMap<String, super::model::ModalityParts>,
+    /// The action parts GR00T makes relative (the nearest list along the `extends` chain).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub relative_actions: Vec<String>,
     pub stats_formats: Vec<StatsFormat>,
     pub segment: Option<SegmentSpec>,
     pub hierarchy: Option<HierarchySpec>,
@@ -94,7 +107,22 @@ fn is_frames(p: &StatsPopulation) -> bool {
     *p == StatsPopulation::Frames
 }
 
+fn is_v30(v: &LerobotVersion) -> bool {
+    *v == LerobotVersion::V30
+}
+
 impl Profile {
+    /// Whether the profile writes a LeRobot v2.1 dataset (`format = "parquet"`,
+    /// `lerobot_version = "v2.1"`).
+    pub fn writes_lerobot_v21(&self) -> bool {
+        self.format == OutputFormat::Parquet && self.lerobot_version == LerobotVersion::V21
+    }
+
+    /// Whether the profile writes GR00T's dataset (`preset = "groot"`, nearest in the chain).
+    pub fn is_groot(&self) -> bool {
+        self.preset == Some(Preset::Groot)
+    }
+
     /// The encoder settings when frames are stored as video, else `None`: parquet's
     /// `image_encoding = "video"` (LeRobot's defaults) or hdf5's `image_compression = "video"`
     /// ([`STORAGE_VIDEO`]'s).

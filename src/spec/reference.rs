@@ -123,7 +123,11 @@ fn type_name(node: &Value, root: &Value) -> String {
                     let plural: Vec<String> = choice.iter().map(|c| format!("{c}s")).collect();
                     format!("table of {}", plural.join(" or "))
                 } else {
-                    format!("table of {}s", type_name(inner, root))
+                    let inner = type_name(inner, root);
+                    match inner.ends_with('s') {
+                        true => format!("table of {inner}"),
+                        false => format!("table of {inner}s"),
+                    }
                 }
             }
             _ => "table".into(),
@@ -214,7 +218,7 @@ fn collect(path: &str, field: &Value, root: &Value, out: &mut Vec<TableDoc>) {
         } else {
             out.push(TableDoc {
                 header,
-                description: description(field),
+                description: table_description,
                 keys: Vec::new(),
                 entries: Some(key_doc(named, inner, false, root)),
             });
@@ -348,7 +352,7 @@ mod tests {
         let values: Vec<_> = padding.allowed.iter().map(|(v, _)| v.as_str()).collect();
         assert_eq!(values, ["edge", "zero", "mask", "truncate"]);
         let mode = lookup(&["profiles", "act", "normalize", "action"]).unwrap();
-        assert_eq!(mode.allowed.len(), 9);
+        assert_eq!(mode.allowed.len(), 10);
         let path = lookup(&["source", "path"]).unwrap();
         assert!(path.required);
         assert_eq!(path.ty, "string");
@@ -372,9 +376,11 @@ mod tests {
                 "[audit]",
                 "[audit.doctor]",
                 "[output]",
+                "[build]",
                 "[profiles.<name>]",
                 "[profiles.<name>.normalize]",
                 "[profiles.<name>.export_keys]",
+                "[profiles.<name>.modality.<name>]",
                 "[profiles.<name>.segment]",
                 "[profiles.<name>.hierarchy]",
                 "[profiles.<name>.cameras.<name>]",

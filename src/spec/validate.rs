@@ -14,6 +14,7 @@ use super::preset::{self, ExpandError, Profile};
 
 mod export_names;
 mod frames;
+mod groot;
 mod lerobot_version;
 mod mixture;
 
@@ -346,6 +347,7 @@ impl Checker<'_> {
                 self.output_options(name, &expanded);
                 self.export_keys(name, profile, &expanded);
                 self.lerobot_version(name, profile, &expanded);
+                self.groot(name, profile, &expanded);
                 Some(expanded)
             }
             Err(ExpandError::Missing(missing)) => {

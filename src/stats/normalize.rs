@@ -18,6 +18,10 @@ pub const OPENPI_EPS: f64 = 1e-6;
 /// Diffusion Policy's `get_range_normalizer_attrs` default `range_eps`, which its abs-action
 /// normalizer uses.
 pub const DP_ABS_RANGE_EPS: f64 = 1e-7;
+/// numpy's `isclose` tolerances, which GR00T's min-max normalization uses to find a constant
+/// dimension.
+pub const GROOT_ISCLOSE_ATOL: f64 = 1e-8;
+pub const GROOT_ISCLOSE_RTOL: f64 = 1e-5;
 /// One arm's block of Diffusion Policy's abs-action layout: `[pos3, rotation_6d, gripper1]`.
 pub const DP_ABS_ARM: usize = 10;
 
@@ -98,6 +102,22 @@ impl Normalizer {
             }
             NormalizeMode::Quantile => {
                 Normalizer::range(mode, &stats.q01, &stats.q99, OPENPI_EPS, false)
+            }
+            NormalizeMode::GrootQuantile => {
+                let mut center = Vec::with_capacity(dims);
+                let mut scale = Vec::with_capacity(dims);
+                for (&lo, &hi) in stats.q01.iter().zip(&stats.q99) {
+                    // GR00T's `normalize_values_minmax` maps a dimension to 0 where
+                    // `np.isclose(max, min)`; here its q01 maps to 0.
+                    if (hi - lo).abs() <= GROOT_ISCLOSE_ATOL + GROOT_ISCLOSE_RTOL * lo.abs() {
+                        center.push(lo);
+                        scale.push(1.0);
+                    } else {
+                        center.push(0.5 * (lo + hi));
+                        scale.push(0.5 * (hi - lo));
+                    }
+                }
+                Normalizer::new(mode, center, scale, true)
             }
             NormalizeMode::Minmax | NormalizeMode::Limits => {
                 let (lo, hi, clip) = if mode == NormalizeMode::Minmax {
@@ -247,6 +267,20 @@ mod tests {
             let want = (x - q01) / (q99 - q01 + OPENPI_EPS) * 2.0 - 1.0;
             assert!((n.forward(0, x) - want).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn groot_quantile_maps_q01_q99_to_unit_range_and_clips() {
+        let values: Vec<f32> = (0..201).flat_map(|i| [i as f32, 4.0]).collect();
+        let stats = lowdim(std::iter::once(&values[..]), 2);
+        let n = Normalizer::fit(NormalizeMode::GrootQuantile, &stats);
+        let (q01, q99) = (stats.q01[0], stats.q99[0]);
+        assert!((n.forward(0, q01) + 1.0).abs() < 1e-12);
+        assert!((n.forward(0, q99) - 1.0).abs() < 1e-12);
+        let mid = (n.forward(0, 50.0) - ((50.0 - q01) / (q99 - q01) * 2.0 - 1.0)).abs();
+        assert!(mid < 1e-12);
+        assert_eq!((n.forward(0, 0.0), n.forward(0, 200.0)), (-1.0, 1.0));
+        assert_eq!(n.forward(1, 4.0), 0.0);
     }
 
     #[test]

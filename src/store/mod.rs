@@ -19,8 +19,9 @@
 //! A mixture's padding costs neither memory nor disk.
 //!
 //! The file lives under the staging directory, which is removed whether the build succeeds or
-//! fails. The budget is the caller's: exec decides it (`CHUNKC_SPILL_BYTES`, else
-//! [`DEFAULT_BUDGET`]) and hands it to whoever needs it; nothing here reads the environment.
+//! fails. The budget is the caller's: exec decides it (`exec::memory`: `--memory`, `[build]
+//! memory`, else a share of the available memory) and hands each store its own; nothing here
+//! reads the environment.
 
 use std::borrow::Cow;
 use std::fs::File;
@@ -29,12 +30,6 @@ use std::path::PathBuf;
 
 use crate::bytes;
 use crate::error::{Error, IoContext, Result};
-
-/// Bytes of values one store keeps in memory rather than spill: a channel of up to about 1.2
-/// million rows of 14 values. A spec's lower rates mostly fit (the 25, 10 and 5 Hz stores of
-/// 5,000 episodes of 400 steps at 50 Hz do), so a spec with several rates spills only its
-/// largest stores; memory stays bounded by the budget times the number of stores.
-pub const DEFAULT_BUDGET: usize = 64 << 20;
 
 /// Bytes of rows a spilling store keeps in memory before it appends them to its file (a
 /// quarter of the budget when that is smaller).

@@ -1,8 +1,12 @@
 """Shared helpers: the chunkc binary, spec writing, and an independent reading of the source."""
 
+import atexit
+import functools
 import os
+import shutil
 import sys
 import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -157,6 +161,39 @@ dir = "out"
 
 
 
+# The scripts chunkc generates per profile, from the parts the profile reads (src/render/parts.rs).
+PROFILE_SCRIPTS = ("loader.py", "validate.py")
+
+
+def every_part_templates(directory: Path) -> Path:
+    """`directory/tpl`, a template override directory (`[output] templates = "tpl"`) that renders
+    this checkout's loader.py and validate.py with every part (`{% set parts = every %}` before
+    templates/<script>.j2, and the parts of templates/<script stem>/): scripts that read any
+    profile, so that a test can give a built profile's meta.json what its build had not (a
+    mixture, transforms)."""
+    tpl = directory / "tpl"
+    tpl.mkdir()
+    for script in PROFILE_SCRIPTS:
+        entry = (REPO / "templates" / f"{script}.j2").read_text()
+        (tpl / f"{script}.j2").write_text("{% set parts = every %}\n" + entry)
+        stem = script.removesuffix(".py")
+        shutil.copytree(REPO / "templates" / stem, tpl / stem)
+    return tpl
+
+
+@functools.lru_cache(maxsize=None)
+def every_part_scripts() -> dict:
+    """{script: text} of loader.py and validate.py with every part (`every_part_templates`), as
+    the chunkc binary renders them: from a small Push-T build, once per test process."""
+    d = Path(tempfile.mkdtemp(prefix="chunkc_every_part_"))
+    atexit.register(shutil.rmtree, d, True)
+    every_part_templates(d)
+    spec = write_spec(d, 'templates = "tpl"\n[profiles.p]\nchunk = 4\n',
+                      channels={"action": "action", "observation.state": "state"})
+    run_chunkc("build", "-q", spec)
+    return {script: (d / "out" / "p" / script).read_text() for script in PROFILE_SCRIPTS}
+
+
 class RawSource:
     """The source read with zarr-python: per-episode raw arrays, independent of chunkc."""
 
@@ -203,6 +240,18 @@ def import_loader(root):
         return importlib.reload(loader)
     finally:
         sys.path.pop(0)
+
+
+def loader_module(root):
+    """The generated `loader` module of the profile directory `root`, imported under a name of its
+    own: each profile's loader holds the parts of its own profile, and several live side by side
+    in one test."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(f"loader_of_{root.parent.name}_{root.name}", root / "loader.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def load_dataset(root, split="train"):

@@ -535,8 +535,8 @@ def test_a_camera_short_of_frames_is_refused_naming_its_file(tmp_path):
 
 
 def test_the_bytes_do_not_depend_on_threads_or_shards(tmp_path):
-    """The v2.1 export (copied and encoded videos, PNG frames, the validation dataset) is the
-    same bytes with one thread, two, and from two shards merged."""
+    """The v2.1 export (copied and encoded videos, PNG frames, the validation dataset, a `groot`
+    profile's GR00T files) is the same bytes with one thread, two, and from two shards merged."""
     text = spec_text(VIDEO_V21, """
 [profiles.copied]
 preset = "pi0"
@@ -554,6 +554,14 @@ preset = "pi0"
 chunk = 5
 format = "parquet"
 lerobot_version = "v2.1"
+
+[profiles.groot]
+preset = "groot"
+chunk = 5
+relative_actions = ["xy"]
+[profiles.groot.modality]
+action = { xy = [0, 2] }
+"observation.state" = { xy = [0, 2] }
 """, split="val_fraction = 0.34\nseed = 0")
     files = {}
     for how in ("j1", "j2", "shards"):
@@ -571,4 +579,5 @@ lerobot_version = "v2.1"
         files[how] = {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
                       if p.is_file() and not p.name.startswith(".") and p.name != "chunkc.lock"}
     assert any("val/videos" in f for f in files["j1"])
+    assert "groot/val/meta/relative_stats.json" in files["j1"]
     assert files["j1"] == files["j2"] == files["shards"]

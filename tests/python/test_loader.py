@@ -1,12 +1,14 @@
 """The generated loader: numpy-only use, and a torch DataLoader with worker processes."""
 
+import json
+import shutil
 import subprocess
 import sys
 
 import numpy as np
 import pytest
 
-from conftest import model_tier, import_loader, run_chunkc, write_spec
+from conftest import import_loader, loader_module, model_tier, run_chunkc, write_spec
 
 PROFILES = """
 [profiles.dp]
@@ -123,7 +125,8 @@ def test_full_epoch_with_two_workers_in_every_format(every_format, arch, fmt):
     loader = import_loader(root)
     assert loader.ChunkedDataset(str(root)).meta["data_format"] == fmt
     dl = loader.make_dataloader(str(root), "train", batch_size=256, num_workers=2, shuffle=False)
-    ref = loader.make_dataloader(str(reference), "train", batch_size=256, num_workers=2, shuffle=False)
+    ref = loader_module(reference).make_dataloader(str(reference), "train", batch_size=256, num_workers=2,
+                                                   shuffle=False)
     seen = 0
     for batch, want in zip(dl, ref):
         assert set(batch) == set(want)
@@ -131,3 +134,24 @@ def test_full_epoch_with_two_workers_in_every_format(every_format, arch, fmt):
             torch.testing.assert_close(batch[key], want[key], rtol=0, atol=0)
         seen += len(batch["action"])
     assert seen == len(dl.dataset) == len(ref.dataset)
+
+
+@pytest.mark.parametrize("other, patch, part", [
+    ("dp_zarr", None, "hdf5"),
+    ("dp_hdf5", {"transforms": [{"op": "delta", "channel": "action", "reference": "observation.state",
+                                 "mask": [True, False]}]}, "transforms"),
+    ("dp_hdf5", {"sources": {}}, "mixture"),
+    ("dp_hdf5", {"sampling": {"mode": "hierarchy"}}, "hierarchy"),
+])
+def test_a_loader_refuses_a_meta_json_that_needs_a_part_it_lacks(every_format, tmp_path, other, patch, part):
+    """Each profile's loader.py holds the parts its profile reads: copied beside a meta.json that
+    needs another part (another format, transforms, a mixture, hierarchical samples), it refuses
+    it, naming the part, rather than reading it wrong."""
+    root = shutil.copytree(every_format / "dp_hdf5", tmp_path / f"needs_{part}")
+    shutil.copy(every_format / other / "loader.py", root / "loader.py")
+    if patch:
+        meta = json.loads((root / "meta.json").read_text())
+        meta.update(patch)
+        (root / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match=f"needs the {part} part"):
+        loader_module(root).ChunkedDataset(str(root))

@@ -11,8 +11,10 @@ windows. The loader's samples are checked against
 - UMI's relative pose (inv(T_base) @ T, then position + rot6d rows);
 and `ds.to_source` must give back the source values (within 1e-5).
 
-The profiles are built with the repository's templates/loader.py.j2 as a template override, so
-these tests check that file whatever binary is at hand (the embedded copy is the same file).
+The profiles are built with the repository's loader templates as a template override, rendered
+with every part (conftest.every_part_templates: the profiles built have no transforms, and their
+own loaders hold no transform code), so these tests check those files whatever binary is at hand
+(the embedded copies are the same files).
 """
 
 import json
@@ -23,7 +25,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from conftest import REPO, load_dataset, make_replay_buffer, run_chunkc, write_spec
+from conftest import every_part_templates, load_dataset, make_replay_buffer, run_chunkc, write_spec
 
 LENGTHS = (23, 9, 31, 17, 12)
 K = 8
@@ -176,8 +178,7 @@ def source(tmp_path_factory):
     d = tmp_path_factory.mktemp("transforms")
     eps = episodes()
     make_replay_buffer(d / "src.zarr", eps)
-    (d / "tpl").mkdir()
-    shutil.copy(REPO / "templates" / "loader.py.j2", d / "tpl" / "loader.py.j2")
+    every_part_templates(d)
     built = {}
     for name, channels in {
         "pose": {"action": "pose", "observation.eef_pose": "eef", "observation.state": "qpos",

@@ -18,7 +18,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import load_dataset, run_chunkc
+from conftest import load_dataset, model_tier, run_chunkc
 from conftest import write_mixture_spec as mixture_spec
 from test_mixture import RAW
 from test_transforms import RunningStats, clamped, close, delta_actions, make_bool_mask, samples
@@ -186,6 +186,7 @@ def test_windows_are_each_sources_zscored_delta_chunk_padded_after(built, oracle
 def test_parquet_export_and_validate(built):
     """The LeRobot export of the same profile opens with the loader's sources; the generated
     validate.py passes on both (per-source and pooled statistics over the window rows)."""
+    model_tier("torch")  # validate.py runs the target policy forward
     for profile in ("pi", "pi_parquet"):
         root = built / "out" / profile
         for source in ("own", "sim"):

@@ -122,32 +122,28 @@ pub(super) fn stats_json(channels: &[ProfileChannel]) -> u64 {
         .sum::<u64>()
 }
 
-/// The generated scripts: each file rendered from its template with only `version` in context.
-pub const SCRIPTS: &[(&str, &str)] = &[
-    ("loader.py", include_str!("../../../templates/loader.py.j2")),
-    ("policy.py", include_str!("../../../templates/policy.py.j2")),
-    (
-        "validate.py",
-        include_str!("../../../templates/validate.py.j2"),
-    ),
-    (
-        "smoke_train.py",
-        include_str!("../../../templates/smoke_train.py.j2"),
-    ),
-    (
-        "rollout.py",
-        include_str!("../../../templates/rollout.py.j2"),
-    ),
-    (
-        "dp_normalizer.py",
-        include_str!("../../../templates/dp_normalizer.py.j2"),
-    ),
+/// The generated scripts, by file name; their templates are [`crate::templates::FILES`].
+pub const SCRIPTS: &[&str] = &[
+    "loader.py",
+    "policy.py",
+    "validate.py",
+    "smoke_train.py",
+    "rollout.py",
+    "dp_normalizer.py",
 ];
 
-/// An upper bound of a script rendered from `template` with only `version` in context and no
-/// loop: the text, with each `{{ … }}` replaced by at most 64 bytes.
-pub fn script_bound(template: &str) -> u64 {
-    template.len() as u64 + 64 * template.matches("{{").count() as u64
+/// Bytes a `{{ … }}` may write at most: the version, a list of the loader's parts by name.
+const EXPRESSION_BYTES: u64 = 256;
+
+/// An upper bound of a script rendered from `template` (and the `parts` it may include, each at
+/// most once): the text of each, with each `{{ … }}` replaced by at most [`EXPRESSION_BYTES`].
+/// Conditions only leave text out; the loader's loops run over its storage formats (three at
+/// most), their bodies short expressions.
+pub fn script_bound<'a>(template: &'a str, parts: impl IntoIterator<Item = &'a str>) -> u64 {
+    std::iter::once(template)
+        .chain(parts)
+        .map(|t| t.len() as u64 + EXPRESSION_BYTES * t.matches("{{").count() as u64)
+        .sum()
 }
 
 /// An estimate of the dataset card: its fixed text (about 3 KiB), a row per channel, camera,
@@ -206,6 +202,6 @@ mod tests {
     #[test]
     fn scripts_are_bounded_by_their_templates() {
         let text = "a{{ version }}b";
-        assert!(script_bound(text) >= "a99.99.99-rc.1b".len() as u64);
+        assert!(script_bound(text, []) >= "a99.99.99-rc.1b".len() as u64);
     }
 }

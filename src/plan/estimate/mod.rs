@@ -51,7 +51,8 @@ pub struct ScriptSize {
 }
 
 /// The size of each generated script: the embedded template's, or the one of the spec's
-/// `[output] templates` directory that replaces it.
+/// `[output] templates` directory that replaces it (and the parts it may include, the user's
+/// where the directory replaces them).
 pub fn script_sizes(spec: &LoadedSpec) -> Result<BTreeMap<String, ScriptSize>> {
     let dir = spec
         .spec
@@ -59,20 +60,30 @@ pub fn script_sizes(spec: &LoadedSpec) -> Result<BTreeMap<String, ScriptSize>> {
         .templates
         .as_deref()
         .map(|d| spec.resolve(d));
+    let user = |name: &str| -> Result<Option<String>> {
+        match dir.as_ref().map(|d| d.join(format!("{name}.j2"))) {
+            Some(path) if path.is_file() => Ok(Some(
+                std::fs::read_to_string(&path).at("read template", &path)?,
+            )),
+            _ => Ok(None),
+        }
+    };
     let mut sizes = BTreeMap::new();
-    for (name, text) in SCRIPTS {
-        let user = dir.as_ref().map(|d| d.join(format!("{name}.j2")));
-        let size = match user.filter(|p| p.is_file()) {
-            Some(path) => ScriptSize {
-                bytes: script_bound(&std::fs::read_to_string(&path).at("read template", &path)?),
-                bound: false,
-            },
-            None => ScriptSize {
-                bytes: script_bound(text),
-                bound: true,
-            },
-        };
-        sizes.insert(name.to_string(), size);
+    for name in SCRIPTS {
+        let embedded = crate::templates::file(name).expect("every script has a template");
+        let template = user(name)?;
+        let mut bound = template.is_none();
+        let mut parts = Vec::new();
+        for (part, text) in crate::templates::parts_of(name) {
+            let mine = user(part)?;
+            bound &= mine.is_none();
+            parts.push(mine.unwrap_or_else(|| text.to_string()));
+        }
+        let bytes = script_bound(
+            template.as_deref().unwrap_or(embedded),
+            parts.iter().map(String::as_str),
+        );
+        sizes.insert(name.to_string(), ScriptSize { bytes, bound });
     }
     Ok(sizes)
 }
