@@ -174,8 +174,8 @@ pub fn dim_signal(x: &[f32], onsets: &[u32], scratch: &mut Scratch) -> DimSignal
     // takes.
     let moving = |t: usize| (x[t] != x[t - 1]) | (x[t + 1] != x[t]);
     let (mut kept, mut returned, mut back_zeros) = (0, 0, 0);
-    for t in 1..n.saturating_sub(1) {
-        keys[kept] = (r[t].abs() as f32).to_bits();
+    for (t, &rt) in r.iter().enumerate().take(n.saturating_sub(1)).skip(1) {
+        keys[kept] = (rt.abs() as f32).to_bits();
         kept += usize::from(moving(t));
     }
     for (i, &q) in backs.iter().enumerate() {
