@@ -45,6 +45,7 @@ pub const PARTS: &[(&str, &str)] = embedded![
     "validate/cameras_workspace.py",
     "validate/mixture_sampler.py",
     "validate/mixture_stats.py",
+    "validate/video_streams.py",
 ];
 
 /// The embedded template of generated file `name`.

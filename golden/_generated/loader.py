@@ -1193,7 +1193,8 @@ def _stored_frames(root, path, f, name, meta, storage):
         group = f[storage.get("group", "videos/" + name)]
         paths = [p.decode() if isinstance(p, bytes) else str(p) for p in group["path"][...]]
         counts = np.asarray(group["frames"][...], dtype=np.int64)
-        return _VideoFrames(root, shape, paths, counts, float(meta["fps"]))
+        codecs = [s["codec"] for s in storage.get("streams") or []]
+        return _VideoFrames(root, shape, paths, counts, float(meta["fps"]), codecs)
     raise ValueError(f"{path}: channel {name!r} is stored as {storage['encoding']!r}, which this loader cannot decode")
 
 
@@ -1275,12 +1276,14 @@ class _VideoFrames:
     decoded once, from its keyframe up to the last frame the batch wants from it, and only the
     frames a window wants are converted to RGB. The last decoded GOP of each file is kept, so the
     windows of a batch (and the next batch's) that share a GOP decode it once. Files are opened
-    lazily in each process (each DataLoader worker) and kept open, up to OPEN_FILES of them."""
+    lazily in each process (each DataLoader worker) and kept open, up to OPEN_FILES of them. Each
+    file's codec is checked against what meta.json says the camera's files hold (`codecs`)."""
 
     OPEN_FILES = 64
 
-    def __init__(self, root, shape, paths, counts, fps):
+    def __init__(self, root, shape, paths, counts, fps, codecs=()):
         self.root, self.shape, self.fps = root, shape, fps
+        self.codecs = sorted(set(codecs))
         self.paths = [os.path.join(root, p) for p in paths]
         self.counts = counts
         self.ends = np.cumsum(counts).astype(np.int64)
@@ -1318,6 +1321,10 @@ class _VideoFrames:
                 container.seek(0)
             except (av.error.FFmpegError, IndexError, OSError) as e:
                 fail(e, path, "cannot read the video")
+            codec = stream.codec_context.codec.canonical_name
+            if self.codecs and codec not in self.codecs:
+                raise ValueError(f"{path}: holds {codec} video, where meta.json says this camera's files hold "
+                                 f"{', '.join(self.codecs)}: the file was replaced; rebuild the dataset")
             if not keys or keys[0] != 0:
                 raise ValueError(f"{path}: no keyframe at frame 0; the file is truncated or corrupt: rebuild the dataset")
             entry = files[ep] = (container, stream, np.asarray(keys, dtype=np.int64))

@@ -349,6 +349,32 @@ def lowdim_view(ds):
     return view
 
 
+def video_stream_checks(ds):
+    """Cameras stored as one video per episode: each file's codec, profile and pixel format as
+    PyAV reads them, counted per format against what meta.json says the camera's files hold."""
+    import av  # the loader decodes these cameras with it
+
+    problems = []
+    for name, channel in ds.meta["channels"].items():
+        storage = channel.get("storage") or {}
+        frames = ds._frames.get(name)
+        if storage.get("encoding") != "video" or frames is None:
+            continue
+        found = {}
+        for path in frames.paths:
+            with av.open(path) as container:
+                ctx = container.streams.video[0].codec_context
+                key = (ctx.codec.canonical_name, ctx.profile, ctx.format.name if ctx.format else None)
+            found[key] = found.get(key, 0) + 1
+        said = {(s["codec"], s["profile"], s["pix_fmt"]): s["episodes"] for s in storage.get("streams") or []}
+        line = ", ".join(f"{n} x {c} ({p or 'no profile'}, {f})" for (c, p, f), n in sorted(found.items(), key=str))
+        print(f"  {name}: {len(frames.paths)} video files ({storage.get('stored', '?')}): {line}")
+        if found != said:
+            problems.append(f"{name}: the video files hold {line}; meta.json says "
+                            + ", ".join(f"{n} x {c} ({p}, {f})" for (c, p, f), n in said.items()))
+    return problems
+
+
 def plot_episode(ds, episode_id, indices, out):
     plt = _plt()
     samples = lowdim_view(ds).__getitems__(indices)
@@ -585,6 +611,9 @@ def main(argv=None):
     print(f"normalize -> denormalize round trip: max error {err:.2e} (limit {ROUND_TRIP:g})")
     if err > ROUND_TRIP:
         problems.append(f"round trip error {err:.2e} exceeds {ROUND_TRIP:g}")
+
+    print("stored video, each file as PyAV reads it, against meta.json:")
+    problems += video_stream_checks(ds)
 
     if ds.source_names is not None:
         found, report["mixture"] = mixture_checks(ds, args.seed)

@@ -15,6 +15,7 @@ use crate::error::{Error, IoContext, Result};
 use crate::lock;
 use crate::plan::{ProfilePlan, META_FILE, STATS_FILE};
 use crate::render;
+use crate::sink::video_info::StoredVideo;
 use crate::sink::{self, documents, Sink};
 use crate::source::{self, ChannelKind, Manifest};
 use crate::stats::normalize::{Normalizer, RowNormalizer};
@@ -127,6 +128,8 @@ struct Written {
     segments: Vec<Vec<[usize; 2]>>,
     data_file: String,
     normalized: bool,
+    /// What each camera stored as one video per episode holds.
+    videos: BTreeMap<String, StoredVideo>,
 }
 
 /// The normalized low-dim values and the window index, then the sink's last writes.
@@ -189,8 +192,9 @@ fn write_data(
     sink.write_index(&index)?;
     let data_file = sink.data_file().to_string();
     let normalized = sink.stores_normalized() && !raw;
-    sink.finish()?;
+    let finished = sink.finish()?;
     Ok(Written {
+        videos: finished.videos,
         normalizers,
         source_normalizers: mixture.map(|m| m.by_source).unwrap_or_default(),
         counts,
@@ -226,6 +230,7 @@ fn write_documents(
                 num_samples: data.counts,
                 segments: &data.segments,
                 source_normalizers: &data.source_normalizers,
+                videos: &data.videos,
             },
             &data.data_file,
             data.normalized,

@@ -9,6 +9,7 @@ use std::collections::BTreeMap;
 use serde_json::{json, Value};
 
 use super::shapes::{normalization_json, shape_of};
+use super::video_info::StoredVideo;
 use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
 use crate::source::ChannelKind;
 use crate::spec::{ImageCompression, OutputFormat, DEFAULT_IMAGE_QUALITY};
@@ -34,6 +35,8 @@ pub struct Built<'a> {
     pub segments: &'a [Vec<[usize; 2]>],
     /// A training mixture's normalizers, per source (empty for one source).
     pub source_normalizers: &'a [BTreeMap<String, Normalizer>],
+    /// What each camera stored as one video per episode holds (`image_compression = "video"`).
+    pub videos: &'a BTreeMap<String, StoredVideo>,
 }
 
 /// `meta.json`: everything the loader needs, and the provenance of the dataset.
@@ -83,7 +86,7 @@ pub fn meta_json(
                 "array": ch.array,
             }),
         );
-        if let Some(storage) = frame_storage(profile, ch.kind, &ch.name) {
+        if let Some(storage) = frame_storage(profile, ch.kind, &ch.name, built.videos) {
             channels[&ch.name]["storage"] = storage;
         }
     }
@@ -172,8 +175,17 @@ pub fn meta_json(
 }
 
 /// How an image channel of chunkc's HDF5 layout stores its frames when not as pixels
-/// (`image_compression = "jpeg"` / `"video"`): what the loader decodes on read.
-fn frame_storage(profile: &ProfilePlan, kind: ChannelKind, name: &str) -> Option<Value> {
+/// (`image_compression = "jpeg"` / `"video"`): what the loader decodes on read. A video camera's
+/// `codec`, `profile` and `pix_fmt` are what its files hold, as FFmpeg reads them back (null
+/// where the files differ; `streams` lists each format with its number of files); `encoder`,
+/// `crf` and `gop` are the encoder's settings when any file was encoded (null when every file
+/// is a copy of the source's stream).
+fn frame_storage(
+    profile: &ProfilePlan,
+    kind: ChannelKind,
+    name: &str,
+    videos: &BTreeMap<String, StoredVideo>,
+) -> Option<Value> {
     let v = &profile.values;
     if kind != ChannelKind::Image || v.format != OutputFormat::Hdf5 {
         return None;
@@ -184,13 +196,22 @@ fn frame_storage(profile: &ProfilePlan, kind: ChannelKind, name: &str) -> Option
             "quality": v.image_quality.unwrap_or(DEFAULT_IMAGE_QUALITY),
         })),
         ImageCompression::Video => v.video().map(|s| {
+            let stored = videos.get(name).cloned().unwrap_or_default();
+            let encoded = stored.copied < stored.episodes;
+            let streams: Vec<Value> = (stored.formats.iter())
+                .map(|(f, n)| json!({ "codec": f.codec, "profile": f.profile, "pix_fmt": f.pix_fmt, "episodes": n }))
+                .collect();
             json!({
                 "encoding": "video",
                 "group": format!("videos/{name}"),
-                "codec": s.codec.name(),
-                "crf": s.crf,
-                "gop": s.gop,
-                "pix_fmt": super::video_encode::PIX_FMT,
+                "codec": stored.shared(|f| f.codec.clone()),
+                "profile": stored.shared(|f| f.profile.clone()).flatten(),
+                "pix_fmt": stored.shared(|f| f.pix_fmt.clone()),
+                "streams": streams,
+                "stored": stored.stored(),
+                "encoder": encoded.then(|| s.codec.name()),
+                "crf": encoded.then_some(s.crf),
+                "gop": encoded.then_some(s.gop),
             })
         }),
         ImageCompression::None | ImageCompression::Gzip => None,

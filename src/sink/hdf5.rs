@@ -538,11 +538,11 @@ impl Sink for Hdf5Writer {
         }
     }
 
-    fn finish(mut self: Box<Self>) -> Result<()> {
-        self.lossy.finish()?;
+    fn finish(mut self: Box<Self>) -> Result<super::Finished> {
+        let videos = self.lossy.finish()?;
         let Hdf5Writer { file, data, .. } = *self;
         drop(data);
         file.close()?;
-        Ok(())
+        Ok(super::Finished { videos })
     }
 }

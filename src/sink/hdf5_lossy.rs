@@ -1,10 +1,13 @@
 //! The lossy frame storages of chunkc's HDF5 layout, behind one type for the writer:
 //! `image_compression = "jpeg"` ([`super::hdf5_jpeg`]) and `"video"` ([`super::hdf5_video`]).
 
+use std::collections::BTreeMap;
+
 use hdf5::{Dataset, Group};
 
 use super::hdf5_jpeg::JpegChannel;
 use super::hdf5_video::{Encoders, VideoChannel};
+use super::video_info::StoredVideo;
 use super::{Frames, SinkContext};
 use crate::error::{Error, Result};
 use crate::spec::{ImageCompression, DEFAULT_IMAGE_QUALITY};
@@ -113,9 +116,11 @@ impl LossyFrames {
         }
     }
 
-    /// Waits for every video to be complete, and records which were copied.
-    pub(super) fn finish(&mut self) -> Result<()> {
+    /// Waits for every video to be complete, and records which were copied and what the files
+    /// hold: per video camera, by name.
+    pub(super) fn finish(&mut self) -> Result<BTreeMap<String, StoredVideo>> {
         self.encoders.finish()?;
+        let mut videos = BTreeMap::new();
         for (at, channel) in self.channels.iter().enumerate() {
             if let Some(Channel::Video(v)) = channel {
                 let copied: Vec<u8> = self
@@ -123,10 +128,15 @@ impl LossyFrames {
                     .iter()
                     .map(|&(_, id)| u8::from(self.encoders.copied(at, id)))
                     .collect();
-                let refused = self.encoders.refusals(at);
-                v.record_copies(&copied, self.encoders.copied_codec(at), &refused)?;
+                let stored = StoredVideo {
+                    copied: copied.iter().filter(|&&c| c == 1).count(),
+                    episodes: copied.len(),
+                    formats: self.encoders.formats(at),
+                };
+                v.record_copies(&copied, &stored, &self.encoders.refusals(at))?;
+                videos.insert(v.name().to_string(), stored);
             }
         }
-        Ok(())
+        Ok(videos)
     }
 }

@@ -182,7 +182,7 @@ impl<L: NativeLayout> Sink for NativeHdf5Writer<L> {
     }
 
     /// Episode by episode, in stored order; a file is opened once for the episodes it holds.
-    fn finish(self: Box<Self>) -> Result<()> {
+    fn finish(self: Box<Self>) -> Result<super::Finished> {
         let mut open: Option<(PathBuf, File)> = None;
         for e in 0..self.ends.len() {
             let (lo, hi) = (self.ends.start(e), self.ends.range(e).end);
@@ -214,6 +214,6 @@ impl<L: NativeLayout> Sink for NativeHdf5Writer<L> {
         if let Some((_, file)) = open {
             file.close()?;
         }
-        Ok(())
+        Ok(super::Finished::default())
     }
 }

@@ -22,9 +22,10 @@ use std::path::Path;
 use hdf5::types::VarLenUnicode;
 use hdf5::{Dataset, Group};
 
-use super::video_encode::{StreamShape, PIX_FMT};
+use super::video_encode::{codec_name, StreamShape, PIX_FMT};
 pub(super) use super::video_episodes::Encoders;
 use super::video_episodes::EpisodeCamera;
+use super::video_info::StoredVideo;
 use crate::error::{Error, Result};
 use crate::spec::VideoSettings;
 
@@ -82,10 +83,13 @@ fn text(s: &str) -> Result<VarLenUnicode> {
 
 /// The attributes of `/videos/<camera>`: how its files were encoded.
 fn describe(group: &Group, settings: VideoSettings, shape: &[usize]) -> Result<()> {
-    let attrs: [(&str, String); 3] = [
+    // `codec` and `pix_fmt` as the encoder writes them, until the files are written
+    // ([`VideoChannel::record_copies`] sets what they hold).
+    let attrs: [(&str, String); 4] = [
         ("encoding", "video".into()),
-        ("codec", settings.codec.name().into()),
+        ("codec", codec_name(settings.codec).into()),
         ("pix_fmt", PIX_FMT.into()),
+        ("encoder", settings.codec.name().into()),
     ];
     for (k, v) in attrs {
         group
@@ -182,12 +186,13 @@ impl VideoChannel {
     }
 
     /// Writes `/videos/<camera>/copied`: per stored episode, whether its file was copied; and
-    /// when every file was copied, the group's attributes describe the stored streams (the
-    /// source's codec, `crf` and `gop` -1: nothing was encoded), not the encoder's settings.
+    /// sets the group's `codec`, `profile` and `pix_fmt` to what the files hold (`mixed` where
+    /// they differ; no `profile` where a stream names none), and `crf` and `gop` to -1 when every
+    /// file was copied (nothing was encoded).
     pub(super) fn record_copies(
         &self,
         copied: &[u8],
-        source_codec: Option<&str>,
+        stored: &StoredVideo,
         refused: &[String],
     ) -> Result<()> {
         self.copied.write_raw(copied)?;
@@ -195,27 +200,46 @@ impl VideoChannel {
             .copied
             .file()?
             .group(&format!("videos/{}", self.camera.name))?;
-        let stored = match (copied.iter().all(|&c| c == 1), copied.contains(&1)) {
-            (true, _) if !copied.is_empty() => "copied",
-            (_, true) => "mixed",
-            _ => "encoded",
+        let set = |name: &str, value: &str| -> Result<()> {
+            match group.attr(name) {
+                Ok(a) => a.write_scalar(&text(value)?)?,
+                Err(_) => group
+                    .new_attr::<VarLenUnicode>()
+                    .create(name)?
+                    .write_scalar(&text(value)?)?,
+            }
+            Ok(())
         };
-        group
-            .new_attr::<VarLenUnicode>()
-            .create("stored")?
-            .write_scalar(&text(stored)?)?;
+        set("stored", stored.stored())?;
         if !refused.is_empty() {
-            group
-                .new_attr::<VarLenUnicode>()
-                .create("copy_refused")?
-                .write_scalar(&text(&refused.join("; "))?)?;
+            set("copy_refused", &refused.join("; "))?;
         }
-        if let (Some(codec), "copied") = (source_codec, stored) {
-            group.attr("codec")?.write_scalar(&text(codec)?)?;
+        if !stored.formats.is_empty() {
+            let mixed = || "mixed".to_string();
+            set(
+                "codec",
+                &stored.shared(|f| f.codec.clone()).unwrap_or_else(mixed),
+            )?;
+            set(
+                "pix_fmt",
+                &stored.shared(|f| f.pix_fmt.clone()).unwrap_or_else(mixed),
+            )?;
+            match stored.shared(|f| f.profile.clone()) {
+                Some(Some(profile)) => set("profile", &profile)?,
+                Some(None) => {}
+                None => set("profile", "mixed")?,
+            }
+        }
+        if stored.stored() == "copied" {
             group.attr("crf")?.write_scalar(&-1i64)?;
             group.attr("gop")?.write_scalar(&-1i64)?;
         }
         Ok(())
+    }
+
+    /// The camera's name.
+    pub(super) fn name(&self) -> &str {
+        &self.camera.name
     }
 
     /// The dataset `/videos/<camera>/frames`.

@@ -350,13 +350,14 @@ impl Sink for LerobotWriter {
         Ok(())
     }
 
-    fn finish(mut self: Box<Self>) -> Result<()> {
+    fn finish(mut self: Box<Self>) -> Result<super::Finished> {
         if let Some(videos) = self.videos.as_mut() {
             videos.finish()?;
         }
         self.data()?;
         self.episodes()?;
         self.info()?;
-        self.chunkc_index()
+        self.chunkc_index()?;
+        Ok(super::Finished::default())
     }
 }

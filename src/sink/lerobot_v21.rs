@@ -244,7 +244,10 @@ impl LerobotV21Writer {
                 let path = self.files.dir.join(part.path(&video_file(name, 0)));
                 super::video_info::stream_format(&path).ok()
             })
-            .unwrap_or_else(|| ("unknown".into(), "unknown".into()));
+            .map_or_else(
+                || ("unknown".into(), "unknown".into()),
+                |f| (f.codec, f.pix_fmt),
+            );
         json!({
             "video.height": shape[0],
             "video.width": shape[1],
@@ -341,7 +344,7 @@ impl Sink for LerobotV21Writer {
         Ok(())
     }
 
-    fn finish(mut self: Box<Self>) -> Result<()> {
+    fn finish(mut self: Box<Self>) -> Result<super::Finished> {
         self.encoders.finish()?;
         let stats = self.data()?;
         let videos = self.cameras.iter().flatten().count();
@@ -382,6 +385,6 @@ impl Sink for LerobotV21Writer {
                 super::groot::write(&files, &dataset)?;
             }
         }
-        Ok(())
+        Ok(super::Finished::default())
     }
 }

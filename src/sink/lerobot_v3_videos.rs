@@ -172,7 +172,7 @@ impl V3Videos {
         );
         let (codec, pix_fmt) = match self.per_episode && !self.ends.is_empty() {
             true => super::video_info::stream_format(&dir.join(episode_file(&cam.name, 0)))
-                .unwrap_or(encoded),
+                .map_or(encoded, |f| (f.codec, f.pix_fmt)),
             false => encoded,
         };
         json!({

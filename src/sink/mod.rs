@@ -295,8 +295,16 @@ pub trait Sink: Send {
     /// The window index of both splits: rows of (episode position, t, limit, sub), read a block
     /// at a time (or whole, by sinks that need it whole).
     fn write_index(&mut self, index: &dyn WindowIndex) -> Result<()>;
-    /// Completes the container.
-    fn finish(self: Box<Self>) -> Result<()>;
+    /// Completes the container, and says what only its writing could know.
+    fn finish(self: Box<Self>) -> Result<Finished>;
+}
+
+/// What a sink found out while writing, for the documents beside the container.
+#[derive(Debug, Default)]
+pub struct Finished {
+    /// Per camera stored as one video per episode (chunkc's HDF5 `image_compression =
+    /// "video"`), what its files hold.
+    pub videos: BTreeMap<String, video_info::StoredVideo>,
 }
 
 /// Which split of the window index.

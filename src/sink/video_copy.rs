@@ -31,8 +31,11 @@ pub const COPIED_CODECS: [&str; 5] = ["h264", "hevc", "av1", "vp9", "mpeg4"];
 /// What became of a copy.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum CopyOutcome {
-    /// The file holds the span's packets: this many frames.
-    Copied(u64),
+    /// The file holds the span's packets: this many frames, in the source stream's format.
+    Copied {
+        frames: u64,
+        format: crate::sink::video_info::StreamFormat,
+    },
     /// The span's packets cannot stand alone as the episode's video (the sentence says why);
     /// nothing was written.
     Refused(String),
@@ -163,6 +166,7 @@ mod imp {
             return Ok(CopyOutcome::Refused(why));
         }
         let shift = times[0].0;
+        let format = crate::sink::video_info::of_parameters(&params);
 
         let fail = |m: String| Error::output(format!("{}: {m}", out.display()));
         let mut octx = format::output_as(out, "mp4")
@@ -197,7 +201,10 @@ mod imp {
         }
         octx.write_trailer()
             .map_err(|e| fail(format!("writing the mp4 index: {e}")))?;
-        Ok(CopyOutcome::Copied(span.frames as u64))
+        Ok(CopyOutcome::Copied {
+            frames: span.frames as u64,
+            format,
+        })
     }
 }
 

@@ -11,6 +11,7 @@ use std::thread::JoinHandle;
 
 use super::video_copy::{self, CopyOutcome, COPIED_CODECS};
 use super::video_encode::{codec_name, StreamShape, VideoStream};
+use super::video_info::{self, StreamFormat};
 use super::Frames;
 use crate::error::{Error, IoContext, Result};
 use crate::source::video::PacketSpan;
@@ -46,13 +47,13 @@ impl EpisodeCamera {
     }
 }
 
-/// One episode's file being written: (frames written, whether they were copied).
+/// One episode's file being encoded: its frames, and the format of the stream written.
 struct Running {
     path: PathBuf,
     frames: u64,
     /// (channel position, episode id).
     of: (usize, u64),
-    thread: JoinHandle<Result<(u64, bool)>>,
+    thread: JoinHandle<Result<(u64, StreamFormat)>>,
 }
 
 /// The episodes being copied or encoded, oldest first; at most `limit` at a time.
@@ -64,8 +65,9 @@ pub(super) struct Encoders {
     copied: BTreeMap<(usize, u64), bool>,
     /// Why copies were refused, with the episodes.
     refusals: BTreeMap<(usize, String), Vec<u64>>,
-    /// Per channel position, the codec of the streams copied.
-    codecs: BTreeMap<usize, String>,
+    /// Per channel position and format of the stream written (as FFmpeg reads it back), how
+    /// many episodes' files hold it.
+    formats: BTreeMap<(usize, StreamFormat), usize>,
 }
 
 impl Encoders {
@@ -76,7 +78,7 @@ impl Encoders {
             running: VecDeque::new(),
             copied: BTreeMap::new(),
             refusals: BTreeMap::new(),
-            codecs: BTreeMap::new(),
+            formats: BTreeMap::new(),
         }
     }
 
@@ -101,9 +103,9 @@ impl Encoders {
         // of the episode's frames for its encoder (an episode of 640x480 frames is 400 MB).
         if let Some(span) = channel.to_copy(frames) {
             match video_copy::copy(&span, &path, shape.fps, channel.copy_gop())? {
-                CopyOutcome::Copied(n) => {
+                CopyOutcome::Copied { frames: n, format } => {
                     self.copied.insert((at, id), true);
-                    self.codecs.insert(at, span.probe.codec.clone());
+                    *self.formats.entry((at, format)).or_default() += 1;
                     if n != frames.len() as u64 {
                         return Err(Error::Internal(format!(
                             "{}: {n} frames copied, {} expected",
@@ -125,7 +127,10 @@ impl Encoders {
             .spawn(move || {
                 let mut stream = VideoStream::create(&file, shape, settings)?;
                 stream.push_all(&pixels)?;
-                Ok((stream.finish()?, false))
+                let frames = stream.finish()?;
+                // What the file holds, read back from its header (the profile is the
+                // encoder's choice, written in the stream's own configuration).
+                Ok((frames, video_info::stream_format(&file)?))
             })
             .map_err(|e| Error::Internal(format!("cannot start a video encoder thread: {e}")))?;
         self.running.push_back(Running {
@@ -147,10 +152,11 @@ impl Encoders {
         else {
             return Ok(());
         };
-        let (got, copied) = thread.join().map_err(|_| {
+        let (got, format) = thread.join().map_err(|_| {
             Error::Internal(format!("the encoder of {} panicked", path.display()))
         })??;
-        self.copied.insert(of, copied);
+        self.copied.insert(of, false);
+        *self.formats.entry((of.0, format)).or_default() += 1;
         if got != want {
             return Err(Error::Internal(format!(
                 "{}: {got} frames encoded, {want} expected",
@@ -168,9 +174,13 @@ impl Encoders {
         Ok(())
     }
 
-    /// The codec of the streams copied for the channel at position `at`, if any was.
-    pub(super) fn copied_codec(&self, at: usize) -> Option<&str> {
-        self.codecs.get(&at).map(String::as_str)
+    /// The formats of the files written for the channel at position `at`, each with how many
+    /// episodes' files hold it, in order.
+    pub(super) fn formats(&self, at: usize) -> Vec<(StreamFormat, usize)> {
+        (self.formats.iter())
+            .filter(|((a, _), _)| *a == at)
+            .map(|((_, f), &n)| (f.clone(), n))
+            .collect()
     }
 
     /// Why copies of the channel at position `at` were refused: one line per reason, with its

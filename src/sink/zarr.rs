@@ -283,7 +283,7 @@ impl Sink for ZarrWriter {
         Ok(())
     }
 
-    fn finish(self: Box<Self>) -> Result<()> {
-        Ok(())
+    fn finish(self: Box<Self>) -> Result<super::Finished> {
+        Ok(super::Finished::default())
     }
 }

@@ -276,7 +276,61 @@ def test_the_default_copies_a_source_with_longer_gops(tmp_path):
     assert "set `video_gop = 20`" in said, said
     with h5py.File(tmp_path / "out" / "video" / "data.h5", "r") as f:
         attrs = dict(f[f"videos/{TOP}"].attrs)
-    assert attrs["stored"] == "encoded" and attrs["codec"] == "libx264" and attrs["crf"] == 23
+    assert attrs["stored"] == "encoded" and attrs["codec"] == "h264" and attrs["crf"] == 23
+    assert attrs["encoder"] == "libx264"
     refused = attrs["copy_refused"]
     assert "keyframes 20 frames apart, more than `video_gop` = 8" in refused, refused
     assert "set `video_gop = 20`" in refused and "episodes 0, 1, 2" in refused, refused
+
+
+def formats_read(root, paths):
+    """{(codec, profile, pixel format): files} of the stored files, as PyAV reads them."""
+    found = {}
+    for p in paths:
+        with av.open(str(root / p)) as c:
+            ctx = c.streams.video[0].codec_context
+            key = (ctx.codec.canonical_name, ctx.profile, ctx.format.name)
+        found[key] = found.get(key, 0) + 1
+    return found
+
+
+@pytest.mark.parametrize("source, extra, codecs, stored_as", [
+    (V21, "", {"h264", "mpeg4"}, "copied"),  # episodes 0-1 H.264, episode 2 MPEG-4
+    (V21, "video_copy = false", {"h264"}, "encoded"),
+    (V21, 'video_codec = "libx264"', {"h264"}, "mixed"),  # H.264 kept, MPEG-4 re-encoded
+    (V3, "", {"av1"}, "copied"),
+    (V3, "video_copy = false", {"h264"}, "encoded"),
+], ids=["h264+mpeg4-copied", "h264+mpeg4-encoded", "h264-copied-mpeg4-encoded", "av1-copied", "av1-encoded"])
+def test_meta_json_says_what_the_stored_streams_hold(tmp_path, source, extra, codecs, stored_as):
+    """meta.json's codec, profile and pixel format of a video camera are what PyAV reads from
+    the stored files, whether they were copied from an AV1, H.264 or MPEG-4 source or encoded;
+    the HDF5 group's attributes say the same; and the loader refuses a file that holds another
+    codec than meta.json says."""
+    build(spec(tmp_path, source, video_profile(extra=extra)))
+    root = tmp_path / "out" / "video"
+    paths, copied = stored(root)
+    storage = json.loads((root / "meta.json").read_text())["channels"][TOP]["storage"]
+    found = formats_read(root, paths)
+    assert {c for c, _, _ in found} == codecs
+    assert {(s["codec"], s["profile"], s["pix_fmt"]): s["episodes"] for s in storage["streams"]} == found
+    assert storage["stored"] == stored_as
+    for i, field in enumerate(("codec", "profile", "pix_fmt")):
+        values = {k[i] for k in found}
+        assert storage[field] == (values.pop() if len(values) == 1 else None), field
+    if stored_as == "copied":
+        assert storage["encoder"] is None and storage["crf"] is None and storage["gop"] is None
+    else:
+        assert storage["encoder"] == "libx264" and storage["crf"] == 23
+    with h5py.File(root / "data.h5", "r") as f:
+        attrs = dict(f[f"videos/{TOP}"].attrs)
+    assert attrs["stored"] == stored_as
+    assert attrs["codec"] == (storage["codec"] or "mixed")
+    assert attrs["pix_fmt"] == (storage["pix_fmt"] or "mixed")
+    assert attrs.get("profile") == (storage["profile"] or ("mixed" if len({k[1] for k in found}) > 1 else None))
+    # The loader reads the field: a file swapped for another codec's is refused by name.
+    candidates = sorted((V21 / "videos").rglob("*.mp4")) + sorted((V3 / "videos").rglob("*.mp4"))
+    other = next(f for f in candidates if not {c for c, _, _ in formats_read(f.parent, [f.name])} & codecs)
+    shutil.copy(other, root / paths[0])
+    ds = import_loader(root).ChunkedDataset(str(root))
+    with pytest.raises(ValueError, match="where meta.json says this camera's files hold"):
+        ds._read(TOP, np.array([0]))
