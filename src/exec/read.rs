@@ -269,10 +269,14 @@ fn consume(
                                 .expect("frames encoded for every sink");
                             sink.write_frames(c, row, frames)?;
                         }
-                        // The uncompressed frames' memory takes the next episode's decode.
+                        // The uncompressed frames' memory takes the next episode's decode,
+                        // unless a sink still holds them (a video encoder: they are freed when
+                        // it is done).
                         for (enc, frames) in encoded {
                             if enc == FrameEncoding::Raw {
-                                recycle::give(frames.into_bytes());
+                                if let Some(bytes) = frames.into_unshared_bytes() {
+                                    recycle::give(bytes);
+                                }
                             }
                         }
                     }

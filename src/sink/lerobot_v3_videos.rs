@@ -111,7 +111,7 @@ impl V3Videos {
                 *sent += frames.len();
                 let name = &cam.name;
                 encoder
-                    .push(frames.bytes().to_vec())
+                    .push(frames.shared())
                     .map_err(|e| Error::output(format!("channel `{name}`, rows from {row}: {e}")))
             }
             Storage::PerEpisode => {

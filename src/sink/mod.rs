@@ -120,10 +120,12 @@ pub fn encode_frame(encoding: FrameEncoding, frame: &[u8], shape: &[usize]) -> V
 }
 
 /// One episode's frames of one image channel, encoded and stored back to back (so that
-/// uncompressed frames are the decoded pixels themselves, never copied frame by frame).
+/// uncompressed frames are the decoded pixels themselves, never copied frame by frame). The
+/// bytes are shared, not copied, with a sink that keeps them past `write_frames` (a video
+/// encoder on its own thread): an episode of 640x480 frames is hundreds of megabytes.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Frames {
-    bytes: Vec<u8>,
+    bytes: Arc<Vec<u8>>,
     /// Exclusive end of each frame in `bytes`.
     ends: Ends,
     /// The video packets the frames were decoded from, one per frame, when nothing changed
@@ -137,7 +139,7 @@ impl Frames {
         let n = pixels.len() / frame_bytes.max(1);
         Frames {
             ends: Ends::new((1..=n).map(|i| (i * frame_bytes) as u64).collect()),
-            bytes: pixels,
+            bytes: Arc::new(pixels),
             packets: None,
         }
     }
@@ -153,9 +155,15 @@ impl Frames {
         self.packets.as_ref()
     }
 
-    /// The frames' bytes, one after another (to hand the memory on).
-    pub fn into_bytes(self) -> Vec<u8> {
-        self.bytes
+    /// The frames' bytes, one after another, to hand the memory on: none while a sink still
+    /// shares them ([`Frames::shared`]).
+    pub fn into_unshared_bytes(self) -> Option<Vec<u8>> {
+        Arc::try_unwrap(self.bytes).ok()
+    }
+
+    /// Every frame back to back, shared (not copied) for as long as the caller keeps them.
+    pub fn shared(&self) -> Arc<Vec<u8>> {
+        Arc::clone(&self.bytes)
     }
 
     /// Frames of `shape` (HWC) each, encoded (in parallel when compressed).
@@ -169,16 +177,17 @@ impl Frames {
             .par_chunks(frame_bytes.max(1))
             .map(|f| encode_frame(encoding, f, shape))
             .collect();
-        let mut frames = Frames {
-            bytes: Vec::with_capacity(encoded.iter().map(Vec::len).sum()),
-            ends: Ends::default(),
-            packets: None,
-        };
+        let mut bytes = Vec::with_capacity(encoded.iter().map(Vec::len).sum());
+        let mut ends = Ends::default();
         for f in encoded {
-            frames.ends.push(f.len());
-            frames.bytes.extend_from_slice(&f);
+            ends.push(f.len());
+            bytes.extend_from_slice(&f);
         }
-        frames
+        Frames {
+            bytes: Arc::new(bytes),
+            ends,
+            packets: None,
+        }
     }
 
     pub fn len(&self) -> usize {
@@ -218,7 +227,7 @@ impl Frames {
     /// sharded build's partial stores them so).
     pub fn from_parts(bytes: Vec<u8>, ends: Vec<u64>) -> Frames {
         Frames {
-            bytes,
+            bytes: Arc::new(bytes),
             ends: Ends::new(ends),
             packets: None,
         }

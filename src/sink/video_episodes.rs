@@ -120,13 +120,18 @@ impl Encoders {
                 }
             }
         }
-        let pixels = frames.bytes().to_vec();
+        // Shared with the pass, not copied: the episode's frames are freed when both are done.
+        let pixels = frames.shared();
         let file = path.clone();
         let thread = std::thread::Builder::new()
             .name("chunkc-video".into())
             .spawn(move || {
                 let mut stream = VideoStream::create(&file, shape, settings)?;
                 stream.push_all(&pixels)?;
+                // The last holder hands the memory on to the next episode's decode.
+                if let Ok(bytes) = std::sync::Arc::try_unwrap(pixels) {
+                    crate::recycle::give(bytes);
+                }
                 let frames = stream.finish()?;
                 // What the file holds, read back from its header (the profile is the
                 // encoder's choice, written in the stream's own configuration).

@@ -204,9 +204,11 @@ impl SynthWriter for LerobotWriter {
         ];
         let batch = RecordBatch::try_new(self.schema.clone(), cols).map_err(err)?;
         for (c, video) in self.videos.iter_mut().enumerate() {
-            video.push(ep.frames[c].clone()).map_err(|e| {
-                Error::output(format!("episode {}, camera {}: {e}", ep.id, camera_key(c)))
-            })?;
+            video
+                .push(std::sync::Arc::new(ep.frames[c].clone()))
+                .map_err(|e| {
+                    Error::output(format!("episode {}, camera {}: {e}", ep.id, camera_key(c)))
+                })?;
         }
         let w = self.writer.as_mut().expect("open");
         w.write(&batch).map_err(err)?;

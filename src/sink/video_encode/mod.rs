@@ -157,7 +157,7 @@ impl VideoStream {
 /// never returns from a flush of an encoder that was sent no frame, nor from the deinit of an
 /// encoder that was not flushed.
 pub struct Background {
-    send: Option<mpsc::SyncSender<Vec<u8>>>,
+    send: Option<mpsc::SyncSender<Arc<Vec<u8>>>>,
     thread: Option<std::thread::JoinHandle<Result<u64>>>,
     abandoned: Arc<AtomicBool>,
 }
@@ -165,7 +165,7 @@ pub struct Background {
 impl Background {
     pub fn spawn(path: &Path, shape: StreamShape, settings: VideoSettings) -> Result<Self> {
         let mut stream = VideoStream::create(path, shape, settings)?;
-        let (send, recv) = mpsc::sync_channel::<Vec<u8>>(QUEUE);
+        let (send, recv) = mpsc::sync_channel::<Arc<Vec<u8>>>(QUEUE);
         let abandoned = Arc::new(AtomicBool::new(false));
         let flag = abandoned.clone();
         let thread = std::thread::Builder::new()
@@ -191,9 +191,9 @@ impl Background {
         })
     }
 
-    /// Queues frames (back to back) for encoding; waits while the queue is full. An encoder
-    /// that failed reports its error here.
-    pub fn push(&mut self, frames: Vec<u8>) -> Result<()> {
+    /// Queues frames (back to back, shared with the caller rather than copied) for encoding;
+    /// waits while the queue is full. An encoder that failed reports its error here.
+    pub fn push(&mut self, frames: Arc<Vec<u8>>) -> Result<()> {
         let sent = self.send.as_ref().map(|s| s.send(frames).is_ok());
         if sent == Some(true) {
             return Ok(());

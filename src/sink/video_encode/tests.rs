@@ -48,7 +48,7 @@ fn the_same_frames_give_the_same_bytes() {
     let frames: Vec<u8> = (0..7)
         .flat_map(|i| (0..64 * 96 * 3).map(move |p| ((p / 3 % 96 + i * 4) % 256) as u8))
         .collect();
-    bg.push(frames).unwrap();
+    bg.push(std::sync::Arc::new(frames)).unwrap();
     write(&dir.path().join("c.mp4"), 3);
     assert_eq!(bg.finish().unwrap(), 7);
     let (a, b) = (std::fs::read(a).unwrap(), std::fs::read(b).unwrap());
@@ -140,7 +140,8 @@ fn a_stream_dropped_unfinished_is_abandoned_not_flushed() {
     let start = std::time::Instant::now();
     drop(Background::spawn(&dir.path().join("none.mp4"), shape, settings()).unwrap());
     let mut some = Background::spawn(&dir.path().join("some.mp4"), shape, settings()).unwrap();
-    some.push(vec![9u8; 64 * 96 * 3 * 3]).unwrap();
+    some.push(std::sync::Arc::new(vec![9u8; 64 * 96 * 3 * 3]))
+        .unwrap();
     drop(some);
     assert!(start.elapsed() < std::time::Duration::from_secs(20));
 }
