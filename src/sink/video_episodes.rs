@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::thread::JoinHandle;
 
 use super::video_copy::{self, CopyOutcome, COPIED_CODECS};
-use super::video_encode::{codec_name, StreamShape, VideoStream};
+use super::video_encode::{codec_name, StreamShape, VideoStream, Yuv420p};
 use super::video_info::{self, StreamFormat};
 use super::Frames;
 use crate::error::{Error, IoContext, Result};
@@ -120,18 +120,16 @@ impl Encoders {
                 }
             }
         }
-        // Shared with the pass, not copied: the episode's frames are freed when both are done.
-        let pixels = frames.shared();
+        // Converted here, so that the encoder holds half the memory of the frames, which stay
+        // with the pass (the next episode's decode reuses them).
+        let yuv = Yuv420p::of(frames.bytes(), shape)?;
         let file = path.clone();
         let thread = std::thread::Builder::new()
             .name("chunkc-video".into())
             .spawn(move || {
                 let mut stream = VideoStream::create(&file, shape, settings)?;
-                stream.push_all(&pixels)?;
-                // The last holder hands the memory on to the next episode's decode.
-                if let Ok(bytes) = std::sync::Arc::try_unwrap(pixels) {
-                    crate::recycle::give(bytes);
-                }
+                stream.push_yuv(&yuv)?;
+                drop(yuv);
                 let frames = stream.finish()?;
                 // What the file holds, read back from its header (the profile is the
                 // encoder's choice, written in the stream's own configuration).

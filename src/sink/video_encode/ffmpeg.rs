@@ -83,16 +83,7 @@ impl Inner {
             .map_err(e("cannot write the mp4 header"))?;
         let stream_time_base = octx.stream(0).expect("added").time_base();
         let (w, h) = (shape.width as u32, shape.height as u32);
-        let scaler = scaling::Context::get(
-            format::Pixel::RGB24,
-            w,
-            h,
-            format::Pixel::YUV420P,
-            w,
-            h,
-            scaling::Flags::BILINEAR,
-        )
-        .map_err(e("cannot convert RGB24 to yuv420p"))?;
+        let scaler = rgb_to_yuv(w, h)?;
         Ok(Inner {
             quality: mpeg4_quality(&s),
             octx,
@@ -106,15 +97,26 @@ impl Inner {
     }
 
     pub fn push(&mut self, pixels: &[u8], pts: i64) -> Result<(), String> {
-        let row = self.rgb.width() as usize * 3;
-        let stride = self.rgb.stride(0);
-        let data = self.rgb.data_mut(0);
-        for (y, src) in pixels.chunks(row).enumerate() {
-            data[y * stride..y * stride + row].copy_from_slice(src);
+        convert(&mut self.scaler, pixels, &mut self.rgb, &mut self.yuv)?;
+        self.send(pts)
+    }
+
+    /// Encodes one frame already converted ([`to_yuv420p`]: its Y, U and V planes).
+    pub fn push_yuv(&mut self, planes: &[u8], pts: i64) -> Result<(), String> {
+        let mut at = 0;
+        for plane in 0..3 {
+            let (w, h) = plane_size(&self.yuv, plane);
+            let stride = self.yuv.stride(plane);
+            let data = self.yuv.data_mut(plane);
+            for y in 0..h {
+                data[y * stride..y * stride + w].copy_from_slice(&planes[at..at + w]);
+                at += w;
+            }
         }
-        self.scaler
-            .run(&self.rgb, &mut self.yuv)
-            .map_err(|e| format!("converting a frame to yuv420p: {e}"))?;
+        self.send(pts)
+    }
+
+    fn send(&mut self, pts: i64) -> Result<(), String> {
         self.yuv.set_pts(Some(pts));
         if self.quality > 0 {
             // As FFmpeg's own `-q:v` does: the quantizer of every frame.
@@ -147,6 +149,72 @@ impl Inner {
             .write_trailer()
             .map_err(|e| format!("writing the mp4 index: {e}"))
     }
+}
+
+/// RGB24 `pixels` (one frame, rows back to back) into `yuv` through `rgb`, as every stream
+/// converts its frames.
+fn convert(
+    scaler: &mut scaling::Context,
+    pixels: &[u8],
+    rgb: &mut frame::Video,
+    yuv: &mut frame::Video,
+) -> Result<(), String> {
+    let row = rgb.width() as usize * 3;
+    let stride = rgb.stride(0);
+    let data = rgb.data_mut(0);
+    for (y, src) in pixels.chunks(row).enumerate() {
+        data[y * stride..y * stride + row].copy_from_slice(src);
+    }
+    scaler
+        .run(rgb, yuv)
+        .map_err(|e| format!("converting a frame to yuv420p: {e}"))
+}
+
+/// (width, height) of plane `plane` of a yuv420p frame.
+fn plane_size(f: &frame::Video, plane: usize) -> (usize, usize) {
+    let (w, h) = (f.width() as usize, f.height() as usize);
+    match plane {
+        0 => (w, h),
+        _ => (w / 2, h / 2),
+    }
+}
+
+fn rgb_to_yuv(w: u32, h: u32) -> Result<scaling::Context, String> {
+    scaling::Context::get(
+        format::Pixel::RGB24,
+        w,
+        h,
+        format::Pixel::YUV420P,
+        w,
+        h,
+        scaling::Flags::BILINEAR,
+    )
+    .map_err(e("cannot convert RGB24 to yuv420p"))
+}
+
+/// RGB24 frames of `w` x `h` (back to back) into `out`: each frame's yuv420p planes (Y, U, V,
+/// without padding), back to back, converted exactly as a stream converts the frames it is
+/// pushed.
+pub fn to_yuv420p(frames: &[u8], w: u32, h: u32, out: &mut [u8]) -> Result<(), String> {
+    init()?;
+    let mut scaler = rgb_to_yuv(w, h)?;
+    let mut rgb = frame::Video::new(format::Pixel::RGB24, w, h);
+    let mut yuv = frame::Video::new(format::Pixel::YUV420P, w, h);
+    let frame_bytes = w as usize * h as usize * 3;
+    let mut at = 0;
+    for pixels in frames.chunks(frame_bytes.max(1)) {
+        convert(&mut scaler, pixels, &mut rgb, &mut yuv)?;
+        for plane in 0..3 {
+            let (pw, ph) = plane_size(&yuv, plane);
+            let stride = yuv.stride(plane);
+            let data = yuv.data(plane);
+            for y in 0..ph {
+                out[at..at + pw].copy_from_slice(&data[y * stride..y * stride + pw]);
+                at += pw;
+            }
+        }
+    }
+    Ok(())
 }
 
 /// An FFmpeg error as a message that says what failed.

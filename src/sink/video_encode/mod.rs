@@ -139,6 +139,30 @@ impl VideoStream {
         Ok(())
     }
 
+    /// Encodes frames already converted by [`Yuv420p::of`], in order.
+    pub fn push_yuv(&mut self, frames: &Yuv420p) -> Result<()> {
+        let frame = yuv_frame_bytes(self.shape);
+        if frames.shape != (self.shape.height, self.shape.width) {
+            return Err(Error::Internal(format!(
+                "{}: frames of {:?}, expected {}x{}",
+                self.path.display(),
+                frames.shape,
+                self.shape.height,
+                self.shape.width
+            )));
+        }
+        for f in frames.planes.chunks(frame.max(1)) {
+            #[cfg(feature = "video")]
+            self.inner
+                .push_yuv(f, self.frames as i64)
+                .map_err(|e| Error::output(format!("{}: {e}", self.path.display())))?;
+            #[cfg(not(feature = "video"))]
+            let _ = f;
+            self.frames += 1;
+        }
+        Ok(())
+    }
+
     /// Drains the encoder and completes the file; returns the number of frames.
     pub fn finish(self) -> Result<u64> {
         #[cfg(feature = "video")]
@@ -146,6 +170,50 @@ impl VideoStream {
             .finish()
             .map_err(|e| Error::output(format!("{}: {e}", self.path.display())))?;
         Ok(self.frames)
+    }
+}
+
+/// Bytes of one frame's yuv420p planes (no padding).
+fn yuv_frame_bytes(shape: StreamShape) -> usize {
+    shape.height * shape.width * 3 / 2
+}
+
+/// An episode's frames converted to yuv420p planes (each frame's Y, U and V back to back), as a
+/// stream converts what it is pushed: half the memory of the RGB24 frames, so that an encoder
+/// that waits for its thread holds half an episode, and the RGB24 frames go back to the pass.
+pub struct Yuv420p {
+    shape: (usize, usize),
+    planes: Vec<u8>,
+}
+
+impl Yuv420p {
+    /// Converts RGB24 `frames` (back to back) of `shape`, in parallel over blocks of frames.
+    pub fn of(frames: &[u8], shape: StreamShape) -> Result<Yuv420p> {
+        #[cfg(feature = "video")]
+        {
+            use rayon::prelude::*;
+            const BLOCK: usize = 16;
+            let (rgb, yuv) = (shape.frame_bytes().max(1), yuv_frame_bytes(shape).max(1));
+            let mut planes = vec![0u8; frames.len() / rgb * yuv];
+            let (w, h) = (shape.width as u32, shape.height as u32);
+            frames
+                .par_chunks(rgb * BLOCK)
+                .zip(planes.par_chunks_mut(yuv * BLOCK))
+                .try_for_each(|(src, out)| ffmpeg::to_yuv420p(src, w, h, out))
+                .map_err(Error::output)?;
+            Ok(Yuv420p {
+                shape: (shape.height, shape.width),
+                planes,
+            })
+        }
+        #[cfg(not(feature = "video"))]
+        {
+            let _ = frames;
+            Err(Error::output(format!(
+                "{}x{} frames: writing video needs a chunkc built with the `video` cargo feature",
+                shape.height, shape.width
+            )))
+        }
     }
 }
 

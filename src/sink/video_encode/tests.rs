@@ -29,6 +29,46 @@ fn write(path: &Path, n: usize) -> u64 {
     s.finish().unwrap()
 }
 
+/// Frames converted to yuv420p before the stream (in parallel blocks, as a waiting encoder
+/// holds them) encode to the same bytes as the RGB24 frames pushed one by one; and the planes
+/// are those of an independent BT.601 limited-range conversion, within swscale's rounding.
+#[cfg(feature = "video")]
+#[test]
+fn frames_converted_first_give_the_same_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let shape = StreamShape {
+        height: 64,
+        width: 96,
+        fps: 10.0,
+    };
+    let n = 37; // more than two of the conversion's blocks, the last one short
+    let frames: Vec<u8> = (0..n)
+        .flat_map(|i| {
+            (0..64 * 96 * 3).map(move |p| ((p / 3 % 96 + i * 4 + p % 3 * 50) % 256) as u8)
+        })
+        .collect();
+    let (a, b) = (dir.path().join("a.mp4"), dir.path().join("b.mp4"));
+    let mut s = VideoStream::create(&a, shape, settings()).unwrap();
+    s.push_all(&frames).unwrap();
+    assert_eq!(s.finish().unwrap(), n as u64);
+    let yuv = Yuv420p::of(&frames, shape).unwrap();
+    assert_eq!(yuv.planes.len(), n * 64 * 96 * 3 / 2);
+    let mut s = VideoStream::create(&b, shape, settings()).unwrap();
+    s.push_yuv(&yuv).unwrap();
+    assert_eq!(s.finish().unwrap(), n as u64);
+    assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap());
+    // Luma of the last frame's first pixel: 16 + 219 * (0.299 R + 0.587 G + 0.114 B) / 255.
+    let last = (n - 1) * 64 * 96 * 3;
+    let (r, g, bl) = (
+        frames[last] as f64,
+        frames[last + 1] as f64,
+        frames[last + 2] as f64,
+    );
+    let y = 16.0 + 219.0 * (0.299 * r + 0.587 * g + 0.114 * bl) / 255.0;
+    let got = yuv.planes[(n - 1) * 64 * 96 * 3 / 2] as f64;
+    assert!((got - y).abs() <= 1.5, "Y {got}, expected {y:.1}");
+}
+
 #[test]
 fn the_same_frames_give_the_same_bytes() {
     let dir = tempfile::tempdir().unwrap();
