@@ -355,11 +355,12 @@ def video_stream_checks(ds):
     import av  # the loader decodes these cameras with it
 
     problems = []
-    for name, channel in ds.meta["channels"].items():
-        storage = channel.get("storage") or {}
-        frames = ds._frames.get(name)
-        if storage.get("encoding") != "video" or frames is None:
-            continue
+    cameras = [name for name, channel in ds.meta["channels"].items()
+               if (channel.get("storage") or {}).get("encoding") == "video" and name in ds._frames]
+    if cameras:
+        print("stored video, each file as PyAV reads it, against meta.json:")
+    for name in cameras:
+        storage, frames = ds.meta["channels"][name]["storage"], ds._frames[name]
         found = {}
         for path in frames.paths:
             with av.open(path) as container:
@@ -612,7 +613,6 @@ def main(argv=None):
     if err > ROUND_TRIP:
         problems.append(f"round trip error {err:.2e} exceeds {ROUND_TRIP:g}")
 
-    print("stored video, each file as PyAV reads it, against meta.json:")
     problems += video_stream_checks(ds)
 
     if ds.source_names is not None:

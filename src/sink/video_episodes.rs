@@ -11,7 +11,7 @@ use std::thread::JoinHandle;
 
 use super::video_copy::{self, CopyOutcome, COPIED_CODECS};
 use super::video_encode::{codec_name, StreamShape, VideoStream, Yuv420p};
-use super::video_info::{self, StreamFormat};
+use super::video_info::StreamFormat;
 use super::Frames;
 use crate::error::{Error, IoContext, Result};
 use crate::source::video::PacketSpan;
@@ -130,10 +130,10 @@ impl Encoders {
                 let mut stream = VideoStream::create(&file, shape, settings)?;
                 stream.push_yuv(&yuv)?;
                 drop(yuv);
-                let frames = stream.finish()?;
-                // What the file holds, read back from its header (the profile is the
-                // encoder's choice, written in the stream's own configuration).
-                Ok((frames, video_info::stream_format(&file)?))
+                // What the file holds, from the encoder's stream configuration (nothing is
+                // read back, no decoder runs beside the encoders).
+                let format = stream.format()?;
+                Ok((stream.finish()?, format))
             })
             .map_err(|e| Error::Internal(format!("cannot start a video encoder thread: {e}")))?;
         self.running.push_back(Running {

@@ -11,6 +11,7 @@ newest dist/chunkc-*.whl; with neither, these tests skip.
 """
 
 import filecmp
+import json
 import os
 import re
 import shutil
@@ -229,6 +230,15 @@ def test_hdf5_video_storage_is_av1_and_read_by_pyav(installed, tmp_path):
         raw = src.episode("img", e)
         assert frames.shape == raw.shape, (path.name, frames.shape, raw.shape)
         assert psnr(frames, raw) > 30, f"{path.name}: PSNR {psnr(frames, raw):.1f} dB"
+    # meta.json says what the files hold, as PyAV reads it (from the encoder's configuration).
+    av = pytest.importorskip("av")
+    meta = json.loads((tmp_path / "out" / "dp" / "meta.json").read_text())
+    storage = meta["channels"]["observation.image"]["storage"]
+    with av.open(str(videos[0])) as c:
+        ctx = c.streams.video[0].codec_context
+        read = (ctx.codec.canonical_name, ctx.profile, ctx.format.name)
+    assert (storage["codec"], storage["profile"], storage["pix_fmt"]) == read
+    assert storage["stored"] == "encoded" and storage["encoder"] == "libsvtav1"
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,7 @@
 //! The encode loop on FFmpeg's side: one output context, one encoder, one scaler per stream;
 //! frames converted and encoded as they come, packets written as the encoder gives them back.
 
+use std::ffi::CStr;
 use std::path::Path;
 use std::sync::Once;
 
@@ -8,6 +9,7 @@ use ff::{codec, encoder, format, frame, software::scaling, Dictionary, Packet, R
 use ffmpeg_next as ff;
 
 use super::settings::{encoder_options, mpeg4_quality, refusal_hint, StreamShape, MUXER_OPTIONS};
+use crate::sink::video_info::StreamFormat;
 use crate::spec::VideoSettings;
 
 pub struct Inner {
@@ -140,6 +142,32 @@ impl Inner {
         Ok(())
     }
 
+    /// What the stream holds, from the encoder's own stream configuration (its extradata: the
+    /// `avcC` / `av1C` record the mp4 carries), as a decoder reads it back: no file is read.
+    pub fn format(&self) -> StreamFormat {
+        let id = self.encoder.id();
+        // SAFETY: the opened encoder's extradata is `extradata_size` bytes (or null).
+        let extradata: &[u8] = unsafe {
+            let c = self.encoder.as_ptr();
+            match (*c).extradata.is_null() {
+                true => &[],
+                false => std::slice::from_raw_parts((*c).extradata, (*c).extradata_size as usize),
+            }
+        };
+        let profile = profile_of(id, extradata).and_then(|p| {
+            // SAFETY: FFmpeg's profile names are static strings (null when it has none).
+            unsafe {
+                let name = ff::ffi::avcodec_profile_name(id.into(), p);
+                (!name.is_null()).then(|| CStr::from_ptr(name).to_string_lossy().into_owned())
+            }
+        });
+        StreamFormat {
+            codec: id.name().to_string(),
+            profile,
+            pix_fmt: super::PIX_FMT.to_string(),
+        }
+    }
+
     pub fn finish(mut self) -> Result<(), String> {
         self.encoder
             .send_eof()
@@ -215,6 +243,60 @@ pub fn to_yuv420p(frames: &[u8], w: u32, h: u32, out: &mut [u8]) -> Result<(), S
         }
     }
     Ok(())
+}
+
+/// FFmpeg's flags on an H.264 profile (`AV_PROFILE_H264_CONSTRAINED`, `_INTRA`; named
+/// `FF_PROFILE_…` before FFmpeg 6.1, the same values).
+const H264_CONSTRAINED: i32 = 1 << 9;
+const H264_INTRA: i32 = 1 << 11;
+
+/// The profile a decoder reports for a stream whose configuration is `extradata`, in either
+/// form an encoder leaves it: H.264's `avcC` record or its SPS in Annex B (profile_idc, with
+/// FFmpeg's constrained and intra flags from the constraint bits, as `ff_h264_get_profile` sets
+/// them); AV1's `av1C` record or its sequence header OBU (seq_profile).
+fn profile_of(id: codec::Id, extradata: &[u8]) -> Option<i32> {
+    match id {
+        codec::Id::H264 => {
+            let sps = match extradata.first()? {
+                // avcC: version 1, then profile_idc and the constraint flags.
+                1 => extradata.get(1..3)?,
+                // Annex B: the bytes after the SPS NAL unit's header.
+                _ => {
+                    let at = (3..extradata.len())
+                        .find(|&i| extradata[i - 3..i] == [0, 0, 1] && extradata[i] & 0x1f == 7)?;
+                    extradata.get(at + 1..at + 3)?
+                }
+            };
+            let (idc, flags) = (i32::from(sps[0]), sps[1]);
+            let (set1, set3) = (flags & 0x40 != 0, flags & 0x10 != 0);
+            Some(match idc {
+                66 if set1 => idc | H264_CONSTRAINED,
+                110 | 122 | 244 if set3 => idc | H264_INTRA,
+                _ => idc,
+            })
+        }
+        codec::Id::AV1 => {
+            let first = *extradata.first()?;
+            if first & 0x80 != 0 {
+                // av1C: marker and version, then seq_profile in the top 3 bits.
+                return extradata.get(1).map(|b| i32::from(b >> 5));
+            }
+            // A sequence header OBU: its header (type 1), an optional extension byte, its
+            // size (leb128) when flagged, then seq_profile in the top 3 bits.
+            if (first >> 3) & 0x0f != 1 {
+                return None;
+            }
+            let mut at = 1 + usize::from(first & 0x04 != 0);
+            if first & 0x02 != 0 {
+                while *extradata.get(at)? & 0x80 != 0 {
+                    at += 1;
+                }
+                at += 1;
+            }
+            extradata.get(at).map(|b| i32::from(b >> 5))
+        }
+        _ => None,
+    }
 }
 
 /// An FFmpeg error as a message that says what failed.

@@ -163,6 +163,22 @@ impl VideoStream {
         Ok(())
     }
 
+    /// What the file holds (codec, profile, pixel format), from the encoder's own stream
+    /// configuration.
+    pub fn format(&self) -> Result<crate::sink::video_info::StreamFormat> {
+        #[cfg(feature = "video")]
+        {
+            Ok(self.inner.format())
+        }
+        #[cfg(not(feature = "video"))]
+        {
+            Err(Error::output(format!(
+                "{}: writing video needs a chunkc built with the `video` cargo feature",
+                self.path.display()
+            )))
+        }
+    }
+
     /// Drains the encoder and completes the file; returns the number of frames.
     pub fn finish(self) -> Result<u64> {
         #[cfg(feature = "video")]

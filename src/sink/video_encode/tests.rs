@@ -69,6 +69,43 @@ fn frames_converted_first_give_the_same_file() {
     assert!((got - y).abs() <= 1.5, "Y {got}, expected {y:.1}");
 }
 
+/// The format a stream says it holds, from its encoder's configuration, is what FFmpeg's
+/// demuxer and decoder read back from the file (AV1 and H.264, whose extradata the encoders
+/// leave as a raw sequence header and as Annex B).
+#[cfg(feature = "video")]
+#[test]
+fn the_encoders_format_is_what_the_file_holds() {
+    let dir = tempfile::tempdir().unwrap();
+    let shape = StreamShape {
+        height: 64,
+        width: 96,
+        fps: 10.0,
+    };
+    let codecs = [VideoCodec::Libsvtav1, VideoCodec::Libx264];
+    for codec in codecs
+        .into_iter()
+        .filter(|&c| ffmpeg_next::encoder::find_by_name(c.name()).is_some())
+    {
+        let path = dir.path().join(format!("{}.mp4", codec.name()));
+        let mut s = VideoStream::create(
+            &path,
+            shape,
+            VideoSettings {
+                codec,
+                crf: 30,
+                ..settings()
+            },
+        )
+        .unwrap();
+        s.push_all(&vec![77u8; 64 * 96 * 3 * 4]).unwrap();
+        let said = s.format().unwrap();
+        s.finish().unwrap();
+        let read = crate::sink::video_info::stream_format(&path).unwrap();
+        assert_eq!(said, read, "{}", codec.name());
+        assert!(said.profile.is_some(), "{}: no profile", codec.name());
+    }
+}
+
 #[test]
 fn the_same_frames_give_the_same_bytes() {
     let dir = tempfile::tempdir().unwrap();
