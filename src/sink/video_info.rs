@@ -37,7 +37,7 @@ pub fn stream_format(path: &Path) -> Result<StreamFormat> {
 }
 
 #[cfg(feature = "video")]
-pub(super) use imp::of_parameters;
+pub(super) use imp::{of_parameters, profile_name};
 
 #[cfg(feature = "video")]
 mod imp {
@@ -58,15 +58,21 @@ mod imp {
         Ok(of_parameters(&stream.parameters()))
     }
 
+    /// FFmpeg's name of profile `profile` of codec `id` (none where it has no name).
+    pub fn profile_name(id: ff::codec::Id, profile: i32) -> Option<String> {
+        // SAFETY: FFmpeg's profile names are static strings (null when it has none).
+        unsafe {
+            let name = ff::ffi::avcodec_profile_name(id.into(), profile);
+            (!name.is_null()).then(|| CStr::from_ptr(name).to_string_lossy().into_owned())
+        }
+    }
+
     /// The format a demuxed stream's parameters describe (those of a stream copied as they are
     /// describe the copy).
     pub fn of_parameters(params: &ff::codec::Parameters) -> StreamFormat {
         let id = params.id();
-        // SAFETY: the parameters are valid for the borrow; the names FFmpeg returns are static.
-        let profile = unsafe {
-            let name = ff::ffi::avcodec_profile_name(id.into(), (*params.as_ptr()).profile);
-            (!name.is_null()).then(|| CStr::from_ptr(name).to_string_lossy().into_owned())
-        };
+        // SAFETY: the parameters are valid for the borrow.
+        let profile = profile_name(id, unsafe { (*params.as_ptr()).profile });
         let pix_fmt = ff::codec::context::Context::from_parameters(params.clone())
             .and_then(|c| c.decoder().video())
             .ok()

@@ -1,7 +1,6 @@
 //! The encode loop on FFmpeg's side: one output context, one encoder, one scaler per stream;
 //! frames converted and encoded as they come, packets written as the encoder gives them back.
 
-use std::ffi::CStr;
 use std::path::Path;
 use std::sync::Once;
 
@@ -9,7 +8,7 @@ use ff::{codec, encoder, format, frame, software::scaling, Dictionary, Packet, R
 use ffmpeg_next as ff;
 
 use super::settings::{encoder_options, mpeg4_quality, refusal_hint, StreamShape, MUXER_OPTIONS};
-use crate::sink::video_info::StreamFormat;
+use crate::sink::video_info::{self, StreamFormat};
 use crate::spec::VideoSettings;
 
 pub struct Inner {
@@ -154,13 +153,7 @@ impl Inner {
                 false => std::slice::from_raw_parts((*c).extradata, (*c).extradata_size as usize),
             }
         };
-        let profile = profile_of(id, extradata).and_then(|p| {
-            // SAFETY: FFmpeg's profile names are static strings (null when it has none).
-            unsafe {
-                let name = ff::ffi::avcodec_profile_name(id.into(), p);
-                (!name.is_null()).then(|| CStr::from_ptr(name).to_string_lossy().into_owned())
-            }
-        });
+        let profile = profile_of(id, extradata).and_then(|p| video_info::profile_name(id, p));
         StreamFormat {
             codec: id.name().to_string(),
             profile,
