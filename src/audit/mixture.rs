@@ -9,7 +9,8 @@
 //! - An episode without a task of its own gets its source's name as its task.
 //! - Channels are the union of the sources'. A low-dim channel named in `[mixture] pad_to` is
 //!   zero-filled to that width (all zeros where a source lacks it); any other channel must be
-//!   the same in every source.
+//!   the same in every source. The build reads each episode unpadded, at its source's own width
+//!   ([`Source::read_unpadded`]), and pads only what it writes; `read_episode` pads.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -156,6 +157,12 @@ impl Mixture {
         self.doctor = Some(doctor);
     }
 
+    /// Per part: whether the mixture's rate keeps its steps (its values are read as they are).
+    pub fn keeps_steps(&self) -> Vec<bool> {
+        let same = Conversion::Decimate { factor: 1 };
+        self.conversions.iter().map(|&c| c == same).collect()
+    }
+
     /// `positions` (sorted) per part, translated to the part's own positions.
     fn by_part(&self, positions: &[usize]) -> Vec<Vec<usize>> {
         let mut out = vec![Vec::new(); self.parts.len()];
@@ -193,6 +200,20 @@ impl Source for Mixture {
     }
 
     fn read_episode(&self, index: usize) -> Result<Episode> {
+        let mut episode = self.read_unpadded(index)?;
+        let (s, _) = self.positions[index];
+        let part = &self.manifest.parts[s];
+        for (c, ch) in self.manifest.channels.iter().enumerate() {
+            let values =
+                std::mem::replace(&mut episode.channels[c], ChannelData::Lowdim(Vec::new()));
+            episode.channels[c] = pad(values, episode.len, part.widths[c], ch.width());
+        }
+        Ok(episode)
+    }
+
+    /// The episode as its source reads it, converted to the mixture's rate: its low-dim
+    /// channels at its own width (nothing where it lacks one), not padded.
+    fn read_unpadded(&self, index: usize) -> Result<Episode> {
         let (s, j) = self.positions[index];
         let mut own = self.parts[s].read_episode(j)?;
         if let Some(doctor) = &self.doctor {
@@ -205,9 +226,9 @@ impl Source for Mixture {
         let source_channels = &self.parts[s].manifest().channels;
         let mut channels = Vec::with_capacity(self.manifest.channels.len());
         let mut packets = BTreeMap::new();
-        for (c, ch) in self.manifest.channels.iter().enumerate() {
+        for c in 0..self.manifest.channels.len() {
             let Some(k) = self.channel_of[s][c] else {
-                channels.push(ChannelData::Lowdim(vec![0.0; len * ch.width()]));
+                channels.push(ChannelData::Lowdim(Vec::new()));
                 continue;
             };
             let values = std::mem::replace(&mut own.channels[k], ChannelData::Lowdim(Vec::new()));
@@ -220,7 +241,7 @@ impl Source for Mixture {
                     packets.insert(c, p);
                 }
             }
-            channels.push(pad(values, part.widths[c], ch.width()));
+            channels.push(values);
         }
         Ok(Episode {
             id: part.id_offset + own.id,
@@ -267,15 +288,16 @@ impl Source for Mixture {
     }
 }
 
-/// Rows of `own` values zero-filled to `width` values each.
-fn pad(values: ChannelData, own: usize, width: usize) -> ChannelData {
+/// `rows` rows of `own` values zero-filled to `width` values each.
+fn pad(values: ChannelData, rows: usize, own: usize, width: usize) -> ChannelData {
     match values {
-        ChannelData::Lowdim(v) if own < width && own > 0 => {
-            let mut out = Vec::with_capacity(v.len() / own * width);
-            for row in v.chunks_exact(own) {
+        ChannelData::Lowdim(v) if own < width => {
+            let mut out = Vec::with_capacity(rows * width);
+            for row in v.chunks_exact(own.max(1)).take(rows) {
                 out.extend_from_slice(row);
                 out.resize(out.len() + width - own, 0.0);
             }
+            out.resize(rows * width, 0.0);
             ChannelData::Lowdim(out)
         }
         other => other,
@@ -288,10 +310,15 @@ mod tests {
 
     #[test]
     fn pads_rows_with_zeros() {
-        let ChannelData::Lowdim(v) = pad(ChannelData::Lowdim(vec![1.0, 2.0, 3.0, 4.0]), 2, 3)
+        let ChannelData::Lowdim(v) = pad(ChannelData::Lowdim(vec![1.0, 2.0, 3.0, 4.0]), 2, 2, 3)
         else {
             panic!()
         };
         assert_eq!(v, vec![1.0, 2.0, 0.0, 3.0, 4.0, 0.0]);
+        // A source without the channel: zeros.
+        let ChannelData::Lowdim(v) = pad(ChannelData::Lowdim(Vec::new()), 2, 0, 2) else {
+            panic!()
+        };
+        assert_eq!(v, vec![0.0; 4]);
     }
 }

@@ -4,10 +4,17 @@
 //! reduces it to); once the pass is over, each source's features are judged as its own audit
 //! judges them (its `[audit.doctor]`, its rate, its own ids), and the sources' reports are
 //! joined again. The sources' values are read once, by the build.
+//!
+//! A source whose steps the mixture's rate keeps (its own rate) is stored by the build as read,
+//! at its own width: when the build says it will reduce from its stores
+//! ([`SourcesDoctor::from_stores`]), such a source's episodes are reduced beside the writes
+//! ([`SourcesDoctor::take_stored`]), as a single source's are, and the read only converts.
 
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::OnceLock;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
+
+use rayon::prelude::*;
 
 use super::doctor::{Features, Probe};
 use super::joined_report::joined_report;
@@ -15,6 +22,7 @@ use super::AuditReport;
 use crate::error::Result;
 use crate::source::{Episode, Manifest};
 use crate::spec::SourceView;
+use crate::store::LowdimStore;
 
 /// One source's doctor.
 pub struct SourceDoctor {
@@ -27,6 +35,9 @@ pub struct SourceDoctor {
     pub id_offset: u64,
     /// Its audit before the doctor (its own ids).
     pub report: AuditReport,
+    /// Where the mixture's rate keeps its steps: the mixture's channels (positions) holding the
+    /// probe's action and state, from which its stored rows are reduced.
+    pub stored: Option<(usize, Option<usize>)>,
 }
 
 /// Every source's doctor, and the features of each episode the build has read.
@@ -38,6 +49,10 @@ pub struct SourcesDoctor {
     slots: Vec<OnceLock<Features>>,
     /// Nanoseconds spent computing features, over all threads.
     busy: AtomicU64,
+    /// Per mixture position: its source.
+    source_at: Vec<usize>,
+    /// Whether this pass reduces the stored sources from the build's stores.
+    from_stores: AtomicBool,
 }
 
 impl SourcesDoctor {
@@ -48,21 +63,71 @@ impl SourcesDoctor {
             ids: manifest.episodes.iter().map(|e| e.id).collect(),
             slots: manifest.episodes.iter().map(|_| OnceLock::new()).collect(),
             busy: AtomicU64::new(0),
+            source_at: (manifest.episodes.iter())
+                .map(|e| manifest.source_of(e.id))
+                .collect(),
+            from_stores: AtomicBool::new(false),
         }
     }
 
+    /// Whether any source can be reduced from the build's stores.
+    pub fn stores_any(&self) -> bool {
+        self.sources
+            .iter()
+            .any(|s| s.probe.is_some() && s.stored.is_some())
+    }
+
+    /// Says, before a pass reads, whether it will call [`SourcesDoctor::take_stored`]: then
+    /// the read leaves the sources the stores hold to it.
+    pub fn from_stores(&self, yes: bool) {
+        self.from_stores.store(yes, Ordering::Relaxed);
+    }
+
     /// Reduces mixture position `position`, read from source `s` as `own` (its own channels,
-    /// rate and width), once.
+    /// rate and width), once; a source the pass reduces from its stores is left to it.
     pub fn take(&self, position: usize, s: usize, own: &Episode) {
-        let Some(probe) = &self.sources[s].probe else {
+        let source = &self.sources[s];
+        let Some(probe) = &source.probe else {
             return;
         };
-        if self.slots[position].get().is_some() {
+        if source.stored.is_some() && self.from_stores.load(Ordering::Relaxed) {
+            return;
+        }
+        self.keep(position, || probe.features(own));
+    }
+
+    /// Reduces every episode of the sources whose steps the mixture's rate keeps from the rows
+    /// `stores` (the mixture's channels at its rate, position `i`'s episode at `rows(i)`) hold:
+    /// their own values, as read, so the features are those [`SourcesDoctor::take`] computes.
+    pub fn take_stored(
+        &self,
+        stores: &[Arc<LowdimStore>],
+        rows: &(dyn Fn(usize) -> std::ops::Range<usize> + Sync),
+    ) -> Result<()> {
+        (0..self.slots.len()).into_par_iter().try_for_each(|i| {
+            let source = &self.sources[self.source_at[i]];
+            let (Some(probe), Some((action, state))) = (&source.probe, source.stored) else {
+                return Ok(());
+            };
+            let rows = rows(i);
+            let a = stores[action].own_rows(rows.start, rows.end)?;
+            let s = match state {
+                Some(c) => Some(stores[c].own_rows(rows.start, rows.end)?),
+                None => None,
+            };
+            self.keep(i, || probe.reduce(&a, s.as_deref()));
+            Ok(())
+        })
+    }
+
+    /// Keeps position `i`'s features, once, counting the time they took.
+    fn keep(&self, i: usize, features: impl FnOnce() -> Features) {
+        if self.slots[i].get().is_some() {
             return;
         }
         let started = Instant::now();
         // An exact-size copy, as the single source's doctor keeps it (see `exec::doctor`).
-        let _ = self.slots[position].set(probe.features(own).clone());
+        let _ = self.slots[i].set(features().clone());
         let spent = started.elapsed().as_nanos() as u64;
         self.busy.fetch_add(spent, Ordering::Relaxed);
     }

@@ -248,7 +248,7 @@ fn doctor_for<'a>(
             }),
         ),
         Judging::Sources(sources) => exec::Doctor::reading_elsewhere(
-            sources.busy(),
+            sources,
             Box::new(move |_| {
                 let (joined, excluded) = sources.judge(&ids)?;
                 *report = joined;

@@ -44,13 +44,21 @@ pub(super) fn open(spec: &LoadedSpec, ride: bool) -> Result<Opened> {
             )));
         }
         if ride {
-            doctors.push(SourceDoctor {
-                probe: Probe::of(&view.spec, source.manifest()),
-                fps: source.manifest().fps,
-                view: view.clone(),
-                id_offset,
-                report: report.clone(),
-            });
+            let probe = Probe::of(&view.spec, source.manifest());
+            let name = |c: usize| source.manifest().channels[c].name.clone();
+            let channels =
+                (probe.as_ref()).map(|p| (name(p.action_channel()), p.state_channel().map(name)));
+            doctors.push((
+                SourceDoctor {
+                    probe,
+                    fps: source.manifest().fps,
+                    view: view.clone(),
+                    id_offset,
+                    report: report.clone(),
+                    stored: None,
+                },
+                channels,
+            ));
         }
         reports.push((view.name.clone(), id_offset, report));
         parts.push(Part {
@@ -65,12 +73,41 @@ pub(super) fn open(spec: &LoadedSpec, ride: bool) -> Result<Opened> {
     for warning in &mixture.manifest().warnings {
         eprintln!("warning: {warning}");
     }
+    let doctors = stored_channels(doctors, &mixture);
     let doctor = (ride && doctors.iter().any(|d| d.probe.is_some()))
         .then(|| Arc::new(SourcesDoctor::new(doctors, mixture.manifest())));
     if let Some(d) = &doctor {
         mixture.ride(Arc::clone(d));
     }
     Ok((Box::new(mixture), joined_report(reports), doctor))
+}
+
+/// A probe's action channel and state channel, by name.
+type ProbeChannels = (String, Option<String>);
+
+/// Each source's doctor, told where the build stores its probe's channels when the mixture's
+/// rate keeps the source's steps (`channels`: the probe's action and state channel names).
+fn stored_channels(
+    doctors: Vec<(SourceDoctor, Option<ProbeChannels>)>,
+    mixture: &Mixture,
+) -> Vec<SourceDoctor> {
+    let at = |name: &str| {
+        let channels = &mixture.manifest().channels;
+        channels.iter().position(|c| c.name == name)
+    };
+    let keeps = mixture.keeps_steps();
+    (doctors.into_iter().zip(keeps))
+        .map(|((mut doctor, channels), keeps)| {
+            doctor.stored = channels.filter(|_| keeps).and_then(|(action, state)| {
+                let state = match state {
+                    Some(s) => Some(at(&s)?),
+                    None => None,
+                };
+                Some((at(&action)?, state))
+            });
+            doctor
+        })
+        .collect()
 }
 
 /// The mixture's rate: the fastest profile's `fps`, or the sources' common rate when they share

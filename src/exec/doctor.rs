@@ -6,7 +6,8 @@
 //! Where a rate keeps the source's own steps, its row store holds the values as read, and the
 //! features are computed from it beside the writes ([`Doctor::take_stored`]): the writes leave
 //! cores idle, the pass does not. Otherwise each episode is reduced as the pass reads it
-//! ([`Doctor::take`]).
+//! ([`Doctor::take`]). A training mixture's sources' doctor does the same per source: a source
+//! whose steps the mixture's rate keeps is reduced from the stores, the others as read.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
@@ -17,6 +18,7 @@ use rayon::prelude::*;
 use super::rate::RateState;
 use super::Excluded;
 use crate::audit::doctor::{Features, Probe};
+use crate::audit::sources_doctor::SourcesDoctor;
 use crate::error::Result;
 use crate::source::Episode;
 
@@ -33,8 +35,8 @@ pub struct Doctor<'a> {
     slots: Vec<OnceLock<Features>>,
     /// Nanoseconds spent computing features, over all threads.
     busy: AtomicU64,
-    /// Nanoseconds the source spent computing features, when it does.
-    elsewhere: Option<&'a AtomicU64>,
+    /// A training mixture's sources' doctor, which reduces the episodes itself.
+    elsewhere: Option<&'a SourcesDoctor>,
     /// The doctor's wall seconds, once judged.
     seconds: Option<f64>,
 }
@@ -51,22 +53,29 @@ impl<'a> Doctor<'a> {
         }
     }
 
-    /// A doctor whose features the source computes as the pass reads it (counting the time in
-    /// `busy`); the pass only judges.
-    pub fn reading_elsewhere(busy: &'a AtomicU64, judge: Judge<'a>) -> Self {
+    /// A training mixture's doctor: `sources` reduces each episode as the mixture reads it, or
+    /// from the stores beside the writes ([`Doctor::take_stored`]); the pass judges.
+    pub fn reading_elsewhere(sources: &'a SourcesDoctor, judge: Judge<'a>) -> Self {
         Doctor {
             probe: None,
             judge,
             slots: Vec::new(),
             busy: AtomicU64::new(0),
-            elsewhere: Some(busy),
+            elsewhere: Some(sources),
             seconds: None,
         }
     }
 
-    /// Whether the pass computes the features (else the source does).
-    pub(super) fn reads(&self) -> bool {
-        self.probe.is_some()
+    /// Whether some episodes can be reduced from a rate's stored rows ([`Doctor::take_stored`]).
+    pub(super) fn takes_stored(&self) -> bool {
+        self.probe.is_some() || self.elsewhere.is_some_and(SourcesDoctor::stores_any)
+    }
+
+    /// Says, before the pass reads, whether [`Doctor::take_stored`] will run after it.
+    pub(super) fn will_take_stored(&self, yes: bool) {
+        if let Some(sources) = self.elsewhere {
+            sources.from_stores(yes);
+        }
     }
 
     /// The doctor's wall seconds (its share of the pass at the pass's thread count, plus the
@@ -87,7 +96,10 @@ impl<'a> Doctor<'a> {
     /// [`Doctor::take`] computes. The build runs this beside its writes.
     pub(super) fn take_stored(&self, rate: &RateState) -> Result<()> {
         let Some(probe) = self.probe else {
-            return Ok(());
+            return match self.elsewhere {
+                Some(sources) => sources.take_stored(&rate.lowdim, &|i| rate.ends.range(i)),
+                None => Ok(()),
+            };
         };
         let action = &rate.lowdim[probe.action_channel()];
         let state = probe.state_channel().map(|c| &rate.lowdim[c]);
@@ -124,7 +136,7 @@ impl<'a> Doctor<'a> {
             .collect();
         let excluded = (self.judge)(&feats)?;
         let threads = rayon::current_num_threads().max(1) as f64;
-        let elsewhere = self.elsewhere.map_or(0, |b| b.load(Ordering::Relaxed));
+        let elsewhere = (self.elsewhere).map_or(0, |s| s.busy().load(Ordering::Relaxed));
         let busy = (self.busy.load(Ordering::Relaxed) + elsewhere) as f64 * 1e-9;
         self.seconds = Some(busy / threads + started.elapsed().as_secs_f64());
         Ok(excluded)

@@ -187,10 +187,13 @@ pub fn execute(
         ),
     };
     // The rate whose store holds the source's own steps: the doctor reads it beside the writes.
-    let stored = doctor.as_ref().filter(|d| d.reads()).and_then(|_| {
+    let stored = doctor.as_ref().filter(|d| d.takes_stored()).and_then(|_| {
         jobs.iter()
             .position(|j| j.conversion == Conversion::Decimate { factor: 1 })
     });
+    if let Some(doctor) = &doctor {
+        doctor.will_take_stored(stored.is_some());
+    }
     let paths = spec.source_paths().join(", ");
     let pass = read::Pass {
         plan,

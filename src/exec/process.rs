@@ -37,7 +37,7 @@ pub(super) struct Processed {
     pub partials: Vec<Vec<Option<Partial>>>,
 }
 
-/// Decimates an episode to every rate, resizes the cameras a rate stores resized, encodes its
+/// Decimates an episode (read unpadded: [`Source::read_unpadded`]) to every rate, resizes the cameras a rate stores resized, encodes its
 /// frames for every sink, and computes the statistics partials of a training episode (of the
 /// frames as stored). Runs in parallel over episodes.
 pub(super) fn process(
@@ -46,7 +46,8 @@ pub(super) fn process(
     rates: &[Job],
     train: bool,
 ) -> Processed {
-    let channels = &source.manifest().channels;
+    let manifest = source.manifest();
+    let channels = &manifest.channels;
     let mut data: Vec<Vec<Prepared>> = rates.iter().map(|_| Vec::new()).collect();
     let mut partials: Vec<Vec<Option<Partial>>> = rates.iter().map(|_| Vec::new()).collect();
     // The source's own rate goes last, so that it can take the values once every other rate
@@ -67,19 +68,27 @@ pub(super) fn process(
         let mut per_partial = Vec::with_capacity(channels.len());
         let channel_data = channels.iter().zip(episode.channels.iter_mut()).zip(resize);
         for (c, ((ch, values), resize)) in channel_data.enumerate() {
-            let width = ch.width();
+            // A mixture source's low-dim rows come at its own width (`read_unpadded`).
+            let width = match values {
+                ChannelData::Lowdim(_) => manifest.own_width(c, episode.id),
+                ChannelData::Image(_) => ch.width(),
+            };
             let converted = match *conversion {
                 // The source's own rate, last, takes the values (no copy).
                 Conversion::Decimate { factor: 1 } if last => match values {
                     ChannelData::Lowdim(v) => ChannelData::Lowdim(std::mem::take(v)),
                     ChannelData::Image(v) => ChannelData::Image(std::mem::take(v)),
                 },
+                // A mixture source without the channel: nothing but padding.
+                _ if width == 0 => ChannelData::Lowdim(Vec::new()),
                 _ => conversion.apply(values, width, episode.len),
             };
             match converted {
                 ChannelData::Lowdim(v) => {
-                    per_partial
-                        .push(train.then(|| Partial::Lowdim(stats::Moments::of_rows(&v, width))));
+                    // At the channel's width: a mixture's padding counts as zeros.
+                    let rows = conversion.len(episode.len);
+                    let moments = || stats::Moments::of_narrow_rows(&v, rows, ch.width());
+                    per_partial.push(train.then(|| Partial::Lowdim(moments())));
                     per_channel.push(Prepared::Lowdim(v));
                 }
                 ChannelData::Image(d) => {

@@ -114,23 +114,16 @@ impl RateState {
 }
 
 /// The values each channel's store will hold at this rate (0 for cameras): every episode's
-/// converted rows, a mixture source's at its own width (`push_narrow`).
+/// converted rows, a mixture source's at its own width.
 pub(super) fn store_values(conversion: Conversion, manifest: &Manifest) -> Vec<usize> {
     (manifest.channels.iter().enumerate())
         .map(|(c, ch)| match ch.kind {
             ChannelKind::Image => 0,
             ChannelKind::Lowdim => (manifest.episodes.iter())
-                .map(|ep| conversion.len(ep.len) * own_width(manifest, c, ep.id))
+                .map(|ep| conversion.len(ep.len) * manifest.own_width(c, ep.id))
                 .sum(),
         })
         .collect()
-}
-
-/// The values per row that episode `id` keeps in channel `c`'s store: a mixture source's own
-/// width (the rest of a row is its padding), else the channel's.
-pub(super) fn own_width(manifest: &Manifest, c: usize, id: u64) -> usize {
-    let part = manifest.parts.get(manifest.source_of(id));
-    part.map_or(manifest.channels[c].width(), |p| p.widths[c])
 }
 
 /// The part of a channel's statistics reduced while the source is read: moments of low-dim

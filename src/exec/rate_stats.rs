@@ -8,6 +8,8 @@
 use std::collections::BTreeMap;
 use std::ops::Range;
 
+use rayon::prelude::*;
+
 use super::rate::{Partial, RateState};
 use crate::error::Result;
 use crate::source::{ChannelKind, Manifest};
@@ -56,25 +58,27 @@ pub(super) fn per_source(
     manifest: &Manifest,
     train_mask: &[bool],
 ) -> Result<Vec<BTreeMap<String, ChannelStats>>> {
-    let mut out = Vec::new();
-    for (s, part) in manifest.parts.iter().enumerate() {
-        let mut own = BTreeMap::new();
-        for (c, ch) in manifest.channels.iter().enumerate() {
-            let width = part.widths[c];
-            if width == 0 {
-                continue;
+    // Every (source, channel) on its own thread; each statistic reads only its own rows.
+    let pairs: Vec<(usize, usize)> = (0..manifest.parts.len())
+        .flat_map(|s| (0..manifest.channels.len()).map(move |c| (s, c)))
+        .filter(|&(s, c)| manifest.parts[s].widths[c] > 0)
+        .collect();
+    let each = pairs.par_iter().map(|&(s, c)| -> Result<ChannelStats> {
+        let width = manifest.parts[s].widths[c];
+        Ok(match &rate.source_partials[s][c] {
+            Partial::Image(p) => p.clone().finish(),
+            Partial::Lowdim(m) => {
+                let rows = train_rows(rate, manifest, train_mask, &[s]);
+                let high = rate.source_high[c][s].as_deref();
+                band(&rate.lowdim[c], &rows, m.columns(0..width), 0..width, high)?
             }
-            let s_stats = match &rate.source_partials[s][c] {
-                Partial::Image(p) => p.clone().finish(),
-                Partial::Lowdim(m) => {
-                    let rows = train_rows(rate, manifest, train_mask, &[s]);
-                    let high = rate.source_high[c][s].as_deref();
-                    band(&rate.lowdim[c], &rows, m.columns(0..width), 0..width, high)?
-                }
-            };
-            own.insert(ch.name.clone(), s_stats);
-        }
-        out.push(own);
+        })
+    });
+    let each: Vec<ChannelStats> = crate::error::in_order(each)?;
+    let mut out: Vec<BTreeMap<String, ChannelStats>> =
+        manifest.parts.iter().map(|_| BTreeMap::new()).collect();
+    for ((s, c), stats) in pairs.into_iter().zip(each) {
+        out[s].insert(manifest.channels[c].name.clone(), stats);
     }
     Ok(out)
 }
@@ -86,36 +90,39 @@ fn pooled(
     manifest: &Manifest,
     train_mask: &[bool],
 ) -> Result<BTreeMap<String, ChannelStats>> {
-    let mut out = BTreeMap::new();
-    for (c, ch) in manifest.channels.iter().enumerate() {
-        let s = match &rate.partials[c] {
-            // Frames are never padded: the partials of every training episode are the union's.
-            Partial::Image(p) => p.clone().finish(),
-            Partial::Lowdim(_) => {
-                let widths: Vec<usize> = manifest.parts.iter().map(|p| p.widths[c]).collect();
-                let mut parts = Vec::new();
-                for (dims, sources) in bands::bands(&widths, ch.width()) {
-                    if sources.is_empty() {
-                        parts.push(bands::uncovered(dims.len()));
-                        continue;
-                    }
-                    let mut m = Moments::new(dims.len());
-                    for &s in &sources {
-                        match &rate.source_partials[s][c] {
-                            Partial::Lowdim(own) => m.merge(&own.columns(dims.clone())),
-                            Partial::Image(_) => unreachable!("a low-dim channel's partial"),
+    let each = manifest
+        .channels
+        .par_iter()
+        .enumerate()
+        .map(|(c, ch)| -> Result<_> {
+            let s = match &rate.partials[c] {
+                // Frames are never padded: the partials of every training episode are the union's.
+                Partial::Image(p) => p.clone().finish(),
+                Partial::Lowdim(_) => {
+                    let widths: Vec<usize> = manifest.parts.iter().map(|p| p.widths[c]).collect();
+                    let mut parts = Vec::new();
+                    for (dims, sources) in bands::bands(&widths, ch.width()) {
+                        if sources.is_empty() {
+                            parts.push(bands::uncovered(dims.len()));
+                            continue;
                         }
+                        let mut m = Moments::new(dims.len());
+                        for &s in &sources {
+                            match &rate.source_partials[s][c] {
+                                Partial::Lowdim(own) => m.merge(&own.columns(dims.clone())),
+                                Partial::Image(_) => unreachable!("a low-dim channel's partial"),
+                            }
+                        }
+                        let rows = train_rows(rate, manifest, train_mask, &sources);
+                        let high = merged_counts(&rate.source_high[c], &sources, &dims);
+                        parts.push(band(&rate.lowdim[c], &rows, m, dims, high.as_deref())?);
                     }
-                    let rows = train_rows(rate, manifest, train_mask, &sources);
-                    let high = merged_counts(&rate.source_high[c], &sources, &dims);
-                    parts.push(band(&rate.lowdim[c], &rows, m, dims, high.as_deref())?);
+                    bands::concat(parts)
                 }
-                bands::concat(parts)
-            }
-        };
-        out.insert(ch.name.clone(), s);
-    }
-    Ok(out)
+            };
+            Ok((ch.name.clone(), s))
+        });
+    Ok(crate::error::in_order(each)?.into_iter().collect())
 }
 
 /// The training rows of the episodes of `sources`, in storage order.
@@ -159,19 +166,11 @@ fn band(
     dims: Range<usize>,
     high: Option<&[HighCounts]>,
 ) -> Result<ChannelStats> {
-    let width = store.width();
     let narrow = dims.len();
-    let mut buffer = Vec::new();
     stats::lowdim_from_rows(m, narrow, high, |f| {
-        if dims == (0..width) {
+        if dims == (0..store.width()) {
             return store.for_rows(rows, f);
         }
-        store.for_rows(rows, &mut |block| {
-            buffer.clear();
-            for row in block.chunks_exact(width) {
-                buffer.extend_from_slice(&row[dims.clone()]);
-            }
-            f(&buffer);
-        })
+        store.for_columns(rows, dims.clone(), f)
     })
 }

@@ -57,9 +57,10 @@ pub(super) enum Feed {
 struct Rows {
     values: Vec<f32>,
     train: bool,
-    /// Its source (0 for one source), and the values of each row that are its own.
+    /// Its source (0 for one source), and how many rows `values` holds (a mixture source's
+    /// at its own width, unpadded).
     source: usize,
-    own: usize,
+    rows: usize,
 }
 
 /// Reads every episode once into `rates` and `sinks` (rate position, sink). Returns the
@@ -200,7 +201,7 @@ pub(super) fn read_batch(
         let train = pass.plan.split.is_train(id);
         pass.reads[i].fetch_add(1, Ordering::Relaxed);
         episode_job(id, || {
-            let ep = pass.source.read_episode(i)?;
+            let ep = pass.source.read_unpadded(i)?;
             if panic_on == Some(id) {
                 panic!("CHUNKC_TEST_PANIC_EPISODE={id}");
             }
@@ -258,7 +259,7 @@ fn consume(
                         values,
                         train,
                         source,
-                        own: super::rate::own_width(manifest, c, id),
+                        rows: rate.ends.range(i).len(),
                     }),
                     Prepared::Frames(encoded) => {
                         for (_, sink) in sinks.iter_mut().filter(|(sr, _)| *sr == r) {
@@ -311,6 +312,7 @@ fn push_rows(rates: &mut [RateState], pending: Vec<Vec<Vec<Rows>>>) -> Result<()
         .map(|((store, high, mut sources), episodes)| {
             let store = Arc::get_mut(store).expect("no reader while the source is read");
             let width = store.width();
+            // A mixture source's rows come at its own width (unpadded), as its store keeps them.
             episodes.iter().try_for_each(|rows| {
                 let v = &rows.values;
                 if rows.train && width > 0 {
@@ -319,10 +321,10 @@ fn push_rows(rates: &mut [RateState], pending: Vec<Vec<Vec<Rows>>>) -> Result<()
                     }
                     let own = sources.as_mut().and_then(|s| s[rows.source].as_mut());
                     if let Some(own) = own {
-                        HighCounts::add_row_starts(own, v, width);
+                        HighCounts::add_rows(own, v);
                     }
                 }
-                store.push_narrow(v, rows.own)
+                store.push_own(v, rows.rows)
             })
         })
         .collect();

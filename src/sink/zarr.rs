@@ -39,8 +39,6 @@ pub const ZARR_DIR: &str = crate::spec::OutputFormat::Zarr.files().data;
 /// Low-dim chunks hold about this many bytes of values (a mixture's padding aside).
 const LOWDIM_CHUNK_BYTES: usize = 256 * 1024;
 const DEFAULT_BLOSC_LEVEL: u32 = 5;
-/// Low-dim values read from the store and written at once (whole chunks).
-const LOWDIM_BLOCK_BYTES: usize = 4 << 20;
 
 pub struct ZarrWriter {
     root: PathBuf,
@@ -256,22 +254,29 @@ impl Sink for ZarrWriter {
         raw: &Arc<LowdimStore>,
         _: &RowNormalizer,
     ) -> Result<()> {
-        // A block of whole chunks at a time: the store may be on disk.
+        use rayon::prelude::*;
+        // One chunk (one file) per task, read from the store (which may be on disk) straight
+        // into the chunk's buffer: the files are the same whatever the order, and a padded
+        // mixture channel's many values compress on every thread.
         let (width, chunk_rows) = (self.widths[channel], self.chunk_rows[channel].max(1));
-        let chunks_per_block = (LOWDIM_BLOCK_BYTES / (4 * width.max(1) * chunk_rows)).max(1);
-        let block_rows = chunks_per_block * chunk_rows;
-        for (b, lo) in (0..raw.len()).step_by(block_rows).enumerate() {
-            let hi = (lo + block_rows).min(raw.len());
-            let values = raw.rows(lo, hi)?;
-            Self::rows(
-                &self.data[channel],
-                &values,
-                width,
-                chunk_rows,
-                b * chunks_per_block,
-            )?;
-        }
-        Ok(())
+        let array = &self.data[channel];
+        let rank = array.dimensionality();
+        let chunks = raw.len().div_ceil(chunk_rows);
+        // Each thread fills one chunk buffer again and again (a fresh one a chunk would fault
+        // in and zero its pages every time).
+        let buffer = || vec![0f32; chunk_rows * width];
+        (0..chunks)
+            .into_par_iter()
+            .try_for_each_init(buffer, |chunk, c| {
+                let lo = c * chunk_rows;
+                let hi = (lo + chunk_rows).min(raw.len());
+                let (rows, rest) = chunk.split_at_mut((hi - lo) * width);
+                raw.rows_into(lo, rows)?;
+                rest.fill(0.0);
+                let mut idx = vec![0u64; rank];
+                idx[0] = c as u64;
+                array.store_chunk(&idx, &chunk[..]).map_err(err)
+            })
     }
 
     fn write_index(&mut self, index: &dyn WindowIndex) -> Result<()> {

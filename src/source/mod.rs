@@ -187,6 +187,14 @@ impl Manifest {
         }
     }
 
+    /// The values per row episode `id` holds of channel `c` (a low-dim channel): a training
+    /// mixture source's own width (the rest of a row is padding; 0 where it lacks the channel),
+    /// else the channel's.
+    pub fn own_width(&self, c: usize, id: u64) -> usize {
+        let part = self.parts.get(self.source_of(id));
+        part.map_or(self.channels[c].width(), |p| p.widths[c])
+    }
+
     /// The index of the mixture source episode `id` belongs to (0 for one source).
     pub fn source_of(&self, id: u64) -> usize {
         SourcePart::index_of(&self.parts, id)
@@ -258,6 +266,29 @@ pub trait Source: Send + Sync {
     fn manifest(&self) -> &Manifest;
     /// Reads the episode at position `index` of `manifest().episodes`.
     fn read_episode(&self, index: usize) -> Result<Episode>;
+    /// The episode at `index` as a build reads it: a training mixture's low-dim channels at
+    /// each source's own width ([`Manifest::own_width`]), not padded; every other source's as
+    /// [`Source::read_episode`] reads it. The build pads only what it writes.
+    fn read_unpadded(&self, index: usize) -> Result<Episode> {
+        let mut episode = self.read_episode(index)?;
+        let manifest = self.manifest();
+        for (c, values) in episode.channels.iter_mut().enumerate() {
+            let (width, own) = (
+                manifest.channels[c].width(),
+                manifest.own_width(c, episode.id),
+            );
+            if let ChannelData::Lowdim(v) = values {
+                if own < width {
+                    *v = v
+                        .chunks_exact(width)
+                        .flat_map(|r| &r[..own])
+                        .copied()
+                        .collect();
+                }
+            }
+        }
+        Ok(episode)
+    }
     /// The timestamps of the episode at `index`, `None` when the source stores none. The audit
     /// reads these for every episode before the build: adapters that can read them without the
     /// rest of the episode override this.

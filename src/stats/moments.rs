@@ -26,16 +26,31 @@ impl Moments {
     /// Partial of a row-major block of `rows × dims` values (two-pass within the block, which is
     /// both exact enough and fast).
     pub fn of_rows(values: &[f32], dims: usize) -> Self {
-        let mut m = Moments::new(dims);
-        if dims == 0 || values.is_empty() {
+        Moments::of_narrow_rows(values, values.len() / dims.max(1), dims)
+    }
+
+    /// The moments at `width` columns of `rows` rows of `own` values each (`values.len() /
+    /// rows`), each followed by `width - own` zeros (a mixture source's padding), equal bit for
+    /// bit to [`Moments::of_rows`] of the padded rows: only the `own` columns are summed, and a
+    /// padded column's moments are those of zeros (mean, M2, min and max 0).
+    pub fn of_narrow_rows(values: &[f32], rows: usize, width: usize) -> Self {
+        let mut m = Moments::new(width);
+        if width == 0 || rows == 0 {
             return m;
         }
-        let rows = values.len() / dims;
+        let own = values.len() / rows;
+        debug_assert!(own <= width && own * rows == values.len());
         m.count = rows as u64;
+        for d in own..width {
+            (m.min[d], m.max[d]) = (0.0, 0.0);
+        }
+        if own == 0 {
+            return m;
+        }
         // Zipped slices rather than indices: no bounds checks, and the per-dimension updates
         // of a row vectorize. Each dimension's sums are still taken in row order.
-        let (mean, min, max) = (&mut m.mean[..dims], &mut m.min[..dims], &mut m.max[..dims]);
-        for row in values.chunks_exact(dims) {
+        let (mean, min, max) = (&mut m.mean[..own], &mut m.min[..own], &mut m.max[..own]);
+        for row in values.chunks_exact(own) {
             for (((v, s), lo), hi) in row.iter().zip(&mut *mean).zip(&mut *min).zip(&mut *max) {
                 let v = f64::from(*v);
                 *s += v;
@@ -43,11 +58,11 @@ impl Moments {
                 *hi = hi.max(v);
             }
         }
-        for mean in &mut m.mean {
+        for mean in &mut m.mean[..own] {
             *mean /= rows as f64;
         }
-        let (mean, m2) = (&m.mean[..dims], &mut m.m2[..dims]);
-        for row in values.chunks_exact(dims) {
+        let (mean, m2) = (&m.mean[..own], &mut m.m2[..own]);
+        for row in values.chunks_exact(own) {
             for ((v, mu), acc) in row.iter().zip(mean).zip(&mut *m2) {
                 let dv = f64::from(*v) - mu;
                 *acc += dv * dv;
@@ -112,6 +127,24 @@ mod tests {
             assert_eq!(merged.min[d], whole.min[d]);
             assert_eq!(merged.max[d], whole.max[d]);
         }
+    }
+
+    #[test]
+    fn narrow_rows_are_the_moments_of_their_padding_bit_for_bit() {
+        let (width, own, rows) = (5, 2, 8);
+        let narrow: Vec<f32> = (0..rows * own)
+            .map(|i| ((i * 37) % 11) as f32 * 0.3 - 1.7)
+            .collect();
+        let padded: Vec<f32> = (narrow.chunks_exact(own))
+            .flat_map(|r| r.iter().copied().chain([0.0; 3]))
+            .collect();
+        let want = Moments::of_rows(&padded, width);
+        assert_eq!(Moments::of_narrow_rows(&narrow, rows, width), want);
+        // A source without the channel: its rows are all padding.
+        let zeros = vec![0.0; rows * width];
+        let none = Moments::of_narrow_rows(&[], rows, width);
+        assert_eq!(none, Moments::of_rows(&zeros, width));
+        assert_eq!(none.count, rows as u64);
     }
 
     #[test]

@@ -14,7 +14,7 @@
 //! Small builds never touch the disk.
 //!
 //! A training mixture's rows are padded to one width, but only each source's own dimensions are
-//! values: a store keeps a row's first `own` values only ([`LowdimStore::push_narrow`]), in runs
+//! values: a store keeps a row's first `own` values only ([`LowdimStore::push_own`]), in runs
 //! of rows of one own width, and reads give back whole rows, their padding zeros, as if stored.
 //! A mixture's padding costs neither memory nor disk.
 //!
@@ -26,6 +26,7 @@
 use std::borrow::Cow;
 use std::fs::File;
 use std::io::Write;
+use std::ops::Range;
 use std::path::PathBuf;
 
 use crate::bytes;
@@ -129,21 +130,20 @@ impl LowdimStore {
 
     /// Appends whole rows.
     pub fn push(&mut self, values: &[f32]) -> Result<()> {
-        self.push_narrow(values, self.width)
+        self.push_own(values, values.len() / self.width.max(1))
     }
 
-    /// Appends whole rows (of `width` values) of which only the first `own` are kept: the rest
-    /// are zeros (a mixture source's padding), and read back as zeros.
-    pub fn push_narrow(&mut self, values: &[f32], own: usize) -> Result<()> {
+    /// Appends `rows` rows given by their first `values.len() / rows` values each (a mixture
+    /// source's own): the rest of each row is its padding, zeros, read back as zeros.
+    pub fn push_own(&mut self, values: &[f32], rows: usize) -> Result<()> {
         let width = self.width;
-        if width == 0 {
+        if width == 0 || rows == 0 {
             return Ok(());
         }
-        debug_assert_eq!(values.len() % width, 0);
+        let own = values.len() / rows;
+        debug_assert_eq!(own * rows, values.len());
         debug_assert!(own <= width);
-        let rows = values.len() / width;
-        let narrow = own < width;
-        if narrow || !self.runs.is_empty() {
+        if own < width || !self.runs.is_empty() {
             if self.runs.is_empty() && self.rows > 0 {
                 self.runs.push(Run {
                     row: 0,
@@ -156,19 +156,7 @@ impl LowdimStore {
                 self.runs.push(Run { row, value, own });
             }
         }
-        if narrow {
-            debug_assert!(
-                values
-                    .chunks_exact(width)
-                    .all(|r| r[own..].iter().all(|&v| v == 0.0)),
-                "the values past `own` are padding"
-            );
-            for row in values.chunks_exact(width) {
-                self.mem.extend_from_slice(&row[..own]);
-            }
-        } else {
-            self.mem.extend_from_slice(values);
-        }
+        self.mem.extend_from_slice(values);
         self.rows += rows;
         if self.mem.len() * 4 > self.flush_at {
             self.flush()?;
@@ -215,6 +203,27 @@ impl LowdimStore {
         }
         let mut out = vec![0f32; (hi - lo) * width];
         self.rows_into(lo, &mut out)?;
+        Ok(Cow::Owned(out))
+    }
+
+    /// Rows `lo..hi`, which keep one own width (a mixture source's episode), at that width:
+    /// the values as stored, borrowed when they are in memory.
+    pub fn own_rows(&self, lo: usize, hi: usize) -> Result<Cow<'_, [f32]>> {
+        self.check_range(lo, hi)?;
+        let run = self.run_at(lo);
+        if hi > run.end {
+            return Err(Error::Internal(format!(
+                "rows {lo}..{hi} keep more than one width (a run ends at {})",
+                run.end
+            )));
+        }
+        let (from, to) = (run.value, run.value + (hi - lo) * run.own);
+        let disk = self.disk_values();
+        if from >= disk {
+            return Ok(Cow::Borrowed(&self.mem[from - disk..to - disk]));
+        }
+        let mut out = vec![0f32; to - from];
+        self.values_into(from, &mut out)?;
         Ok(Cow::Owned(out))
     }
 
@@ -307,6 +316,84 @@ impl LowdimStore {
         }
         Ok(())
     }
+
+    /// Calls `f` with columns `dims` of the rows of `ranges`, gathered into blocks as
+    /// [`LowdimStore::for_rows`] gathers whole rows: `dims.len()` values a row, zeros past a
+    /// narrow row's own values. Only the values stored are read: a narrow row's padding is never
+    /// made only to be skipped.
+    pub fn for_columns(
+        &self,
+        ranges: &[(usize, usize)],
+        dims: Range<usize>,
+        f: &mut dyn FnMut(&[f32]),
+    ) -> Result<()> {
+        let narrow = dims.len();
+        if self.width == 0 || narrow == 0 {
+            return Ok(());
+        }
+        let capacity = BLOCK_ROWS.min(self.len()).max(1);
+        let mut block = vec![0f32; capacity * narrow];
+        let mut stored = Vec::new();
+        let mut filled = 0usize;
+        for &(lo, hi) in ranges {
+            self.check_range(lo, hi)?;
+            let mut at = lo;
+            while at < hi {
+                let run = self.run_at(at);
+                let take = (hi.min(run.end) - at).min(capacity - filled);
+                let out = &mut block[filled * narrow..(filled + take) * narrow];
+                // The columns of `dims` this run holds; the rest of each row is its padding.
+                let held = dims.start.min(run.own)..dims.end.min(run.own);
+                if held.is_empty() {
+                    out.fill(0.0);
+                } else {
+                    stored.resize(take * run.own, 0.0);
+                    self.values_into(run.value, &mut stored)?;
+                    let rows = stored
+                        .chunks_exact(run.own)
+                        .zip(out.chunks_exact_mut(narrow));
+                    for (row, dst) in rows {
+                        dst[..held.len()].copy_from_slice(&row[held.clone()]);
+                        dst[held.len()..].fill(0.0);
+                    }
+                }
+                (at, filled) = (at + take, filled + take);
+                if filled == capacity {
+                    f(&block);
+                    filled = 0;
+                }
+            }
+        }
+        if filled > 0 {
+            f(&block[..filled * narrow]);
+        }
+        Ok(())
+    }
+
+    /// Where row `row`'s values start, how many it keeps, and the row its run ends at.
+    fn run_at(&self, row: usize) -> RunAt {
+        if self.runs.is_empty() {
+            return RunAt {
+                value: row * self.width,
+                own: self.width,
+                end: self.rows,
+            };
+        }
+        let i = self.runs.partition_point(|r| r.row <= row) - 1;
+        let run = self.runs[i];
+        RunAt {
+            value: run.value + (row - run.row) * run.own,
+            own: run.own,
+            end: self.runs.get(i + 1).map_or(self.rows, |next| next.row),
+        }
+    }
+}
+
+/// A row's place in the store ([`LowdimStore::run_at`]).
+struct RunAt {
+    value: usize,
+    own: usize,
+    end: usize,
 }
 
 #[cfg(test)]

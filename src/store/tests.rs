@@ -103,12 +103,44 @@ fn spilled_and_in_memory_stores_read_the_same_rows_and_columns() {
 }
 
 #[test]
+fn columns_of_whole_rows_whether_spilled_or_not() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (width, batches) = (3, [3, 17, 1, 40, 9, 0, 25, 2]);
+    let memory = filled(usize::MAX, &tmp.path().join("m"), width, &batches);
+    let spilled = filled(256, &tmp.path().join("s"), width, &batches);
+    assert!(spilled.is_spilled());
+    let n: usize = batches.iter().sum();
+    let all = memory.rows(0, n).unwrap().into_owned();
+    let ranges = [(0, 2), (2, 10), (30, 31), (50, n)];
+    let want: Vec<f32> = (ranges.iter())
+        .flat_map(|&(lo, hi)| all[lo * width..hi * width].chunks_exact(width))
+        .flat_map(|row| row[1..3].iter().copied())
+        .collect();
+    for store in [&memory, &spilled] {
+        let mut columns = Vec::new();
+        store
+            .for_columns(&ranges, 1..3, &mut |b| columns.extend_from_slice(b))
+            .unwrap();
+        assert_eq!(columns, want);
+    }
+}
+
+#[test]
 fn narrow_rows_read_back_padded_whether_spilled_or_not() {
     // A mixture's episodes, in source order and interleaved: whole rows, then rows keeping
-    // 2 and 1 of 4 values, then whole again.
+    // 2 and 1 of 4 values, none (a source without the channel), then whole again.
     let tmp = tempfile::tempdir().unwrap();
     let width = 4;
-    let episodes: [(usize, usize); 7] = [(5, 4), (3, 2), (4, 2), (6, 1), (2, 4), (7, 2), (1, 4)];
+    let episodes: [(usize, usize); 8] = [
+        (5, 4),
+        (3, 2),
+        (4, 2),
+        (6, 1),
+        (3, 0),
+        (2, 4),
+        (7, 2),
+        (1, 4),
+    ];
     let mut next = 0f32;
     let mut padded = Vec::new();
     let pushed: Vec<(Vec<f32>, usize)> = episodes
@@ -134,7 +166,11 @@ fn narrow_rows_read_back_padded_whether_spilled_or_not() {
         let dir = tmp.path().join(name);
         let mut store = LowdimStore::with_values(width, budget, dir, kept);
         for (values, own) in &pushed {
-            store.push_narrow(values, *own).unwrap();
+            let rows = values.len() / width;
+            let kept: Vec<f32> = (values.chunks_exact(width))
+                .flat_map(|row| row[..*own].iter().copied())
+                .collect();
+            store.push_own(&kept, rows).unwrap();
         }
         assert_eq!(store.len(), n);
         assert_eq!(store.values(), kept, "padding is not stored");
@@ -157,5 +193,41 @@ fn narrow_rows_read_back_padded_whether_spilled_or_not() {
             .flat_map(|&(lo, hi)| padded[lo * width..hi * width].iter().copied())
             .collect();
         assert_eq!(got, want);
+        own_rows_and_columns(&store, &pushed, width, &want, &ranges, name);
+    }
+}
+
+/// A mixture's store (`pushed`: each episode's padded rows and own width) read back at each
+/// episode's own width, and by columns of the padded `want` rows of `ranges`.
+fn own_rows_and_columns(
+    store: &LowdimStore,
+    pushed: &[(Vec<f32>, usize)],
+    width: usize,
+    want: &[f32],
+    ranges: &[(usize, usize)],
+    name: &str,
+) {
+    // Each episode's rows at its own width, as pushed.
+    let mut at = 0;
+    for (values, own) in pushed {
+        let rows = values.len() / width;
+        let kept: Vec<f32> = (values.chunks_exact(width))
+            .flat_map(|row| row[..*own].iter().copied())
+            .collect();
+        assert_eq!(store.own_rows(at, at + rows).unwrap().as_ref(), &kept[..]);
+        at += rows;
+    }
+    assert!(store.own_rows(4, 6).is_err(), "rows of two widths");
+    // Columns of the padded rows, from inside one source's own values to past every one.
+    for dims in [0..width, 0..1, 1..3, 2..width, width - 1..width] {
+        let mut got = Vec::new();
+        store
+            .for_columns(ranges, dims.clone(), &mut |b| got.extend_from_slice(b))
+            .unwrap();
+        let want: Vec<f32> = want
+            .chunks_exact(width)
+            .flat_map(|row| row[dims.clone()].iter().copied())
+            .collect();
+        assert_eq!(got, want, "{name}: columns {dims:?}");
     }
 }
