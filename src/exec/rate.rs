@@ -25,17 +25,15 @@ pub(super) struct RateState {
     /// Per channel (manifest order): concatenated low-dim values; empty for images. Shared with
     /// the sinks that export episode by episode once reading is over.
     pub lowdim: Vec<Arc<LowdimStore>>,
-    /// Per channel: the first pass of the exact percentiles over the training rows, counted as
-    /// they are pushed (see [`stats::SecondPass`] for the second); `None` for images and for
-    /// channels wider than [`COUNT_AHEAD_COLUMNS`].
-    pub high: Vec<Option<Vec<HighCounts>>>,
-    /// A training mixture's, per channel, per source: the same first pass over that source's
-    /// training rows, on its own dimensions (its padding is not a value); the pooled bands
-    /// merge them. Empty for one source.
+    /// Per channel, per source (one for a single source): the first pass of the exact
+    /// percentiles over that source's training rows, on its own dimensions (a mixture's padding
+    /// is not a value), counted as they are pushed (see [`stats::SecondPass`] for the second);
+    /// the statistics' bands merge them. `None` for channels wider than
+    /// [`COUNT_AHEAD_COLUMNS`]; empty tables for images.
     pub source_high: Vec<Vec<Option<Vec<HighCounts>>>>,
     /// Per channel: the statistics partials of the training episodes, merged in episode order.
     pub partials: Vec<Partial>,
-    /// A training mixture's, per source, per channel (empty for one source).
+    /// Per source (one for a single source), per channel: the same, of that source's episodes.
     pub source_partials: Vec<Vec<Partial>>,
 }
 
@@ -70,9 +68,8 @@ impl RateState {
                 })
                 .collect()
         };
-        // A mixture's padded rows hold zeros that no statistic counts: its sources count their
-        // own dimensions, and the pooled bands merge them (`rate_stats`).
-        let mixture = !manifest.parts.is_empty();
+        // Each source counts its own dimensions (a mixture's padding is zeros no statistic
+        // counts), and the statistics' bands merge them (`rate_stats`).
         let counts = |w: usize| {
             (w <= COUNT_AHEAD_COLUMNS).then(|| (0..w).map(|_| HighCounts::new()).collect())
         };
@@ -87,23 +84,20 @@ impl RateState {
                     Arc::new(LowdimStore::with_values(width(ch), budgets[c], dir, values))
                 })
                 .collect(),
-            high: channels
-                .iter()
-                .map(|ch| counts(width(ch)).filter(|_| !mixture))
-                .collect(),
             source_high: channels
                 .iter()
                 .enumerate()
-                .filter(|_| mixture)
                 .map(|(c, ch)| {
                     let own = |w: usize| if width(ch) == 0 { 0 } else { w };
-                    (manifest.parts.iter())
-                        .map(|part| counts(own(part.widths[c])))
+                    (manifest.source_widths(c).into_iter())
+                        .map(|w| counts(own(w)))
                         .collect()
                 })
                 .collect(),
             partials: partials(),
-            source_partials: manifest.parts.iter().map(|_| partials()).collect(),
+            source_partials: (0..manifest.parts.len().max(1))
+                .map(|_| partials())
+                .collect(),
         }
     }
 

@@ -1,9 +1,10 @@
 //! The statistics of every channel at one rate, shared by every profile at that rate: low-dim
 //! percentiles from the row store (moments were merged while reading), image statistics from
-//! their partials. A training mixture's sources each get their own, over their training rows at
-//! their own width, and the pooled ones are over the union of the sources' training rows, per
-//! dimension over the sources that have it ([`stats::bands`]): padding never enters a
-//! statistic, and every percentile is exact over the rows it covers.
+//! their partials. They are over the union of the sources' training rows, per dimension over
+//! the sources that have it ([`stats::bands`]); a single source is one source whose one band is
+//! the whole channel. A training mixture's sources each get their own too, over their training
+//! rows at their own width: padding never enters a statistic, and every percentile is exact
+//! over the rows it covers.
 
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -12,43 +13,52 @@ use rayon::prelude::*;
 
 use super::rate::{Partial, RateState};
 use crate::error::Result;
-use crate::source::{ChannelKind, Manifest};
+use crate::source::Manifest;
 use crate::stats::{self, bands, ChannelStats, HighCounts, Moments};
 use crate::store::LowdimStore;
 
 /// The statistics of every channel at this rate: low-dim percentiles from the store (moments
-/// were merged while reading), image statistics from their partials; a mixture's pooled over
-/// its sources.
+/// were merged while reading), image statistics from their partials. A low-dim channel's are
+/// over the union of its sources' training rows, per dimension over the sources that have it
+/// ([`stats::bands`]): one band of one source for a single source, and a mixture's padding
+/// never enters a statistic.
 pub(super) fn stats(
     rate: &RateState,
     manifest: &Manifest,
     train_mask: &[bool],
 ) -> Result<BTreeMap<String, ChannelStats>> {
-    if !manifest.parts.is_empty() {
-        return pooled(rate, manifest, train_mask);
-    }
-    let mut by_channel = BTreeMap::new();
-    for (c, ch) in manifest.channels.iter().enumerate() {
-        let s = match (&rate.partials[c], ch.kind) {
-            (Partial::Lowdim(m), ChannelKind::Lowdim) => {
-                let values = &rate.lowdim[c];
-                let train: Vec<(usize, usize)> = (0..rate.ends.len())
-                    .filter(|&e| train_mask[e])
-                    .map(|e| (rate.ends.start(e), rate.ends.range(e).end))
-                    .collect();
-                // The first percentile pass was counted as the rows arrived; the second
-                // reads the training rows once, for every column.
-                let high = rate.high[c].as_deref();
-                stats::lowdim_from_rows(m.clone(), ch.width(), high, |f| {
-                    values.for_rows(&train, f)
-                })?
-            }
-            (Partial::Image(p), ChannelKind::Image) => p.clone().finish(),
-            _ => unreachable!("a channel's partial has its kind"),
-        };
-        by_channel.insert(ch.name.clone(), s);
-    }
-    Ok(by_channel)
+    let each = manifest
+        .channels
+        .par_iter()
+        .enumerate()
+        .map(|(c, ch)| -> Result<_> {
+            let s = match &rate.partials[c] {
+                // Frames are never padded: the partials of every training episode are the union's.
+                Partial::Image(p) => p.clone().finish(),
+                Partial::Lowdim(_) => {
+                    let mut parts = Vec::new();
+                    for (dims, sources) in bands::bands(&manifest.source_widths(c), ch.width()) {
+                        if sources.is_empty() {
+                            parts.push(bands::uncovered(dims.len()));
+                            continue;
+                        }
+                        let mut m = Moments::new(dims.len());
+                        for &s in &sources {
+                            match &rate.source_partials[s][c] {
+                                Partial::Lowdim(own) => m.merge(&own.columns(dims.clone())),
+                                Partial::Image(_) => unreachable!("a low-dim channel's partial"),
+                            }
+                        }
+                        let rows = train_rows(rate, manifest, train_mask, &sources);
+                        let high = merged_counts(&rate.source_high[c], &sources, &dims);
+                        parts.push(band(&rate.lowdim[c], &rows, m, dims, high.as_deref())?);
+                    }
+                    bands::concat(parts)
+                }
+            };
+            Ok((ch.name.clone(), s))
+        });
+    Ok(crate::error::in_order(each)?.into_iter().collect())
 }
 
 /// Per source (mixture order), every channel it has: its own statistics, at its own width
@@ -81,48 +91,6 @@ pub(super) fn per_source(
         out[s].insert(manifest.channels[c].name.clone(), stats);
     }
     Ok(out)
-}
-
-/// Every channel's statistics over the union of the sources' training rows, at the channel's
-/// width (dimensions no source has are zeros counting nothing).
-fn pooled(
-    rate: &RateState,
-    manifest: &Manifest,
-    train_mask: &[bool],
-) -> Result<BTreeMap<String, ChannelStats>> {
-    let each = manifest
-        .channels
-        .par_iter()
-        .enumerate()
-        .map(|(c, ch)| -> Result<_> {
-            let s = match &rate.partials[c] {
-                // Frames are never padded: the partials of every training episode are the union's.
-                Partial::Image(p) => p.clone().finish(),
-                Partial::Lowdim(_) => {
-                    let widths: Vec<usize> = manifest.parts.iter().map(|p| p.widths[c]).collect();
-                    let mut parts = Vec::new();
-                    for (dims, sources) in bands::bands(&widths, ch.width()) {
-                        if sources.is_empty() {
-                            parts.push(bands::uncovered(dims.len()));
-                            continue;
-                        }
-                        let mut m = Moments::new(dims.len());
-                        for &s in &sources {
-                            match &rate.source_partials[s][c] {
-                                Partial::Lowdim(own) => m.merge(&own.columns(dims.clone())),
-                                Partial::Image(_) => unreachable!("a low-dim channel's partial"),
-                            }
-                        }
-                        let rows = train_rows(rate, manifest, train_mask, &sources);
-                        let high = merged_counts(&rate.source_high[c], &sources, &dims);
-                        parts.push(band(&rate.lowdim[c], &rows, m, dims, high.as_deref())?);
-                    }
-                    bands::concat(parts)
-                }
-            };
-            Ok((ch.name.clone(), s))
-        });
-    Ok(crate::error::in_order(each)?.into_iter().collect())
 }
 
 /// The training rows of the episodes of `sources`, in storage order.

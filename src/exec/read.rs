@@ -250,9 +250,7 @@ fn consume(
             for (c, (values, partial)) in data.into_iter().zip(partials).enumerate() {
                 if let Some(p) = partial {
                     rate.partials[c].merge(&p);
-                    if let Some(own) = rate.source_partials.get_mut(source) {
-                        own[c].merge(&p);
-                    }
+                    rate.source_partials[source][c].merge(&p);
                 }
                 match values {
                     Prepared::Lowdim(values) => pending[r][c].push(Rows {
@@ -289,42 +287,29 @@ fn consume(
     push_rows(rates, pending)
 }
 
-/// Each store takes its episodes' rows in order, counting the training rows' first percentile
-/// pass (a mixture's per source, on its own dimensions); stores are independent, so they fill
-/// (and spill) side by side.
+/// Each store takes its episodes' rows in order, each source counting the first percentile
+/// pass over its training rows (a mixture's on its own dimensions); stores are independent, so
+/// they fill (and spill) side by side.
 fn push_rows(rates: &mut [RateState], pending: Vec<Vec<Vec<Rows>>>) -> Result<()> {
     type Counts = Option<Vec<HighCounts>>;
-    type Channel<'r> = (
-        &'r mut Arc<LowdimStore>,
-        &'r mut Counts,
-        Option<&'r mut Vec<Counts>>,
-    );
-    let channels: Vec<Channel> = rates
+    let channels: Vec<(&mut Arc<LowdimStore>, &mut Vec<Counts>)> = rates
         .iter_mut()
-        .flat_map(|r| {
-            let mut sources = r.source_high.iter_mut();
-            (r.lowdim.iter_mut().zip(r.high.iter_mut())).map(move |(s, h)| (s, h, sources.next()))
-        })
+        .flat_map(|r| r.lowdim.iter_mut().zip(r.source_high.iter_mut()))
         .collect();
     let pushed: Vec<Result<()>> = channels
         .into_par_iter()
         .zip(pending.into_iter().flatten().collect::<Vec<_>>())
-        .map(|((store, high, mut sources), episodes)| {
+        .map(|((store, sources), episodes)| {
             let store = Arc::get_mut(store).expect("no reader while the source is read");
             let width = store.width();
             // A mixture source's rows come at its own width (unpadded), as its store keeps them.
             episodes.iter().try_for_each(|rows| {
-                let v = &rows.values;
                 if rows.train && width > 0 {
-                    if let Some(high) = high.as_mut() {
-                        HighCounts::add_rows(high, v);
-                    }
-                    let own = sources.as_mut().and_then(|s| s[rows.source].as_mut());
-                    if let Some(own) = own {
-                        HighCounts::add_rows(own, v);
+                    if let Some(own) = sources[rows.source].as_mut() {
+                        HighCounts::add_rows(own, &rows.values);
                     }
                 }
-                store.push_own(v, rows.rows)
+                store.push_own(&rows.values, rows.rows)
             })
         })
         .collect();

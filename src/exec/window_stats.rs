@@ -72,21 +72,20 @@ pub(super) fn profile_stats(
                 .collect(),
             dims,
         };
-        if manifest.parts.is_empty() {
-            let (_, s) = rows(&[0], 0..widths.after).stats()?;
-            out.pooled.insert(ch.name.clone(), s);
-            continue;
-        }
-        // Each source's own, then the union's per band of the sources that cover it.
-        let mut moments = Vec::new();
+        // Each source's own (one for a single source), then the union's per band of the sources
+        // that cover it; a band one source covers is that source's own, its dimensions `dims`.
+        let mut own_stats = Vec::new();
         for (s, &own) in widths.own_after.iter().enumerate() {
             if widths.own[s] == 0 {
-                moments.push(Moments::new(0));
+                own_stats.push((Moments::new(0), None));
                 continue;
             }
             let (m, stats) = rows(&[s], 0..own).stats()?;
-            out.sources[s].insert(ch.name.clone(), stats);
-            moments.push(m);
+            // A mixture's per-source statistics (a single source has only the union's).
+            if let Some(kept) = out.sources.get_mut(s) {
+                kept.insert(ch.name.clone(), stats.clone());
+            }
+            own_stats.push((m, Some(stats)));
         }
         let mut parts = Vec::new();
         for (dims, sources) in bands::bands(&widths.own_after, widths.after) {
@@ -94,9 +93,15 @@ pub(super) fn profile_stats(
                 parts.push(bands::uncovered(dims.len()));
                 continue;
             }
+            if let [s] = sources[..] {
+                if let (_, Some(stats)) = &own_stats[s] {
+                    parts.push(stats.columns(dims));
+                    continue;
+                }
+            }
             let mut m = Moments::new(dims.len());
             for &s in &sources {
-                m.merge(&moments[s].columns(dims.clone()));
+                m.merge(&own_stats[s].0.columns(dims.clone()));
             }
             parts.push(rows(&sources, dims).percentiles(m)?);
         }

@@ -138,10 +138,7 @@ pub(super) fn widths(
     let mut out = Vec::new();
     for (c, ch) in manifest.channels.iter().enumerate() {
         let stored = ch.width();
-        let own: Vec<usize> = match manifest.parts.is_empty() {
-            true => vec![stored],
-            false => manifest.parts.iter().map(|p| p.widths[c]).collect(),
-        };
+        let own = manifest.source_widths(c);
         if ch.kind != ChannelKind::Lowdim {
             out.push(Widths {
                 stored,

@@ -39,6 +39,33 @@ impl Moments {
     }
 }
 
+impl ChannelStats {
+    /// The statistics of dimensions `columns` only: each dimension's are its own, over the
+    /// same rows (a band of a channel that one source covers).
+    pub fn columns(&self, columns: Range<usize>) -> ChannelStats {
+        let pick = |v: &Vec<f64>| v[columns.clone()].to_vec();
+        ChannelStats {
+            mean: pick(&self.mean),
+            std: pick(&self.std),
+            min: pick(&self.min),
+            max: pick(&self.max),
+            p001: pick(&self.p001),
+            p999: pick(&self.p999),
+            q01: pick(&self.q01),
+            q99: pick(&self.q99),
+            q10: pick(&self.q10),
+            q50: pick(&self.q50),
+            q90: pick(&self.q90),
+            count: self.count,
+            dim_count: match self.dim_count.is_empty() {
+                true => Vec::new(),
+                false => self.dim_count[columns.clone()].to_vec(),
+            },
+            moments: self.moments.columns(columns),
+        }
+    }
+}
+
 /// Statistics of `width` dimensions that no value covers: zeros, counting nothing.
 pub fn uncovered(width: usize) -> ChannelStats {
     let zeros = vec![0.0; width];
@@ -131,5 +158,19 @@ mod tests {
         assert_eq!(joined.q50, [first.q50, last.q50].concat());
         let want = last.moments.std(1)[0];
         assert!((joined.unbiased_std()[2] - want).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_statistics_columns_are_those_columns_statistics_bit_for_bit() {
+        let rows: Vec<f32> = (0..60)
+            .map(|i| ((i * 37) % 23) as f32 * 0.7 - 3.1)
+            .collect();
+        let whole = lowdim(std::iter::once(&rows[..]), 4);
+        let middle: Vec<f32> = rows.chunks(4).flat_map(|r| r[1..3].to_vec()).collect();
+        let alone = lowdim(std::iter::once(&middle[..]), 2);
+        let cut = whole.columns(1..3);
+        let json = |s: &ChannelStats| serde_json::to_string(s).unwrap();
+        assert_eq!(json(&cut), json(&alone));
+        assert_eq!(cut.moments, alone.moments);
     }
 }
