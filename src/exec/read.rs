@@ -253,12 +253,20 @@ fn consume(
                     rate.source_partials[source][c].merge(&p);
                 }
                 match values {
-                    Prepared::Lowdim(values) => pending[r][c].push(Rows {
-                        values,
-                        train,
-                        source,
-                        rows: rate.ends.range(i).len(),
-                    }),
+                    Prepared::Lowdim(values) => {
+                        // As many rows as the values hold; a mixture source without the
+                        // channel holds none, and is its episode's rows of padding.
+                        let rows = match manifest.own_width(c, id) {
+                            0 => rate.ends.range(i).len(),
+                            own => values.len() / own,
+                        };
+                        pending[r][c].push(Rows {
+                            values,
+                            train,
+                            source,
+                            rows,
+                        })
+                    }
                     Prepared::Frames(encoded) => {
                         for (_, sink) in sinks.iter_mut().filter(|(sr, _)| *sr == r) {
                             let enc = sink.frame_encoding();
