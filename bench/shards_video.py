@@ -29,7 +29,6 @@ the merge's wall time and peak RSS; the output's size against the source's video
 """
 
 import argparse
-import hashlib
 import json
 import os
 import shutil
@@ -39,28 +38,16 @@ import sys
 import time
 from pathlib import Path
 
+from shards import hashes, timed as run  # bench/shards.py: the same helpers
+
 REPO = Path(__file__).resolve().parent.parent
 BIN = Path(os.environ.get("CHUNKC_BIN", REPO / "target" / "release" / "chunkc")).resolve()
 DRIVER = REPO / "scripts" / "chunkc_ray.py"
 MODES = {"copy": "", "encode": "video_copy = false\n"}
 
 
-def hashes(root):
-    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(root.rglob("*")) if p.is_file()}
-
-
 def size(root, pattern="*"):
     return sum(p.stat().st_size for p in Path(root).rglob(pattern) if p.is_file())
-
-
-def run(cmd, env=None):
-    cmd = [str(c) for c in cmd]
-    t = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
-    if proc.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr[-3000:]}")
-    return time.perf_counter() - t
 
 
 def wrapper(work):

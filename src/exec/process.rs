@@ -37,9 +37,10 @@ pub(super) struct Processed {
     pub partials: Vec<Vec<Option<Partial>>>,
 }
 
-/// Decimates an episode (read unpadded: [`Source::read_unpadded`]) to every rate, resizes the cameras a rate stores resized, encodes its
-/// frames for every sink, and computes the statistics partials of a training episode (of the
-/// frames as stored). Runs in parallel over episodes.
+/// Decimates an episode (read unpadded: [`Source::read_unpadded`]) to every rate, resizes the
+/// cameras a rate stores resized, encodes its frames for every sink, and computes the
+/// statistics partials of a training episode (of the frames as stored). Runs in parallel over
+/// episodes.
 pub(super) fn process(
     mut episode: Episode,
     source: &dyn Source,

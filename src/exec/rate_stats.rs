@@ -136,9 +136,6 @@ fn band(
 ) -> Result<ChannelStats> {
     let narrow = dims.len();
     stats::lowdim_from_rows(m, narrow, high, |f| {
-        if dims == (0..store.width()) {
-            return store.for_rows(rows, f);
-        }
         store.for_columns(rows, dims.clone(), f)
     })
 }

@@ -211,28 +211,12 @@ pub trait Source: Send + Sync {
     fn manifest(&self) -> &Manifest;
     /// Reads the episode at position `index` of `manifest().episodes`.
     fn read_episode(&self, index: usize) -> Result<Episode>;
-    /// The episode at `index` as a build reads it: a training mixture's low-dim channels at
-    /// each source's own width ([`Manifest::own_width`]), not padded; every other source's as
-    /// [`Source::read_episode`] reads it. The build pads only what it writes.
+    /// The episode at `index` as a build reads it: its low-dim channels at the width
+    /// [`Manifest::own_width`] gives, not padded. Only a source whose manifest has `parts` (a
+    /// training mixture) pads, and it overrides this; every other source reads as
+    /// [`Source::read_episode`] does. The build pads only what it writes.
     fn read_unpadded(&self, index: usize) -> Result<Episode> {
-        let mut episode = self.read_episode(index)?;
-        let manifest = self.manifest();
-        for (c, values) in episode.channels.iter_mut().enumerate() {
-            let (width, own) = (
-                manifest.channels[c].width(),
-                manifest.own_width(c, episode.id),
-            );
-            if let ChannelData::Lowdim(v) = values {
-                if own < width {
-                    *v = v
-                        .chunks_exact(width)
-                        .flat_map(|r| &r[..own])
-                        .copied()
-                        .collect();
-                }
-            }
-        }
-        Ok(episode)
+        self.read_episode(index)
     }
     /// The timestamps of the episode at `index`, `None` when the source stores none. The audit
     /// reads these for every episode before the build: adapters that can read them without the

@@ -291,30 +291,7 @@ impl LowdimStore {
     /// blocks of up to [`BLOCK_ROWS`] whole rows (ranges are not kept apart: a block may end
     /// inside one and hold several). Memory stays at one block.
     pub fn for_rows(&self, ranges: &[(usize, usize)], f: &mut dyn FnMut(&[f32])) -> Result<()> {
-        let width = self.width;
-        if width == 0 {
-            return Ok(());
-        }
-        let capacity = BLOCK_ROWS.min(self.len()).max(1);
-        let mut block = vec![0f32; capacity * width];
-        let mut filled = 0usize;
-        for &(lo, hi) in ranges {
-            self.check_range(lo, hi)?;
-            let mut at = lo;
-            while at < hi {
-                let take = (hi - at).min(capacity - filled);
-                self.rows_into(at, &mut block[filled * width..(filled + take) * width])?;
-                (at, filled) = (at + take, filled + take);
-                if filled == capacity {
-                    f(&block);
-                    filled = 0;
-                }
-            }
-        }
-        if filled > 0 {
-            f(&block[..filled * width]);
-        }
-        Ok(())
+        self.for_columns(ranges, 0..self.width, f)
     }
 
     /// Calls `f` with columns `dims` of the rows of `ranges`, gathered into blocks as
@@ -346,6 +323,9 @@ impl LowdimStore {
                 let held = dims.start.min(run.own)..dims.end.min(run.own);
                 if held.is_empty() {
                     out.fill(0.0);
+                } else if held == (0..narrow) && run.own == narrow {
+                    // The rows are stored as `dims` asks: read straight into the block.
+                    self.values_into(run.value, out)?;
                 } else {
                     stored.resize(take * run.own, 0.0);
                     self.values_into(run.value, &mut stored)?;

@@ -13,12 +13,15 @@ fn settings() -> VideoSettings {
     }
 }
 
+/// The frame size and rate most of these tests encode.
+const SMALL: StreamShape = StreamShape {
+    height: 64,
+    width: 96,
+    fps: 10.0,
+};
+
 fn write(path: &Path, n: usize) -> u64 {
-    let shape = StreamShape {
-        height: 64,
-        width: 96,
-        fps: 10.0,
-    };
+    let shape = SMALL;
     let mut s = VideoStream::create(path, shape, settings()).unwrap();
     for i in 0..n {
         let frame: Vec<u8> = (0..64 * 96 * 3)
@@ -36,11 +39,7 @@ fn write(path: &Path, n: usize) -> u64 {
 #[test]
 fn frames_converted_first_give_the_same_file() {
     let dir = tempfile::tempdir().unwrap();
-    let shape = StreamShape {
-        height: 64,
-        width: 96,
-        fps: 10.0,
-    };
+    let shape = SMALL;
     let n = 37; // more than two of the conversion's blocks, the last one short
     let frames: Vec<u8> = (0..n)
         .flat_map(|i| {
@@ -76,11 +75,7 @@ fn frames_converted_first_give_the_same_file() {
 #[test]
 fn the_encoders_format_is_what_the_file_holds() {
     let dir = tempfile::tempdir().unwrap();
-    let shape = StreamShape {
-        height: 64,
-        width: 96,
-        fps: 10.0,
-    };
+    let shape = SMALL;
     let codecs = [VideoCodec::Libsvtav1, VideoCodec::Libx264];
     for codec in codecs
         .into_iter()
@@ -112,16 +107,7 @@ fn the_same_frames_give_the_same_bytes() {
     let (a, b) = (dir.path().join("a.mp4"), dir.path().join("b.mp4"));
     assert_eq!(write(&a, 7), 7);
     // In the background, while another stream is written here.
-    let mut bg = Background::spawn(
-        &b,
-        StreamShape {
-            height: 64,
-            width: 96,
-            fps: 10.0,
-        },
-        settings(),
-    )
-    .unwrap();
+    let mut bg = Background::spawn(&b, SMALL, settings()).unwrap();
     let frames: Vec<u8> = (0..7)
         .flat_map(|i| (0..64 * 96 * 3).map(move |p| ((p / 3 % 96 + i * 4) % 256) as u8))
         .collect();
@@ -209,11 +195,7 @@ fn a_stream_dropped_unfinished_is_abandoned_not_flushed() {
     // A build that fails elsewhere drops its encoders; SVT-AV1 1.4 hung in the flush of an
     // encoder that had been sent no frame (and so did the failed build).
     let dir = tempfile::tempdir().unwrap();
-    let shape = StreamShape {
-        height: 64,
-        width: 96,
-        fps: 10.0,
-    };
+    let shape = SMALL;
     let start = std::time::Instant::now();
     drop(Background::spawn(&dir.path().join("none.mp4"), shape, settings()).unwrap());
     let mut some = Background::spawn(&dir.path().join("some.mp4"), shape, settings()).unwrap();
