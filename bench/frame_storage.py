@@ -9,6 +9,13 @@ book/src/video-storage.md.
         workers, default 2), BATCH (default 32), SAMPLES (samples timed per loader, default 480),
         ROUNDS (default 3: every loader is timed once a round, the rounds one after the other,
         and the median is reported), OUT (default bench/results-frame-storage.json)
+    REAL=G1_DIR .venv/bin/python bench/frame_storage.py DIR
+        the real-video case (issue 48): real 640x480 footage as AV1 (its own packets), H.264
+        and MPEG-4 (bench/real_video.py makes the three sources), read by chunkc's loader over
+        the default storage (the packets copied), by the decode floor (FFmpeg through PyAV
+        decoding exactly the frames the same batches need, decoders kept open, each GOP once a
+        batch, nothing else) and by LeRobotDataset with either backend. env as above (EPISODES
+        default 6); OUT default bench/results-frame-storage-real.json
 
 The source is a LeRobot v3.0 dataset written by `chunkc synth --format lerobot` (two 480x640
 cameras at 10 fps, 14-D state and action, encoded as LeRobot encodes: libsvtav1, yuv420p, g=2,
@@ -143,6 +150,10 @@ def lerobot(root: Path, deltas, backend):
 
 
 def main():
+    if os.environ.get("REAL"):
+        from frame_storage_real import main_real
+
+        return main_real(Path(sys.argv[1]).resolve(), Path(os.environ["REAL"]).resolve())
     work = Path(sys.argv[1]).resolve()
     work.mkdir(parents=True, exist_ok=True)
     out = Path(os.environ.get("OUT", REPO / "bench" / "results-frame-storage.json"))

@@ -13,10 +13,13 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicUsize;
 
 use super::partial::{self, Header, Record, Writer, PARTIAL_FORMAT};
+use super::process::Prepared;
 use super::{progress, read, set_up, Staging};
 use crate::error::{IoContext, Result};
 use crate::plan::shards::{self, Shard};
 use crate::plan::{Plan, ProfilePlan, TOOL_VERSION};
+use crate::recycle;
+use crate::sink::{FrameEncoding, Sink};
 use crate::source::Source;
 use crate::spec::LoadedSpec;
 
@@ -83,7 +86,8 @@ pub fn shard(
     let mut excluded = Vec::new();
     for batch in read::batches(manifest, range.clone()) {
         let records = read::read_batch(&pass, batch.clone(), !excluded.is_empty())?;
-        for (i, record) in batch.zip(records) {
+        for (i, mut record) in batch.zip(records) {
+            leave_copied_pixels(&mut record, &setup.sinks)?;
             if let Record::Excluded(reason) = &record {
                 excluded.push((manifest.episodes[i].id, reason.clone()));
             }
@@ -104,4 +108,42 @@ pub fn shard(
         partial: path,
         bytes,
     })
+}
+
+/// Leaves behind the pixels of a record's uncompressed frames that every sink taking them will
+/// copy from their video packets: the partial then holds where the packets are, which the merge
+/// copies from, instead of the decoded frames (hundreds of times the video's size).
+fn leave_copied_pixels(record: &mut Record, sinks: &[(usize, Box<dyn Sink>)]) -> Result<()> {
+    let Record::Kept(processed) = record else {
+        return Ok(());
+    };
+    for (r, channels) in processed.data.iter_mut().enumerate() {
+        let raw: Vec<&dyn Sink> = (sinks.iter())
+            .filter(|(sr, s)| *sr == r && s.frame_encoding() == FrameEncoding::Raw)
+            .map(|(_, s)| s.as_ref())
+            .collect();
+        if raw.is_empty() {
+            continue;
+        }
+        for (c, prepared) in channels.iter_mut().enumerate() {
+            let Prepared::Frames(encoded) = prepared else {
+                continue;
+            };
+            for (enc, frames) in encoded.iter_mut() {
+                if *enc != FrameEncoding::Raw || frames.packets().is_none() {
+                    continue;
+                }
+                if raw.iter().try_fold(true, |all, s| {
+                    Ok::<bool, crate::error::Error>(all && s.copies_frames(c, frames)?)
+                })? {
+                    let (stripped, pixels) = std::mem::take(frames).without_pixels();
+                    *frames = stripped;
+                    if let Some(pixels) = pixels {
+                        recycle::give(pixels);
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
 }

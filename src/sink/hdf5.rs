@@ -423,6 +423,10 @@ impl Sink for Hdf5Writer {
         self.frames
     }
 
+    fn copies_frames(&self, channel: usize, frames: &Frames) -> Result<bool> {
+        self.lossy.copies(channel, frames)
+    }
+
     fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()> {
         if self.lossy.write(channel, row, frames)? {
             return Ok(());

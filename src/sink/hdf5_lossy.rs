@@ -90,6 +90,14 @@ impl LossyFrames {
         self.channels.push(None);
     }
 
+    /// Whether `frames` of `channel` will be stored as a copy of their video packets.
+    pub(super) fn copies(&self, channel: usize, frames: &Frames) -> Result<bool> {
+        match self.channels.get(channel).and_then(Option::as_ref) {
+            Some(Channel::Video(v)) => v.camera.will_copy(frames),
+            _ => Ok(false),
+        }
+    }
+
     /// Stores one episode's frames of `channel` from stored row `row`; false when the channel
     /// is not stored lossily.
     pub(super) fn write(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<bool> {

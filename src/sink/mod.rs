@@ -37,12 +37,15 @@
 //! - `meta_sources`: a training mixture's fields of `meta.json` (each episode's source, the
 //!   sampling probabilities, each source's split, widths and normalization).
 //! - `encoder_record`: the frame encoder (library, version, settings) `chunkc.lock` records.
+//! - `frames`: one episode's frames of a camera as a sink takes them, in the encoding it asked
+//!   for, with the video packets they are the decode of.
 //! - `dump`: canonical text dumps of written files (golden tests).
 
 pub mod act_episodes;
 pub mod documents;
 pub mod dump;
 pub mod encoder_record;
+mod frames;
 mod groot;
 pub mod hdf5;
 mod hdf5_chunks;
@@ -80,159 +83,13 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
+pub use frames::{encode_frame, FrameEncoding, Frames};
+
 use crate::error::Result;
 use crate::plan::ProfilePlan;
-use crate::source::video::PacketSpan;
 use crate::spec::OutputFormat;
 use crate::stats::normalize::RowNormalizer;
 use crate::store::LowdimStore;
-use crate::window::Ends;
-
-/// How a sink wants image frames handed to it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub enum FrameEncoding {
-    /// The frame's bytes as they are (HWC `u8`).
-    Raw,
-    /// A zlib stream at this level: what HDF5's deflate filter stores as a chunk.
-    Zlib(u8),
-    /// A PNG file ([`png::encode`]): what LeRobot stores in parquet.
-    Png,
-    /// A JPEG file at this quality ([`jpeg::encode`]): what `image_compression = "jpeg"` stores.
-    Jpeg(u8),
-}
-
-/// Encodes one `u8` frame of `shape` (HWC).
-pub fn encode_frame(encoding: FrameEncoding, frame: &[u8], shape: &[usize]) -> Vec<u8> {
-    match encoding {
-        FrameEncoding::Raw => frame.to_vec(),
-        FrameEncoding::Png => png::encode(frame, shape),
-        FrameEncoding::Jpeg(quality) => jpeg::encode(frame, shape, quality),
-        FrameEncoding::Zlib(level) => {
-            use std::io::Write;
-            let mut enc = flate2::write::ZlibEncoder::new(
-                Vec::with_capacity(frame.len() / 2),
-                flate2::Compression::new(u32::from(level)),
-            );
-            enc.write_all(frame).expect("writing to a Vec cannot fail");
-            enc.finish().expect("writing to a Vec cannot fail")
-        }
-    }
-}
-
-/// One episode's frames of one image channel, encoded and stored back to back (so that
-/// uncompressed frames are the decoded pixels themselves, never copied frame by frame). The
-/// bytes are shared, not copied, with a sink that keeps them past `write_frames` (a video
-/// encoder on its own thread): an episode of 640x480 frames is hundreds of megabytes.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Frames {
-    bytes: Arc<Vec<u8>>,
-    /// Exclusive end of each frame in `bytes`.
-    ends: Ends,
-    /// The video packets the frames were decoded from, one per frame, when nothing changed
-    /// them since (same rate, same size): a video sink may copy those instead of encoding.
-    packets: Option<PacketSpan>,
-}
-
-impl Frames {
-    /// Uncompressed frames of `frame_bytes` bytes each: takes the pixels as they are.
-    pub fn raw(pixels: Vec<u8>, frame_bytes: usize) -> Frames {
-        let n = pixels.len() / frame_bytes.max(1);
-        Frames {
-            ends: Ends::new((1..=n).map(|i| (i * frame_bytes) as u64).collect()),
-            bytes: Arc::new(pixels),
-            packets: None,
-        }
-    }
-
-    /// The same frames, noting the video packets they are the decode of.
-    pub fn with_packets(mut self, packets: Option<PacketSpan>) -> Frames {
-        self.packets = packets;
-        self
-    }
-
-    /// The video packets the frames are the decode of, if they are.
-    pub fn packets(&self) -> Option<&PacketSpan> {
-        self.packets.as_ref()
-    }
-
-    /// The frames' bytes, one after another, to hand the memory on: none while a sink still
-    /// shares them ([`Frames::shared`]).
-    pub fn into_unshared_bytes(self) -> Option<Vec<u8>> {
-        Arc::try_unwrap(self.bytes).ok()
-    }
-
-    /// Every frame back to back, shared (not copied) for as long as the caller keeps them.
-    pub fn shared(&self) -> Arc<Vec<u8>> {
-        Arc::clone(&self.bytes)
-    }
-
-    /// Frames of `shape` (HWC) each, encoded (in parallel when compressed).
-    pub fn encode(encoding: FrameEncoding, pixels: &[u8], shape: &[usize]) -> Frames {
-        use rayon::prelude::*;
-        let frame_bytes = shape.iter().product::<usize>();
-        if encoding == FrameEncoding::Raw {
-            return Frames::raw(pixels.to_vec(), frame_bytes);
-        }
-        let encoded: Vec<Vec<u8>> = pixels
-            .par_chunks(frame_bytes.max(1))
-            .map(|f| encode_frame(encoding, f, shape))
-            .collect();
-        let mut bytes = Vec::with_capacity(encoded.iter().map(Vec::len).sum());
-        let mut ends = Ends::default();
-        for f in encoded {
-            ends.push(f.len());
-            bytes.extend_from_slice(&f);
-        }
-        Frames {
-            bytes: Arc::new(bytes),
-            ends,
-            packets: None,
-        }
-    }
-
-    pub fn len(&self) -> usize {
-        self.ends.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.ends.is_empty()
-    }
-
-    /// Frame `i`'s bytes.
-    pub fn get(&self, i: usize) -> &[u8] {
-        self.span(i, i + 1)
-    }
-
-    /// Frames `lo..hi`, back to back.
-    pub fn span(&self, lo: usize, hi: usize) -> &[u8] {
-        &self.bytes[self.ends.rows(lo..hi)]
-    }
-
-    /// Every frame, in order.
-    pub fn iter(&self) -> impl ExactSizeIterator<Item = &[u8]> + '_ {
-        (0..self.len()).map(|i| self.get(i))
-    }
-
-    /// Every frame back to back.
-    pub fn bytes(&self) -> &[u8] {
-        &self.bytes
-    }
-
-    /// Exclusive end of each frame in [`Frames::bytes`].
-    pub fn ends(&self) -> &[u64] {
-        &self.ends
-    }
-
-    /// Frames from their bytes and ends, as [`Frames::bytes`] and [`Frames::ends`] gave them (a
-    /// sharded build's partial stores them so).
-    pub fn from_parts(bytes: Vec<u8>, ends: Vec<u64>) -> Frames {
-        Frames {
-            bytes: Arc::new(bytes),
-            ends: Ends::new(ends),
-            packets: None,
-        }
-    }
-}
 
 /// What a sink needs to lay out its container.
 pub struct SinkContext<'a> {
@@ -289,6 +146,13 @@ pub trait Sink: Send {
     /// Whether low-dimensional values are stored normalized (`meta.json` `stored_values`).
     fn stores_normalized(&self) -> bool {
         true
+    }
+    /// Whether [`Sink::write_frames`] will store these frames of image channel `channel` as a
+    /// copy of their video packets, reading none of their pixels (a sharded build's partial then
+    /// leaves the pixels behind). Reads the packets to check them; false by default.
+    fn copies_frames(&self, channel: usize, frames: &Frames) -> Result<bool> {
+        let _ = (channel, frames);
+        Ok(false)
     }
     /// Encoded frames of image channel `channel` for one episode, from stored row `row`.
     fn write_frames(&mut self, channel: usize, row: usize, frames: &Frames) -> Result<()>;

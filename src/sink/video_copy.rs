@@ -58,6 +58,22 @@ pub fn copy(span: &PacketSpan, out: &Path, fps: f64, gop: u32) -> Result<CopyOut
     }
 }
 
+/// Whether [`copy`] would copy `span` (its packets are read, nothing is written): `None`, or
+/// the sentence saying why not.
+pub fn check(span: &PacketSpan, fps: f64, gop: u32) -> Result<Option<String>> {
+    #[cfg(feature = "video")]
+    {
+        imp::check(span, fps, gop)
+    }
+    #[cfg(not(feature = "video"))]
+    {
+        let _ = (span, fps, gop);
+        Ok(Some(
+            "this chunkc was built without the `video` cargo feature".into(),
+        ))
+    }
+}
+
 /// The checks on the span's packets, apart from FFmpeg: per packet in decode order, its
 /// presentation time in ticks and whether it is a keyframe. `ticks_per_frame` is one frame's
 /// duration in the stream's time base.
@@ -105,8 +121,15 @@ mod imp {
     use crate::error::{Error, Result};
     use crate::source::video::PacketSpan;
 
-    // Long function: the demux loop that picks the span's packets, then the muxer's set-up and writes, each step with its own error.
-    pub fn copy(span: &PacketSpan, out: &Path, fps: f64, gop: u32) -> Result<CopyOutcome> {
+    /// The span's packets, with the stream's time base and parameters, or why they cannot
+    /// stand alone as the episode's video.
+    struct Picked {
+        packets: Vec<Packet>,
+        time_base: Rational,
+        params: codec::Parameters,
+    }
+
+    fn pick(span: &PacketSpan, fps: f64, gop: u32) -> Result<std::result::Result<Picked, String>> {
         let _ = ff::init();
         let source = |m: String| Error::source(format!("{}: {m}", span.file.display()));
         let mut ictx = format::input(&span.file)
@@ -138,34 +161,49 @@ mod imp {
             let shown = pts.is_some_and(|p| inside(p as f64 * tick));
             match (shown, picked.is_empty()) {
                 (true, _) if discarded => {
-                    return Ok(CopyOutcome::Refused(
-                        "the file's edit list hides some frames".into(),
-                    ))
+                    return Ok(Err("the file's edit list hides some frames".into()))
                 }
                 (true, _) => picked.push(packet),
                 (false, true) => {}
                 (false, false) => {
-                    return Ok(CopyOutcome::Refused(
+                    return Ok(Err(
                         "another episode's packet lies among this episode's (decode order)".into(),
                     ))
                 }
             }
         }
         if picked.len() != span.frames {
-            return Ok(CopyOutcome::Refused(format!(
-                "{} packets for {} frames",
-                picked.len(),
-                span.frames
-            )));
+            let why = format!("{} packets for {} frames", picked.len(), span.frames);
+            return Ok(Err(why));
         }
         let times: Vec<(i64, bool)> = picked
             .iter()
             .map(|p| (p.pts().unwrap_or(0), p.is_key()))
             .collect();
         if let Some(why) = refusal(&times, 1.0 / (fps * tick), gop) {
-            return Ok(CopyOutcome::Refused(why));
+            return Ok(Err(why));
         }
-        let shift = times[0].0;
+        Ok(Ok(Picked {
+            packets: picked,
+            time_base,
+            params,
+        }))
+    }
+
+    pub fn check(span: &PacketSpan, fps: f64, gop: u32) -> Result<Option<String>> {
+        Ok(pick(span, fps, gop)?.err())
+    }
+
+    pub fn copy(span: &PacketSpan, out: &Path, fps: f64, gop: u32) -> Result<CopyOutcome> {
+        let Picked {
+            packets,
+            time_base,
+            params,
+        } = match pick(span, fps, gop)? {
+            Ok(picked) => picked,
+            Err(why) => return Ok(CopyOutcome::Refused(why)),
+        };
+        let shift = packets[0].pts().unwrap_or(0);
         let format = crate::sink::video_info::of_parameters(&params);
 
         let fail = |m: String| Error::output(format!("{}: {m}", out.display()));
@@ -189,7 +227,7 @@ mod imp {
         octx.write_header_with(header)
             .map_err(|e| fail(format!("cannot write the mp4 header: {e}")))?;
         let stream_time_base = octx.stream(0).expect("added").time_base();
-        for mut packet in picked {
+        for mut packet in packets {
             packet.set_stream(0);
             packet.set_pts(packet.pts().map(|p| p - shift));
             packet.set_dts(packet.dts().map(|d| d - shift));

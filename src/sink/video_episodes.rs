@@ -40,6 +40,15 @@ impl EpisodeCamera {
         (kept && size && span.frames == frames.len()).then(|| span.clone())
     }
 
+    /// Whether [`Encoders::start`] will copy `frames` from their video packets, reading no
+    /// pixel (the packets are read and checked as the copy checks them).
+    pub(super) fn will_copy(&self, frames: &Frames) -> Result<bool> {
+        match self.to_copy(frames) {
+            None => Ok(false),
+            Some(span) => Ok(video_copy::check(&span, self.shape.fps, self.copy_gop())?.is_none()),
+        }
+    }
+
     /// The longest keyframe interval a copy of the source's stream may have (`video_gop` when
     /// the spec sets it, else the source's own).
     fn copy_gop(&self) -> u32 {
@@ -119,6 +128,16 @@ impl Encoders {
                     self.refusals.entry((at, why)).or_default().push(id);
                 }
             }
+        }
+        if !frames.has_pixels() {
+            // A shard checked the copy and left the pixels behind: the source changed since.
+            let source = frames.packets().map(|s| s.file.display().to_string());
+            return Err(Error::source(format!(
+                "{}: episode {id}'s shard left its frames to a copy of the source's packets, \
+                 which cannot be made now; the source video changed since the shards ran: run \
+                 them again",
+                source.unwrap_or_else(|| path.display().to_string())
+            )));
         }
         // Converted here, so that the encoder holds half the memory of the frames, which stay
         // with the pass (the next episode's decode reuses them).

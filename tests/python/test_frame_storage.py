@@ -93,7 +93,10 @@ def pyav_frames(root, cam):
 
 
 def assert_loader_returns(root, cam, want):
-    """Shuffled rows, samples (windows) and a 2-worker DataLoader all give exactly `want`."""
+    """Shuffled rows, samples (windows) and a DataLoader shuffled with a fixed seed give exactly
+    `want`, with 0 and 2 workers: the same seed, the same batches byte for byte (the loader
+    decodes a batch's frames grouped by file and GOP, and hands them back in the sampler's
+    order)."""
     loader = import_loader(root)
     ds = loader.ChunkedDataset(str(root))
     rows = np.random.default_rng(0).permutation(len(want))
@@ -105,16 +108,34 @@ def assert_loader_returns(root, cam, want):
         steps = s["frame_index"] + np.arange(1 - ds.obs_history, 1)
         np.testing.assert_array_equal(s[cam], want[starts[ep] + np.maximum(steps, 0)])
     torch = pytest.importorskip("torch")
-    dl = torch.utils.data.DataLoader(ds, batch_size=8, shuffle=True, num_workers=2,
-                                     generator=torch.Generator().manual_seed(0))
-    seen = 0
-    for batch in dl:
-        for frames, e, t in zip(batch[cam].numpy(), batch["episode_index"].tolist(), batch["frame_index"].tolist()):
-            ep = int(np.searchsorted(ds.episode_ids, e))
-            steps = t + np.arange(1 - ds.obs_history, 1)
-            np.testing.assert_array_equal(frames, want[starts[ep] + np.maximum(steps, 0)])
-            seen += 1
-    assert seen == len(ds)
+
+    class OneByOne(torch.utils.data.Dataset):
+        """The samples one `ds[i]` at a time (no batch decoding): the order's oracle."""
+
+        def __len__(self):
+            return len(ds)
+
+        def __getitem__(self, i):
+            return ds[i]
+
+    runs = []
+    for data, workers in ((OneByOne(), 0), (ds, 0), (ds, 2)):
+        dl = torch.utils.data.DataLoader(data, batch_size=8, shuffle=True, num_workers=workers,
+                                         generator=torch.Generator().manual_seed(0))
+        batches = list(dl)
+        seen = [(e, t) for b in batches for e, t in zip(b["episode_index"].tolist(), b["frame_index"].tolist())]
+        assert len(set(seen)) == len(seen) == len(ds)
+        for b in batches:
+            for frames, e, t in zip(b[cam].numpy(), b["episode_index"].tolist(), b["frame_index"].tolist()):
+                ep = int(np.searchsorted(ds.episode_ids, e))
+                steps = t + np.arange(1 - ds.obs_history, 1)
+                np.testing.assert_array_equal(frames, want[starts[ep] + np.maximum(steps, 0)])
+        runs.append(batches)
+    for one, zero, two in zip(*runs):
+        for got in (zero, two):
+            assert list(got) == list(one)
+            for key in one:
+                torch.testing.assert_close(got[key], one[key], rtol=0, atol=0)
 
 
 def test_jpeg_frames_are_pillow_decodes_of_the_stored_bytes(tmp_path):

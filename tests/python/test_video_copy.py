@@ -210,6 +210,61 @@ def test_copied_bytes_do_not_depend_on_threads_or_shards(tmp_path):
     assert files["j1"] == files["j2"] == files["shards"]
 
 
+def video_only_spec(tmp_path, extra=""):
+    """The video profile alone: no other sink wants the frames' pixels."""
+    path = spec(tmp_path, V3, video_profile(extra=extra))
+    text = path.read_text()
+    text = text.replace('[profiles.raw]\npreset = "diffusion_policy"\nfps = 10\n', "")
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("copy", [True, False])
+def test_partials_hold_the_packets_place_not_the_frames_of_a_copy(tmp_path, copy):
+    """A shard whose frames every sink copies from the source's packets writes where the packets
+    are, not the decoded frames (at DROID's scale the frames are terabytes: the scale chapter);
+    the merge copies them, giving the single build's bytes. Frames that are encoded keep their
+    pixels in the partial. The oracle for size: the frames' decoded bytes (PyAV)."""
+    files = {}
+    for how in ("one", "shards"):
+        d = tmp_path / how
+        d.mkdir()
+        path = video_only_spec(d, "" if copy else "video_copy = false")
+        if how == "shards":
+            for i in range(2):
+                run_chunkc("build", "-q", "--shard", f"{i}/2", "--partials", d / "parts", path)
+            run_chunkc("merge", "-q", "--partials", d / "parts", path)
+        else:
+            build(path)
+        root = d / "out" / "video"
+        files[how] = {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+    assert files["one"] == files["shards"]
+    assert stored(tmp_path / "one" / "out" / "video")[1] == ([1, 1, 1] if copy else [0, 0, 0])
+    decoded = sum(f.nbytes for v in sorted((V3 / "videos" / TOP).rglob("*.mp4")) for f in decode(v))
+    partials = sum(p.stat().st_size for p in (tmp_path / "shards" / "parts").glob("*.partial"))
+    if copy:
+        assert partials < decoded / 10, (partials, decoded)
+    else:
+        assert partials > decoded, (partials, decoded)
+
+
+def test_a_source_changed_between_shards_and_merge_fails_naming_it(tmp_path):
+    """The merge copies what the shards left to a copy; a source whose video changed since (a
+    copy now refused) fails naming the file, and writes nothing."""
+    source = tmp_path / "src"
+    shutil.copytree(V3, source)
+    path = spec(tmp_path, source, video_profile())
+    path.write_text(path.read_text().replace('[profiles.raw]\npreset = "diffusion_policy"\nfps = 10\n', ""))
+    for i in range(2):
+        run_chunkc("build", "-q", "--shard", f"{i}/2", "--partials", tmp_path / "parts", path)
+    video = sorted((source / "videos" / TOP).rglob("*.mp4"))[0]
+    video.write_bytes(video.read_bytes()[: video.stat().st_size // 2])
+    p = run_chunkc("merge", "-q", "--partials", tmp_path / "parts", path, check=False)
+    assert p.returncode != 0
+    assert str(video) in p.stderr or video.name in p.stderr, p.stderr
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").rglob("meta.json"))
+
+
 @pytest.mark.parametrize("keys, message", [
     ("video_copy = false", "`video_copy` sets the video encoder, but profile `bad` stores no video"),
     ('format = "parquet"\nvideo_copy = true',
