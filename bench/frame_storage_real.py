@@ -136,8 +136,8 @@ def main_real(work: Path, g1_dir: Path):
     work.mkdir(parents=True, exist_ok=True)
     out = Path(os.environ.get("OUT", REPO / "bench" / "results-frame-storage-real.json"))
     sources = real_video.sources(BIN, g1_dir, work, EPISODES)
-    results = {"footage": f"{g1_dir.name}: Unitree G1, one 640x480 camera at 30 fps, first {EPISODES} "
-                          "episodes with video", "workers": WORKERS, "batch": BATCH, "samples": SAMPLES,
+    results = {"footage": f"Unitree G1 footage (YifanTian07/G1-policy-train), first {EPISODES} episodes "
+                          "with video", "workers": WORKERS, "batch": BATCH, "samples": SAMPLES,
                "rounds": ROUNDS, "cpus": os.cpu_count(), "load_before": os.getloadavg(), "sources": {},
                "loaders": {}}
     runs = {}
