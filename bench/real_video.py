@@ -3,7 +3,9 @@
 The footage is a public LeRobot v2.1 set recorded on a Unitree G1 with Inspire hands
 (github.com/YifanTian07/G1-policy-train, MIT License): one 640x480 camera at 30 fps, encoded as
 LeRobot encodes (AV1, libsvtav1, yuv420p, a keyframe every 2 frames), episodes of 340-480 frames.
-Give its checkout (or any LeRobot v2.1 set with one mp4 per episode and camera) as G1_DIR.
+Give its checkout (`git clone https://github.com/YifanTian07/G1-policy-train`, about 300 MB; or
+any LeRobot v2.1 set with one mp4 per episode and camera) as G1_DIR; episodes whose video is
+missing from the checkout are skipped.
 
 `sources(g1_dir, work, episodes)` writes three LeRobot v3.0 datasets of the same episodes:
 - `av1`: the footage's own AV1 packets;
