@@ -9,7 +9,9 @@
 //! episode range), one record per episode, then `END!` and the BLAKE3 of everything before it.
 //! Written to a temporary name and renamed, so a shard killed mid-run leaves no partial; the merge
 //! checks every checksum before it writes anything. Numbers are little-endian; `f64`/`f32` keep
-//! their exact bits.
+//! their exact bits. Uncompressed frames that every sink copies from their video packets are
+//! written without their pixels (their ends and where the packets are: the merge copies the
+//! packets from the source), so a copied camera's partial is not the size of its decoded frames.
 //!
 //! The format is here; `write` writes it, `read` checks and reads it back.
 
