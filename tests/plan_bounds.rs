@@ -85,6 +85,24 @@ struct Fixture {
 
 const FIXTURES: &[Fixture] = &[
     Fixture {
+        name: "lerobot_video_real_g1",
+        source: r#"[source]
+format = "lerobot"
+path = "../tests/data/lerobot_video_real_g1"
+[source.channels]
+action = "action"
+"observation.state" = "observation.state"
+"observation.images.cam_high" = "observation.images.cam_high"
+[split]
+val_fraction = 0.5
+seed = 0"#,
+        act: "fps = 30",
+        dp: "fps = 30",
+        camera: "observation.images.cam_high",
+        small: false,
+        video: true,
+    },
+    Fixture {
         name: "lerobot_video_v21",
         source: r#"[source]
 format = "lerobot"
@@ -359,7 +377,7 @@ macro_rules! cases {
 cases!(
     examples: aloha_sim, bridge, lerobot_g1, lerobot_v3, multi_arch, pusht, pusht_formats,
         pusht_rollout, robosuite_panda, robosuite_sawyer;
-    fixtures: lerobot_video_v21, lerobot_video_v3_av1, pusht_subset, aloha_sim_jpeg, rlds_bridge,
+    fixtures: lerobot_video_real_g1, lerobot_video_v21, lerobot_video_v3_av1, pusht_subset, aloha_sim_jpeg, rlds_bridge,
         robosuite_baxter,
 );
 
