@@ -4,9 +4,6 @@ the sources). Results in bench/results-frame-storage-real.json; the table is in
 book/src/video-storage.md."""
 import json
 import os
-import shutil
-import subprocess
-import time
 from pathlib import Path
 
 import numpy as np
@@ -37,30 +34,9 @@ def presets(cams):
 
 def build(root: Path, cams, work: Path, name: str):
     """chunkc's build of a v3.0 root with the default video storage (the packets copied)."""
-    out = work / f"out_real_{name}"
     profiles = "\n".join(f"[profiles.{p}]\n{toml}\nimage_compression = \"video\"\n"
                          for p, (toml, _) in presets(cams).items())
-    channels = "\n".join(f'"{k}" = "{k}"' for k in ["action", "observation.state", *cams])
-    spec = work / f"spec_real_{name}.toml"
-    spec.write_text(f"""version = 1
-[source]
-format = "lerobot"
-path = "{root}"
-[source.channels]
-{channels}
-[split]
-val_fraction = 0.0
-[output]
-dir = "{out}"
-{profiles}""")
-    shutil.rmtree(out, ignore_errors=True)
-    (work / "chunkc.lock").unlink(missing_ok=True)
-    t0 = time.perf_counter()
-    p = subprocess.run([BIN, "build", "-q", "-j", str(WORKERS), str(spec)], capture_output=True, text=True,
-                       cwd=work)
-    if p.returncode:
-        raise SystemExit(p.stderr)
-    return out, time.perf_counter() - t0
+    return real_video.build_lerobot(BIN, root, cams, work, f"real_{name}", profiles, "-j", str(WORKERS))
 
 
 class Floor:

@@ -20,6 +20,7 @@ renumbered from 0), then exported to v3.0 by `chunkc build` with the source's pa
 import json
 import shutil
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
@@ -122,33 +123,42 @@ def _subset_v21(root: Path, dst: Path, count: int, encoding):
     return cams, index
 
 
-def _export_v30(bin_path: str, v21: Path, work: Path, cams, name: str):
-    """chunkc's v3.0 export of a v2.1 set, the packets copied (one mp4 per episode)."""
-    out = work / f"export_{name}"
+def build_lerobot(bin_path: str, root: Path, cams, work: Path, name: str, profiles: str, *args):
+    """`chunkc build` of a spec named `name` in `work` over the LeRobot set at `root` (action, state
+    and `cams`, no validation split) with `profiles`, into `work/out_<name>`, from a clean slate:
+    (output dir, wall seconds)."""
+    out = work / f"out_{name}"
     channels = "\n".join(f'"{k}" = "{k}"' for k in ["action", "observation.state", *cams])
-    spec = work / f"export_{name}.toml"
+    spec = work / f"{name}.toml"
     spec.write_text(f"""version = 1
 [source]
 format = "lerobot"
-path = "{v21}"
+path = "{root}"
 [source.channels]
 {channels}
 [split]
 val_fraction = 0.0
 [output]
 dir = "{out}"
-[profiles.lerobot]
+{profiles}""")
+    shutil.rmtree(out, ignore_errors=True)
+    (work / "chunkc.lock").unlink(missing_ok=True)
+    t0 = time.perf_counter()
+    p = subprocess.run([bin_path, "build", "-q", *args, str(spec)], capture_output=True, text=True, cwd=work)
+    if p.returncode:
+        raise SystemExit(f"{name}: {p.stderr}")
+    return out, time.perf_counter() - t0
+
+
+def _export_v30(bin_path: str, v21: Path, work: Path, cams, name: str):
+    """chunkc's v3.0 export of a v2.1 set, the packets copied (one mp4 per episode)."""
+    out, _ = build_lerobot(bin_path, v21, cams, work, f"export_{name}", """[profiles.lerobot]
 preset = "pi0"
 chunk = 5
 format = "parquet"
 image_encoding = "video"
 video_copy = true
 """)
-    shutil.rmtree(out, ignore_errors=True)
-    (work / "chunkc.lock").unlink(missing_ok=True)
-    p = subprocess.run([bin_path, "build", "-q", str(spec)], capture_output=True, text=True, cwd=work)
-    if p.returncode:
-        raise SystemExit(f"export {name}: {p.stderr}")
     return out / "lerobot"
 
 
