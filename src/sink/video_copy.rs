@@ -144,6 +144,13 @@ mod imp {
         let tick = f64::from(time_base.numerator()) / f64::from(time_base.denominator());
         // The span's frames, with half a frame either side.
         let margin = 0.5 / fps;
+        // Reading starts at the keyframe before the span, not at the file's start (a v3.0 file
+        // holds many episodes: reading every earlier episode's packets made copies quadratic).
+        if span.first - margin > 0.0 {
+            let tb = (time_base.numerator(), time_base.denominator());
+            crate::source::video::seek_back(&mut ictx, index, tb, span.first - margin)
+                .map_err(|e| source(format!("cannot seek to the packets to copy: {e}")))?;
+        }
         let inside = |t: f64| t >= span.first - margin && t <= span.last + margin;
         let mut picked: Vec<Packet> = Vec::with_capacity(span.frames);
         while picked.len() < span.frames {

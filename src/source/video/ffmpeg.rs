@@ -211,12 +211,23 @@ fn open_decoder(o: &Opened) -> Result<ff::codec::decoder::Video, String> {
 
 /// Seeks to the keyframe at or before `first` seconds, as PyAV's `container.seek` does.
 fn seek(o: &mut Opened, first: f64) -> Result<(), String> {
-    let (num, den) = o.time_base;
+    seek_back(&mut o.input, o.stream, o.time_base, first)
+}
+
+/// Seeks `input` to the keyframe of `stream` (time base `num/den`) at or before `first`
+/// seconds (`av_seek_frame` with `AVSEEK_FLAG_BACKWARD`): reading then starts there, not at the
+/// file's start.
+pub fn seek_back(
+    input: &mut ff::format::context::Input,
+    stream: usize,
+    (num, den): (i32, i32),
+    first: f64,
+) -> Result<(), String> {
     let offset = (first * f64::from(den) / f64::from(num)).round_ties_even() as i64;
     let ret = unsafe {
         ff::ffi::av_seek_frame(
-            o.input.as_mut_ptr(),
-            o.stream as i32,
+            input.as_mut_ptr(),
+            stream as i32,
             offset,
             ff::ffi::AVSEEK_FLAG_BACKWARD,
         )

@@ -28,7 +28,7 @@ mod ffmpeg;
 #[cfg(not(feature = "video"))]
 pub use disabled::{decode_rows, probe, timeline};
 #[cfg(feature = "video")]
-pub use ffmpeg::{decode_rows, probe, timeline};
+pub use ffmpeg::{decode_rows, probe, seek_back, timeline};
 
 pub use select::{Miss, TOLERANCE_S};
 pub use span::{consecutive, PacketSpan};
