@@ -29,6 +29,8 @@ and audited with `chunkc audit`:
    - `moving`: the others.
    `jump` findings that name another dimension than the plant's, or an episode nothing was
    planted in, are counted too (beyond the clean run's).
+   Each plant is also `separable` or `buried` ([`buried_levels`]): whether its own return is
+   larger than what one clean episode in twenty reaches in that dimension anyway.
 """
 
 import argparse
@@ -195,6 +197,23 @@ def classify(x, size):
     return "moving"
 
 
+def returns_of(x):
+    """How far `x` goes out and straight back at each interior step t (the lesser of its two
+    steps when they have opposite signs, else 0)."""
+    up, down = x[1:-1] - x[:-2], x[2:] - x[1:-1]
+    return np.where(up * down < 0, np.minimum(np.abs(up), np.abs(down)), 0.0)
+
+
+def buried_levels(episodes):
+    """Per action dimension, the 95th percentile over the clean episodes of each episode's
+    largest return ([`returns_of`]): a plant whose own return is no larger cannot be told by its
+    return from what 5% or more of the clean episodes do (the check's precision goal)."""
+    dims = episodes[0][0].shape[1]
+    largest = np.array([[returns_of(a[:, d]).max() if len(a) >= 3 else 0.0 for d in range(dims)]
+                        for a, _ in episodes])
+    return np.quantile(largest, 0.95, axis=0)
+
+
 def plan(episodes, rng):
     """[(episode, dim, step, size, fraction, class)]: a spike in each of a tenth of the
     episodes."""
@@ -238,6 +257,7 @@ def main():
             continue
         fps, episodes = load()
         clean = audit(args.work, name, fps, episodes)
+        buried = buried_levels(episodes)
         res = {"episodes": len(episodes), "action_dims": episodes[0][0].shape[1],
                "clean": flags_of(clean), "plants": [], "other_jump": 0}
         for seed in args.seeds:
@@ -248,8 +268,12 @@ def main():
             for e, d, t, size, frac, cls in spikes:
                 found = jump_dims(got[e])
                 hit = d in found
+                x = episodes[e][0][:, d].copy()
+                x[t] += size
+                own = float(returns_of(x[t - 1:t + 2])[0])
                 res["plants"].append({"episode": e, "dim": d, "step": t, "size": size,
-                                      "fraction": frac, "class": cls, "caught": hit})
+                                      "fraction": frac, "class": cls, "caught": hit,
+                                      "separable": bool(own > buried[d])})
                 if not hit and not args.quiet:
                     x = episodes[e][0][:, d]
                     steps = np.abs(np.diff(x))
@@ -263,7 +287,10 @@ def main():
                         res["other_jump"] += 1
         by = {}
         for p in res["plants"]:
-            for key in (p["class"], f"{p['fraction']:.0%}", "all"):
+            keys = [p["class"], f"{p['fraction']:.0%}", "all"]
+            keys += ["separable"] if p["separable"] else ["buried"]
+            keys += [f"separable {p['class']}"] if p["separable"] else []
+            for key in keys:
                 h = by.setdefault(key, [0, 0])
                 h[0] += p["caught"]
                 h[1] += 1
