@@ -122,19 +122,21 @@ fn p90_of_bits(bits: &mut [u32], least: usize) -> f32 {
     f32::from_bits(*bits.select_nth_unstable(k).1)
 }
 
-/// [`p90_of_bits`] of `bits` and `zeros` more values of 0 (the smallest), without them.
+/// The 90th percentile of `keys` ([`p90_of_bits`], NaN under [`MOTION_STEPS`] values), where
+/// `skipped` of the keys are 0 placeholders for values left out and `zeros` more are 0 values
+/// counted: those keys are the smallest, so the percentile's rank among the values counted is
+/// its rank among all keys past the placeholders.
 #[inline(always)]
-fn p90_above_zeros(bits: &mut [u32], zeros: usize, least: usize) -> f32 {
-    let m = bits.len() + zeros;
-    if m < least.max(1) {
+fn p90_skipping(keys: &mut [u32], skipped: usize, zeros: usize) -> f32 {
+    let m = keys.len() - skipped;
+    if m < MOTION_STEPS {
         return f32::NAN;
     }
     let k = (9 * (m - 1)) / 10;
     if k < zeros {
-        0.0
-    } else {
-        f32::from_bits(*bits.select_nth_unstable(k - zeros).1)
+        return 0.0;
     }
+    f32::from_bits(*keys.select_nth_unstable(k + skipped).1)
 }
 
 /// The features of one column `x` (finite values) of an action whose dimensions leave a rest at
@@ -166,28 +168,32 @@ pub fn dim_signal(x: &[f32], onsets: &[u32], scratch: &mut Scratch) -> DimSignal
     // and comes back there ([`returns::back`]), its zeros counted, not kept.
     let (keys, back, backs) = (&mut scratch.keys, &mut scratch.back, &mut scratch.backs);
     returns::backs(r, backs);
-    keys.clear();
-    back.clear();
-    keys.resize(n, 0);
-    back.resize(n, 0);
-    // Written without branches: each value goes to the next place, which only a kept one
-    // takes.
+    // Written without branches and in place: a step the statistic leaves out holds 0, the
+    // smallest key, and the rank skips those.
     let moving = |t: usize| (x[t] != x[t - 1]) | (x[t + 1] != x[t]);
-    let (mut kept, mut returned, mut back_zeros) = (0, 0, 0);
-    for (t, &rt) in r.iter().enumerate().take(n.saturating_sub(1)).skip(1) {
-        keys[kept] = (rt.abs() as f32).to_bits();
-        kept += usize::from(moving(t));
+    keys.clear();
+    keys.resize(n.saturating_sub(2), 0);
+    let mut still = 0;
+    for (t, key) in keys.iter_mut().enumerate() {
+        let m = moving(t + 1);
+        *key = if m {
+            (r[t + 1].abs() as f32).to_bits()
+        } else {
+            0
+        };
+        still += usize::from(!m);
     }
-    for (i, &q) in backs.iter().enumerate() {
+    out.motion = p90_skipping(keys, still, 0);
+    back.clear();
+    back.resize(backs.len(), 0);
+    let (mut left_out, mut back_zeros) = (0, 0);
+    for (i, (&q, key)) in backs.iter().zip(back.iter_mut()).enumerate() {
         let moving = moving(i + 2);
-        back[returned] = q.to_bits();
-        returned += usize::from(moving & (q > 0.0));
+        *key = if moving & (q > 0.0) { q.to_bits() } else { 0 };
+        left_out += usize::from(!moving);
         back_zeros += usize::from(moving & (q <= 0.0));
     }
-    keys.truncate(kept);
-    back.truncate(returned);
-    out.motion = p90_of_bits(keys, MOTION_STEPS);
-    out.return_scale = p90_above_zeros(back, back_zeros, MOTION_STEPS);
+    out.return_scale = p90_skipping(back, left_out, back_zeros);
     if max > min {
         (out.clip_steps, out.clip_runs, out.clip_max) = clipped(x, steps, keys, (min, max));
     }
@@ -208,6 +214,18 @@ fn clipped(
     (min, max): (f32, f32),
 ) -> (u32, u32, bool) {
     let n = x.len();
+    // A run of two or more needs two steps in a row at the bound: most columns never hold
+    // theirs, and then the entry step (a selection over the steps) is not needed.
+    let holds = |bound: f32| {
+        x.windows(2)
+            .map(|w| u32::from((w[0] == bound) & (w[1] == bound)))
+            .sum::<u32>()
+            > 0
+    };
+    let (hold_max, hold_min) = (holds(max), holds(min));
+    if !hold_max && !hold_min {
+        return (0, 0, true);
+    }
     keys.clear();
     keys.extend(
         steps
@@ -239,10 +257,8 @@ fn clipped(
         }
         (count as u32, runs)
     };
-    // Runs of two or more need two values at the bound: most columns touch theirs once.
-    let count = |bound: f32| x.iter().map(|&v| u32::from(v == bound)).sum::<u32>();
-    let hi = if count(max) >= 2 { at(max) } else { (0, 0) };
-    let lo = if count(min) >= 2 { at(min) } else { (0, 0) };
+    let hi = if hold_max { at(max) } else { (0, 0) };
+    let lo = if hold_min { at(min) } else { (0, 0) };
     let (best, is_max) = if hi.0 >= lo.0 {
         (hi, true)
     } else {
