@@ -18,7 +18,8 @@
 //!   (`found`); `judge_signal`: the signal checks' judgement; `warnings`: the dataset-wide
 //!   warnings, one line per kind.
 //! - `stats`: medians, MAD, mode.
-//! - `signal`: frozen, clipped, jump (and the constant dimensions); `spikes`: jump's search.
+//! - `signal`: frozen, clipped, jump (and the constant dimensions); `spikes`: jump's search;
+//!   `p90`: the percentiles their scales take.
 //! - `columns`: an episode's channel by column, and the sums the features share.
 //! - `alignment`: the per-episode lag fits; `lanes`: their inner loop.
 //! - `convention`: tracked dimensions, lag mode, conventions, units.
@@ -33,6 +34,7 @@ mod found;
 mod judge;
 mod judge_signal;
 mod lanes;
+mod p90;
 mod returns;
 mod shift;
 mod short;

@@ -35,6 +35,7 @@
 //!   its real motion goes out and comes back in one step. Episodes in other units are measured
 //!   in the dataset's.
 
+use super::p90::{p90_of_bits, p90_skipping};
 use super::{returns, spikes};
 
 /// One episode's per-dimension signal features, compact (kept for every episode until the
@@ -110,35 +111,6 @@ pub struct Scratch {
     spikes: spikes::Scratch,
 }
 
-/// The 90th percentile (the lower of the two nearest ranks) of non-negative finite values given
-/// as their bits (whose integer order is their order); NaN when there are fewer than `least`.
-#[inline(always)]
-fn p90_of_bits(bits: &mut [u32], least: usize) -> f32 {
-    let m = bits.len();
-    if m < least.max(1) {
-        return f32::NAN;
-    }
-    let k = (9 * (m - 1)) / 10;
-    f32::from_bits(*bits.select_nth_unstable(k).1)
-}
-
-/// The 90th percentile of `keys` ([`p90_of_bits`], NaN under [`MOTION_STEPS`] values), where
-/// `skipped` of the keys are 0 placeholders for values left out and `zeros` more are 0 values
-/// counted: those keys are the smallest, so the percentile's rank among the values counted is
-/// its rank among all keys past the placeholders.
-#[inline(always)]
-fn p90_skipping(keys: &mut [u32], skipped: usize, zeros: usize) -> f32 {
-    let m = keys.len() - skipped;
-    if m < MOTION_STEPS {
-        return f32::NAN;
-    }
-    let k = (9 * (m - 1)) / 10;
-    if k < zeros {
-        return 0.0;
-    }
-    f32::from_bits(*keys.select_nth_unstable(k + skipped).1)
-}
-
 /// The features of one column `x` (finite values) of an action whose dimensions leave a rest at
 /// each step as `onsets` counts ([`returns::onsets`]).
 #[inline(always)]
@@ -183,7 +155,7 @@ pub fn dim_signal(x: &[f32], onsets: &[u32], scratch: &mut Scratch) -> DimSignal
         };
         still += usize::from(!m);
     }
-    out.motion = p90_skipping(keys, still, 0);
+    out.motion = p90_skipping(keys, still, 0, MOTION_STEPS);
     back.clear();
     back.resize(backs.len(), 0);
     let (mut left_out, mut back_zeros) = (0, 0);
@@ -193,7 +165,7 @@ pub fn dim_signal(x: &[f32], onsets: &[u32], scratch: &mut Scratch) -> DimSignal
         left_out += usize::from(!moving);
         back_zeros += usize::from(moving & (q <= 0.0));
     }
-    out.return_scale = p90_skipping(back, left_out, back_zeros);
+    out.return_scale = p90_skipping(back, left_out, back_zeros, MOTION_STEPS);
     if max > min {
         (out.clip_steps, out.clip_runs, out.clip_max) = clipped(x, steps, keys, (min, max));
     }
