@@ -239,16 +239,18 @@ fn clipped(
     (best.0, best.1, is_max)
 }
 
-/// The lowest and highest value (∞ and -∞ when empty), eight lanes at a time.
+/// The lowest and highest of finite values (∞ and -∞ when empty), eight lanes at a time.
 #[inline(always)]
 pub fn bounds(x: &[f32]) -> (f32, f32) {
     let (mut lo, mut hi) = ([f32::INFINITY; 8], [f32::NEG_INFINITY; 8]);
     let chunks = x.chunks_exact(8);
     let tail = chunks.remainder();
+    // Compare and select (one instruction a lane): the values are finite, so `min`'s and
+    // `max`'s NaN handling is not needed.
     for c in chunks {
         for l in 0..8 {
-            lo[l] = lo[l].min(c[l]);
-            hi[l] = hi[l].max(c[l]);
+            lo[l] = if c[l] < lo[l] { c[l] } else { lo[l] };
+            hi[l] = if c[l] > hi[l] { c[l] } else { hi[l] };
         }
     }
     for (l, &v) in tail.iter().enumerate() {
@@ -276,19 +278,16 @@ pub fn held(x: &[f32]) -> (u32, u32) {
 /// `unchanged` steps equal the one before: none, and every run is one step long.
 #[inline(always)]
 fn longest_run(x: &[f32], unchanged: u32) -> Run {
-    let (mut start, mut best) = (0usize, (1usize, 0usize));
+    let mut best = (1usize, 0usize);
     if unchanged > 0 {
-        // A run ends where a value differs from the one before.
+        // The current run's length, without a branch on the values (a select); the best moves
+        // only while a run grows past it, and a later run as long does not replace it.
+        let mut len = 1usize;
         for (t, w) in x.windows(2).enumerate() {
-            if w[1] != w[0] {
-                if t + 1 - start > best.0 {
-                    best = (t + 1 - start, start);
-                }
-                start = t + 1;
+            len = if w[1] == w[0] { len + 1 } else { 1 };
+            if len > best.0 {
+                best = (len, t + 2 - len);
             }
-        }
-        if x.len() - start > best.0 {
-            best = (x.len() - start, start);
         }
     }
     Run {
