@@ -34,9 +34,10 @@ PLUMBING = re.compile(
     r"start_thread$|clone3?$|__clone|main$|std::rt|core::iter::|<core::iter|"
     r"<rayon|<core::|<alloc::|alloc::vec::|core::slice::iter|std::sys::backtrace|"
     r"std::thread::|<std::thread|<std::sys::)")
-COLOURS = [("doctor", "#d95f5f"), ("blake3", "#9d7ad2"), ("hash", "#9d7ad2"),
-           ("hdf5", "#5f8fd9"), ("H5", "#5f8fd9"), ("stats", "#5fb86a"),
-           ("[k]", "#b0b0b0"), ("", "#e8a33d")]
+# (label, colour, what a stack's names contain), first match wins; the last takes the rest.
+CATEGORIES = [("dataset doctor", "#d95f5f", ("doctor",)), ("hashing", "#9d7ad2", ("blake3", "hash")),
+              ("HDF5", "#5f8fd9", ("hdf5", "H5")), ("statistics", "#5fb86a", ("stats",)),
+              ("kernel", "#b0b0b0", ("[k]",)), ("the rest", "#e8a33d", ("",))]
 
 
 def clean(sym: str, dso: str):
@@ -90,9 +91,9 @@ def fold(samples):
     return counts
 
 
-def colour(path):
-    text = ";".join(path)
-    return next(c for key, c in COLOURS if key in text)
+def category(text):
+    """The (label, colour) of a stack given as its names joined."""
+    return next((label, c) for label, c, keys in CATEGORIES if any(k in text for k in keys))
 
 
 def draw(counts, out, title, depth_cap=24, least=0.004):
@@ -118,7 +119,7 @@ def draw(counts, out, title, depth_cap=24, least=0.004):
     depth = 1 + max(d for _, d, *_ in boxes)
     fig, ax = plt.subplots(figsize=(15, 0.32 * depth + 1.2))
     for x, d, w, name, path in boxes:
-        ax.add_patch(Rectangle((x, d), w, 0.92, facecolor=colour(path), edgecolor="white",
+        ax.add_patch(Rectangle((x, d), w, 0.92, facecolor=category(";".join(path))[1], edgecolor="white",
                                linewidth=0.4))
         # About 4.3 points a character: the longest label that fits, down to the function.
         chars = int(w * 15 * 72 / 4.3)
@@ -132,11 +133,9 @@ def draw(counts, out, title, depth_cap=24, least=0.004):
     ax.set_yticks([])
     ax.set_xlabel(f"share of the CPU samples ({total} samples, both threads)")
     ax.set_title(title, fontsize=10)
-    handles = [Rectangle((0, 0), 1, 1, facecolor=c) for _, c in
-               [("doctor", "#d95f5f"), ("hash", "#9d7ad2"), ("hdf5", "#5f8fd9"),
-                ("stats", "#5fb86a"), ("kernel", "#b0b0b0"), ("rest", "#e8a33d")]]
-    ax.legend(handles, ["dataset doctor", "hashing", "HDF5", "statistics", "kernel", "the rest"],
-              loc="upper right", fontsize=7, ncol=6, frameon=False, bbox_to_anchor=(1, 1.0))
+    handles = [Rectangle((0, 0), 1, 1, facecolor=c) for _, c, _ in CATEGORIES]
+    ax.legend(handles, [label for label, _, _ in CATEGORIES], loc="upper right", fontsize=7,
+              ncol=len(CATEGORIES), frameon=False, bbox_to_anchor=(1, 1.0))
     fig.tight_layout()
     fig.savefig(out, dpi=110)
 
@@ -158,8 +157,7 @@ def main():
     total = sum(counts.values())
     share = Counter()
     for stack, n in counts.items():
-        key = next((k for k, _ in COLOURS if k and k in stack), "rest")
-        share[key] += n
+        share[category(stack)[0]] += n
     print(", ".join(f"{k} {100 * n / total:.1f}%" for k, n in share.most_common()))
 
 
