@@ -350,6 +350,8 @@ fn init_options(fps: Option<f64>) -> Result<init::InitOptions, Error> {
 /// `chunkc plan [--shards N]`: the plan, and the shard assignment when asked.
 fn plan_command(spec: &LoadedSpec, format: PlanFormat, shards: Option<u64>) -> Result<(), Error> {
     let (source, plan) = commands::plan(spec)?;
+    // Its source's fingerprint, which the text and the JSON show (hashed now if still pending).
+    plan.source.fingerprint.get()?;
     let shards = shards
         .map(|n| plan::shards::estimate(&plan, source.as_ref(), n as usize))
         .transpose()?;

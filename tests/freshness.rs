@@ -135,6 +135,18 @@ fn every_cause_is_distinct_in_text_json_and_locked() {
         "{}",
         String::from_utf8_lossy(&built.stderr)
     );
+    // The first build completes the source's fingerprint from its own reads of the chunk files;
+    // `plan` hashes every file from disk: the same value in the lock, `meta.json` and the plan.
+    let plan: serde_json::Value =
+        serde_json::from_slice(&s.run(&["plan", "--format", "json"]).stdout).unwrap();
+    let lock: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(s.lock()).unwrap()).unwrap();
+    let meta: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(s.out("dp/meta.json")).unwrap()).unwrap();
+    let from_disk = &plan["source"]["fingerprint"];
+    assert_eq!(from_disk.as_str().map(str::len), Some(64));
+    assert_eq!(&lock["specs"]["pusht.toml"]["source_fingerprint"], from_disk);
+    assert_eq!(&meta["source"]["fingerprint"], from_disk);
     up_to_date(&s);
 
     // A spec value: only the profile it belongs to, with the key and both values.

@@ -19,6 +19,7 @@ use super::conversion::{conversion, Conversion};
 use super::sources_doctor::SourcesDoctor;
 
 use crate::error::Result;
+use crate::source::fingerprint::Fingerprint;
 use crate::source::{
     ChannelData, ChannelInfo, DecodeCounts, Episode, EpisodeInfo, Manifest, Source, SourcePart,
     SourceSplit, VideoCheck,
@@ -83,8 +84,7 @@ impl Mixture {
             fps,
             episodes: Vec::new(),
             channels: channels.clone(),
-            fingerprint: String::new(),
-            files: BTreeMap::new(),
+            fingerprint: Fingerprint::default().into(),
             timestamps: false,
             source_split: None,
             warnings: Vec::new(),
@@ -93,10 +93,13 @@ impl Mixture {
         };
         let mut positions = Vec::new();
         let mut fingerprint = blake3::Hasher::new();
+        let mut files = BTreeMap::new();
         let mut channel_of = Vec::new();
         for (s, part) in parts.iter().enumerate() {
             let own = part.source.manifest();
             let name = &part.view.name;
+            // A mixture's sources are each hashed at open (their files cover the mixture's).
+            let print = own.fingerprint.get()?;
             for (i, e) in own.episodes.iter().enumerate() {
                 manifest.episodes.push(EpisodeInfo {
                     id: part.id_offset + e.id,
@@ -104,10 +107,8 @@ impl Mixture {
                 });
                 positions.push((s, i));
             }
-            for (path, hash) in &own.files {
-                manifest
-                    .files
-                    .insert(format!("{name}/{path}"), hash.clone());
+            for (path, hash) in &print.files {
+                files.insert(format!("{name}/{path}"), hash.clone());
             }
             // An episode without a task of its own has its source's name as its task (the
             // LeRobot export's `task` then tells the sources apart).
@@ -117,7 +118,7 @@ impl Mixture {
             }
             let warnings = own.warnings.iter().map(|w| format!("sources.{name}: {w}"));
             manifest.warnings.extend(warnings);
-            for text in [name, &own.fingerprint] {
+            for text in [name, &print.hash] {
                 fingerprint.update(&(text.len() as u64).to_le_bytes());
                 fingerprint.update(text.as_bytes());
             }
@@ -131,7 +132,7 @@ impl Mixture {
                 path: part.view.spec.source().path.clone(),
                 fps: own.fps,
                 weight: part.view.weight,
-                fingerprint: own.fingerprint.clone(),
+                fingerprint: print.hash.clone(),
                 id_offset: part.id_offset,
                 widths: map
                     .iter()
@@ -141,7 +142,11 @@ impl Mixture {
             });
             channel_of.push(map);
         }
-        manifest.fingerprint = fingerprint.finalize().to_hex().to_string();
+        manifest.fingerprint = Fingerprint {
+            hash: fingerprint.finalize().to_hex().to_string(),
+            files,
+        }
+        .into();
         Ok(Mixture {
             parts: parts.into_iter().map(|p| p.source).collect(),
             manifest,

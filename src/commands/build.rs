@@ -370,7 +370,7 @@ pub(super) fn update_lock(spec: &LoadedSpec, plan: &Plan, hashes: &FileHashes) -
     for p in &plan.profiles {
         let entry = match hashes.get(&p.name) {
             Some(files) => LockedProfile {
-                fingerprint: p.fingerprint.clone(),
+                fingerprint: p.fingerprint.get()?,
                 files: files.clone(),
                 inputs: p.inputs.clone(),
                 encoder: crate::sink::encoder_record::of(p),
@@ -379,13 +379,14 @@ pub(super) fn update_lock(spec: &LoadedSpec, plan: &Plan, hashes: &FileHashes) -
         };
         profiles.insert(p.name.clone(), entry);
     }
+    let source = plan.source.fingerprint.get()?;
     all.specs.insert(
         key,
         SpecLock {
             tool_version: plan::TOOL_VERSION.to_string(),
             spec_hash: plan.spec_hash.clone(),
-            source_fingerprint: plan.source.fingerprint.clone(),
-            source_files: plan.source.files.clone(),
+            source_fingerprint: source.hash.clone(),
+            source_files: source.files.clone(),
             profiles,
         },
     );

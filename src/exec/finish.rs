@@ -234,7 +234,7 @@ fn write_documents(
             },
             &data.data_file,
             data.normalized,
-        ),
+        )?,
     )?;
     write(STATS_FILE, documents::stats_json(p, stats))?;
     super::source_files::write_source_stats(shared, p, all_stats.sources, dir)?;

@@ -17,6 +17,7 @@ use serde::Serialize;
 use super::TOOL_VERSION;
 use crate::error::Result;
 use crate::lock::{self, SpecLock};
+use crate::source::fingerprint::SourcePrint;
 use crate::source::Manifest;
 use crate::spec::{LoadedSpec, Profile};
 
@@ -114,33 +115,71 @@ impl fmt::Display for DirtyReason {
 /// Everything a profile's outputs depend on: the tool, the resolved profile, the source bytes,
 /// the channel mapping, the split and the spec's output location. Other profiles' settings are
 /// deliberately left out, so editing one profile rebuilds only that one.
+///
+/// The source's fingerprint may still be pending at plan time (it is completed from the pass's
+/// reads), so the value is computed when asked for ([`ProfilePrint::get`]): a first build never
+/// needs it before the lock is written.
+#[derive(Clone)]
+pub struct ProfilePrint {
+    /// The spec's values, in the order hashed; the source's fingerprint comes after the first
+    /// [`SPEC_PARTS`].
+    spec: Vec<String>,
+    source: SourcePrint,
+}
+
+/// How many of [`ProfilePrint`]'s spec values come before the source's fingerprint.
+const SPEC_PARTS: usize = 6;
+
 pub(super) fn profile_fingerprint(
     spec: &LoadedSpec,
     manifest: &Manifest,
     profile: &Profile,
-) -> String {
-    let mut h = blake3::Hasher::new();
-    let parts = [
+) -> ProfilePrint {
+    let mut parts = vec![
         TOOL_VERSION.to_string(),
         serde_json::to_string(profile).unwrap(),
         serde_json::to_string(&spec.spec.source).unwrap(),
         serde_json::to_string(&spec.spec.split).unwrap(),
         serde_json::to_string(&spec.spec.audit).unwrap(),
         spec.spec.output.dir.clone(),
-        manifest.fingerprint.clone(),
     ];
     // A mixture's sources and `[mixture]` (nothing for one source: its fingerprint is as before).
-    let mixture = spec.is_mixture().then(|| {
-        [
-            serde_json::to_string(&spec.spec.sources).unwrap(),
-            serde_json::to_string(&spec.spec.mixture).unwrap(),
-        ]
-    });
-    for p in parts.into_iter().chain(mixture.into_iter().flatten()) {
-        h.update(&(p.len() as u64).to_le_bytes());
-        h.update(p.as_bytes());
+    if spec.is_mixture() {
+        parts.push(serde_json::to_string(&spec.spec.sources).unwrap());
+        parts.push(serde_json::to_string(&spec.spec.mixture).unwrap());
     }
-    h.finalize().to_hex().to_string()
+    ProfilePrint {
+        spec: parts,
+        source: manifest.fingerprint.clone(),
+    }
+}
+
+impl ProfilePrint {
+    /// The fingerprint (BLAKE3, hex), completing the source's if it is still pending.
+    pub fn get(&self) -> Result<String> {
+        let source = self.source.hash()?;
+        let (before, after) = self.spec.split_at(SPEC_PARTS);
+        let mut h = blake3::Hasher::new();
+        for p in before.iter().chain([&source]).chain(after) {
+            h.update(&(p.len() as u64).to_le_bytes());
+            h.update(p.as_bytes());
+        }
+        Ok(h.finalize().to_hex().to_string())
+    }
+}
+
+impl fmt::Debug for ProfilePrint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "ProfilePrint({:?})", self.source)
+    }
+}
+
+/// Serialized as its value (the source's fingerprint completed if it is still pending).
+impl Serialize for ProfilePrint {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        let hash = self.get().map_err(serde::ser::Error::custom)?;
+        s.serialize_str(&hash)
+    }
 }
 
 /// The spec values [`profile_fingerprint`] covers, one per leaf, by dotted key
@@ -228,7 +267,7 @@ fn changed_source_file(
 /// What a profile's freshness is judged from.
 pub(super) struct Current<'a> {
     pub name: &'a str,
-    pub fingerprint: &'a str,
+    pub fingerprint: &'a ProfilePrint,
     pub inputs: &'a BTreeMap<String, String>,
     pub manifest: &'a Manifest,
     /// The profile's output directory.
@@ -253,12 +292,14 @@ pub(super) fn status_of(now: &Current, lock: Option<&SpecLock>) -> Result<Status
             new: TOOL_VERSION.to_string(),
         });
     }
-    if entry.fingerprint != now.fingerprint {
+    // Only a profile built before needs the source's fingerprint at plan time.
+    if entry.fingerprint != now.fingerprint.get()? {
         let recorded = !entry.inputs.is_empty();
         let value = recorded.then(|| changed_value(&entry.inputs, now.inputs));
-        let source_changed = lock.source_fingerprint != now.manifest.fingerprint;
+        let source = now.manifest.fingerprint.get()?;
+        let source_changed = lock.source_fingerprint != source.hash;
         let file = (source_changed && !lock.source_files.is_empty())
-            .then(|| changed_source_file(&lock.source_files, &now.manifest.files));
+            .then(|| changed_source_file(&lock.source_files, &source.files));
         let reason = match (value.flatten(), file.flatten()) {
             (Some(v), _) => v,
             (None, Some(f)) => f,

@@ -47,7 +47,6 @@ pub fn resolve(
             episodes: manifest.episodes.len(),
             steps: manifest.episodes.iter().map(|e| e.len).sum(),
             fingerprint: manifest.fingerprint.clone(),
-            files: manifest.files.clone(),
             channels: manifest.channels.clone(),
             parts: manifest.parts.clone(),
             tasks: manifest.tasks.clone(),

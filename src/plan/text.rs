@@ -63,7 +63,15 @@ pub fn render_text(plan: &Plan) -> String {
         "source  {} {} ({} episodes, {} steps, {} Hz)",
         src.format, src.path, src.episodes, src.steps, src.fps
     );
-    let _ = writeln!(s, "        fingerprint {}", &src.fingerprint[..16]);
+    let fingerprint = src
+        .fingerprint
+        .hash()
+        .unwrap_or_else(|e| format!("(unreadable: {e})"));
+    let _ = writeln!(
+        s,
+        "        fingerprint {}",
+        fingerprint.get(..16).unwrap_or(&fingerprint)
+    );
     mixture_lines(&mut s, plan);
     for ch in &src.channels {
         let _ = writeln!(

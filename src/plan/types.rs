@@ -78,10 +78,8 @@ pub struct SourcePlan {
     pub fps: f64,
     pub episodes: usize,
     pub steps: usize,
-    pub fingerprint: String,
-    /// BLAKE3 of every file the fingerprint covers, by path in the source (kept in the lock).
-    #[serde(skip)]
-    pub files: BTreeMap<String, String>,
+    /// With the BLAKE3 of every file it covers, by path in the source (kept in the lock).
+    pub fingerprint: crate::source::fingerprint::SourcePrint,
     pub channels: Vec<ChannelInfo>,
     /// A training mixture's sources (empty for one source).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -145,7 +143,7 @@ pub struct ProfilePlan {
     pub num_samples: SplitCounts,
     pub steps: usize,
     pub files: Vec<PlannedFile>,
-    pub fingerprint: String,
+    pub fingerprint: super::freshness::ProfilePrint,
     /// The spec values the fingerprint covers, by dotted key (kept in the lock, so that the next
     /// plan can name the value that changed).
     #[serde(skip)]

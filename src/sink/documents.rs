@@ -51,7 +51,7 @@ pub fn meta_json(
     built: &Built,
     data_file: &str,
     normalized: bool,
-) -> String {
+) -> crate::error::Result<String> {
     let v = &profile.values;
     let window = profile.window();
     let mut sampling = serde_json::Map::new();
@@ -98,6 +98,7 @@ pub fn meta_json(
     }
     let normalization = normalization_json(profile, built.normalizers);
     let ids: Vec<u64> = profile.episodes.iter().map(|e| e.id).collect();
+    let fingerprint = plan.source.fingerprint.hash()?;
     let doc = json!({
         "format_version": META_FORMAT_VERSION,
         "chunkc_version": TOOL_VERSION,
@@ -138,7 +139,7 @@ pub fn meta_json(
         "source": {
             "format": plan.source.format,
             "path": plan.source.path,
-            "fingerprint": plan.source.fingerprint,
+            "fingerprint": fingerprint,
         },
         "spec_hash": plan.spec_hash,
     });
@@ -166,12 +167,18 @@ pub fn meta_json(
         map.insert("env".into(), json!(env));
     }
     if !plan.source.parts.is_empty() {
-        super::meta_sources::add(&mut doc, plan, profile, built.source_normalizers);
+        super::meta_sources::add(
+            &mut doc,
+            plan,
+            &fingerprint,
+            profile,
+            built.source_normalizers,
+        );
     }
     if profile.writes_lerobot_v21() {
         super::lerobot_v21_meta::describe(&mut doc, profile, &plan.source.parts);
     }
-    pretty(&doc)
+    Ok(pretty(&doc))
 }
 
 /// How an image channel of chunkc's HDF5 layout stores its frames when not as pixels

@@ -14,10 +14,12 @@ use crate::source::SourcePart;
 use crate::spec::ResampleMethod;
 use crate::stats::normalize::Normalizer;
 
-/// Adds the mixture's fields to `doc` (a one-source `meta.json` has none of them).
+/// Adds the mixture's fields to `doc` (a one-source `meta.json` has none of them);
+/// `fingerprint` is the mixture's.
 pub fn add(
     doc: &mut Value,
     plan: &Plan,
+    fingerprint: &str,
     profile: &ProfilePlan,
     normalizers: &[BTreeMap<String, Normalizer>],
 ) {
@@ -45,7 +47,7 @@ pub fn add(
     };
     map.insert(
         "source".into(),
-        json!({ "format": "mixture", "path": Value::Null, "fingerprint": plan.source.fingerprint }),
+        json!({ "format": "mixture", "path": Value::Null, "fingerprint": fingerprint }),
     );
     map.insert("episode_sources".into(), json!(episode_sources));
     map.insert(

@@ -16,11 +16,12 @@ use zarrs::filesystem::FilesystemStore;
 
 use super::block_cache::{self, BlockCache, DecodeCounts};
 use super::mapping::{self, KeyInfo, Mapped, Raw};
+use super::zarr_read_store::ReadStore;
 use super::{fingerprint, Episode, EpisodeInfo, Manifest, Source};
 use crate::error::{Error, Result};
 use crate::spec::{LoadedSpec, SourceFormat};
 
-type ZArray = Array<FilesystemStore>;
+type ZArray = Array<ReadStore>;
 
 pub struct DpZarrSource {
     root: PathBuf,
@@ -231,7 +232,7 @@ fn copy_from_chunk<T: Copy>(
     }
 }
 
-fn open_array(store: &Arc<FilesystemStore>, root: &Path, key: &str) -> Result<ZArray> {
+fn open_array(store: &Arc<ReadStore>, root: &Path, key: &str) -> Result<ZArray> {
     Array::open(store.clone(), &format!("/{key}")).map_err(|e| {
         Error::source(format!(
             "{}: cannot open zarr array `{key}`: {e}",
@@ -265,9 +266,12 @@ impl DpZarrSource {
     /// Opens the store: the episodes (`meta/episode_ends`), the arrays under `data/` mapped to
     /// channels, each as long as the episodes together, and their chunk grids.
     pub fn open(spec: &LoadedSpec, root: &Path) -> Result<Self> {
-        let store = Arc::new(FilesystemStore::new(root).map_err(|e| {
+        let files = FilesystemStore::new(root).map_err(|e| {
             Error::source(format!("{}: cannot open zarr store: {e}", root.display()))
-        })?);
+        })?;
+        // The fingerprint is completed from the pass's own reads of the chunk files.
+        let seen = fingerprint::Seen::default();
+        let store = Arc::new(ReadStore::new(files, seen.clone()));
         let fps = spec.source().fps.ok_or_else(|| {
             spec.error_at(
                 &["source", "fps"],
@@ -281,7 +285,7 @@ impl DpZarrSource {
         let mapped = mapping::resolve(spec, &place, &keys)?;
         arrays.retain(|k, _| mapped.keys().contains(k));
         let arrays = check_arrays(root, arrays, &bounds)?;
-        let fingerprint = fingerprint::of_files(root, &read_files(root, &mapped)?)?;
+        let fingerprint = fingerprint::SourcePrint::pending(root, read_files(root, &mapped)?, seen);
         let manifest = Manifest::one_source(
             SourceFormat::DiffusionPolicyZarr,
             fps,
@@ -303,10 +307,7 @@ impl DpZarrSource {
 
 /// The episodes `meta/episode_ends` lists, and their cumulative starts (one more than
 /// episodes).
-fn list_episodes(
-    store: &Arc<FilesystemStore>,
-    root: &Path,
-) -> Result<(Vec<EpisodeInfo>, Vec<u64>)> {
+fn list_episodes(store: &Arc<ReadStore>, root: &Path) -> Result<(Vec<EpisodeInfo>, Vec<u64>)> {
     let ends_array = open_array(store, root, "meta/episode_ends")?;
     let n = ends_array.shape().first().copied().unwrap_or(0);
     // Every episode has a step, so there are no more ends than steps in the longest array;
@@ -353,7 +354,7 @@ fn list_episodes(
 
 /// The arrays under `data/`, by key, and the keys they offer.
 fn data_arrays(
-    store: &Arc<FilesystemStore>,
+    store: &Arc<ReadStore>,
     root: &Path,
 ) -> Result<(Vec<KeyInfo>, BTreeMap<String, ZArray>)> {
     let mut keys = Vec::new();

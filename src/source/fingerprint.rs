@@ -3,9 +3,17 @@
 //! A fingerprint is BLAKE3 over the sorted list of (relative path, BLAKE3 of contents) of every
 //! file an adapter reads. File names are sorted bytewise so the result is independent of the
 //! directory listing order and of the thread count.
+//!
+//! An adapter that reads whole files through code of its own (a zarr store's chunk files) need
+//! not read its source twice: it opens with a [`SourcePrint::pending`] fingerprint, hashes each
+//! file's bytes as the pass reads them ([`Seen::saw`]), and the first caller that needs
+//! the value ([`SourcePrint::get`]: the lock, `meta.json`, a rebuild's freshness) hashes only the
+//! files the pass did not read. The value is the same as hashing every file at open.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
 
@@ -43,19 +51,158 @@ pub struct Fingerprint {
 /// Fingerprint of the given files (relative to `root`).
 pub fn of_files(root: &Path, files: &[PathBuf]) -> Result<Fingerprint> {
     let hashes = crate::error::in_order(files.par_iter().map(|rel| hash_file(&root.join(rel))))?;
+    Ok(combine(files, &hashes))
+}
+
+/// The fingerprint of `files` (sorted) whose contents hash to `hashes`.
+fn combine(files: &[PathBuf], hashes: &[blake3::Hash]) -> Fingerprint {
     let mut all = blake3::Hasher::new();
     let mut each = BTreeMap::new();
-    for (rel, h) in files.iter().zip(&hashes) {
-        let name = rel.to_string_lossy().replace('\\', "/");
+    for (rel, h) in files.iter().zip(hashes) {
+        let name = name_of(rel);
         all.update(&(name.len() as u64).to_le_bytes());
         all.update(name.as_bytes());
         all.update(h.as_bytes());
         each.insert(name, h.to_hex().to_string());
     }
-    Ok(Fingerprint {
+    Fingerprint {
         hash: all.finalize().to_hex().to_string(),
         files: each,
-    })
+    }
+}
+
+/// A source's fingerprint, known at open or completed on first use from the hashes its pass
+/// recorded. Clones share one value.
+#[derive(Clone)]
+pub struct SourcePrint(Arc<Print>);
+
+struct Print {
+    /// Once known.
+    done: Mutex<Option<Arc<Fingerprint>>>,
+    /// The files it covers, when it was not known at open.
+    pending: Option<Pending>,
+}
+
+struct Pending {
+    root: PathBuf,
+    files: Vec<PathBuf>,
+    seen: Seen,
+}
+
+/// The hashes of whole files as an adapter's own reads saw them, by name in the fingerprint
+/// ([`name_of`]). Clones share one record; once the fingerprint is complete it records nothing.
+#[derive(Clone, Default)]
+pub struct Seen(Arc<SeenFiles>);
+
+#[derive(Default)]
+struct SeenFiles {
+    closed: AtomicBool,
+    hashes: Mutex<HashMap<String, blake3::Hash>>,
+}
+
+impl Seen {
+    /// Records `bytes`, the whole contents of file `name` (its path in the source, `/`
+    /// separators), as read.
+    pub fn saw(&self, name: &str, bytes: &[u8]) {
+        if self.0.closed.load(Ordering::Relaxed) {
+            return;
+        }
+        let hash = blake3::hash(bytes);
+        lock(&self.0.hashes).insert(name.to_string(), hash);
+    }
+
+    /// What was recorded; nothing is recorded after.
+    fn close(&self) -> HashMap<String, blake3::Hash> {
+        self.0.closed.store(true, Ordering::Relaxed);
+        std::mem::take(&mut *lock(&self.0.hashes))
+    }
+}
+
+impl SourcePrint {
+    /// A fingerprint computed at open.
+    pub fn known(fingerprint: Fingerprint) -> SourcePrint {
+        SourcePrint(Arc::new(Print {
+            done: Mutex::new(Some(Arc::new(fingerprint))),
+            pending: None,
+        }))
+    }
+
+    /// The fingerprint of `files` (relative to `root`, sorted), computed when first asked for:
+    /// from the hashes `seen` recorded, and by reading the files it did not.
+    pub fn pending(root: &Path, files: Vec<PathBuf>, seen: Seen) -> SourcePrint {
+        SourcePrint(Arc::new(Print {
+            done: Mutex::new(None),
+            pending: Some(Pending {
+                root: root.to_path_buf(),
+                files,
+                seen,
+            }),
+        }))
+    }
+
+    /// The fingerprint: the value known, or (the first time) the hashes the pass recorded and
+    /// those of the files it did not read.
+    pub fn get(&self) -> Result<Arc<Fingerprint>> {
+        let mut done = lock(&self.0.done);
+        if let Some(known) = &*done {
+            return Ok(known.clone());
+        }
+        let pending = self
+            .0
+            .pending
+            .as_ref()
+            .expect("a print is known or pending");
+        let seen = pending.seen.close();
+        let _rest = crate::timings::phase("fingerprint source (files the pass did not read)");
+        let hashes =
+            crate::error::in_order(pending.files.par_iter().map(
+                |rel| match seen.get(&name_of(rel)) {
+                    Some(h) => Ok(*h),
+                    None => hash_file(&pending.root.join(rel)),
+                },
+            ))?;
+        let value = Arc::new(combine(&pending.files, &hashes));
+        *done = Some(value.clone());
+        Ok(value)
+    }
+
+    /// The fingerprint's value ([`SourcePrint::get`]).
+    pub fn hash(&self) -> Result<String> {
+        Ok(self.get()?.hash.clone())
+    }
+}
+
+impl From<Fingerprint> for SourcePrint {
+    fn from(fingerprint: Fingerprint) -> SourcePrint {
+        SourcePrint::known(fingerprint)
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    // A panic while the lock was held left plain values behind: still usable.
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl std::fmt::Debug for SourcePrint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &*lock(&self.0.done) {
+            Some(known) => write!(f, "SourcePrint({})", known.hash),
+            None => write!(f, "SourcePrint(pending)"),
+        }
+    }
+}
+
+/// Serialized as its value (computed if it is still pending).
+impl serde::Serialize for SourcePrint {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        let hash = self.hash().map_err(serde::ser::Error::custom)?;
+        s.serialize_str(&hash)
+    }
+}
+
+/// A file's name in a fingerprint: its path relative to the source root, `/` separators.
+pub fn name_of(rel: &Path) -> String {
+    rel.to_string_lossy().replace('\\', "/")
 }
 
 /// BLAKE3 of a file's contents (sources for their fingerprint, outputs for the lock). Streams
@@ -115,6 +262,34 @@ mod tests {
         let before = of_files(dir.path(), &files).unwrap();
         std::fs::write(dir.path().join("y"), b"3").unwrap();
         assert_ne!(before, of_files(dir.path(), &files).unwrap());
+    }
+
+    /// A pending fingerprint takes the hashes of the files the pass read from what it saw (a
+    /// file deleted after it was read is not read again) and reads the rest; the value is the
+    /// one of hashing every file at open. Once complete, it records nothing more.
+    #[test]
+    fn pending_takes_what_the_pass_saw_and_reads_the_rest() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("c")).unwrap();
+        for (name, bytes) in [("c/0", b"zero".as_slice()), ("c/1", b"one"), ("meta", b"m")] {
+            std::fs::write(dir.path().join(name), bytes).unwrap();
+        }
+        let files = list_files(dir.path()).unwrap();
+        let at_open = of_files(dir.path(), &files).unwrap();
+        let seen = Seen::default();
+        let print = SourcePrint::pending(dir.path(), files, seen.clone());
+        seen.saw("c/0", b"zero");
+        std::fs::remove_file(dir.path().join("c/0")).unwrap();
+        assert_eq!(*print.get().unwrap(), at_open);
+        assert_eq!(print.hash().unwrap(), at_open.hash);
+        assert!(seen.close().is_empty());
+        seen.saw("c/1", b"one");
+        assert!(seen.close().is_empty());
+        // A file neither seen nor on disk is an error naming it.
+        let seen = Seen::default();
+        let files = vec![PathBuf::from("c/0")];
+        let err = SourcePrint::pending(dir.path(), files, seen).get().unwrap_err();
+        assert!(err.to_string().contains("c/0"), "{err}");
     }
 
     #[test]

@@ -29,6 +29,7 @@
 //! - `parquet_read`: parquet columns (scalars, fixed- and variable-size lists) as rows of numbers.
 //! - `subset`: `[source] episodes = […]`, a view of some episodes of any source.
 //! - `fingerprint`: the content hash that tells the plan whether a source changed.
+//! - `zarr_read_store`: the store a zarr source is read through, hashing each file it reads.
 //! - `detect`: which layout a path holds, and the keys a source offers before any is mapped
 //!   (`chunkc init`, `chunkc inspect`).
 
@@ -50,6 +51,7 @@ pub mod rlds;
 mod robomimic;
 mod subset;
 pub mod video;
+mod zarr_read_store;
 
 pub use block_cache::DecodeCounts;
 pub use lerobot::Info as LerobotInfo;
@@ -111,11 +113,10 @@ pub struct Manifest {
     pub episodes: Vec<EpisodeInfo>,
     /// In the spec's (sorted) channel order; `action` is among them.
     pub channels: Vec<ChannelInfo>,
-    /// BLAKE3 over the bytes of everything the adapter reads.
-    pub fingerprint: String,
-    /// BLAKE3 of each file the fingerprint covers, by path in the source (the lock keeps them,
-    /// so that a changed source names the file).
-    pub files: BTreeMap<String, String>,
+    /// BLAKE3 over the bytes of everything the adapter reads, with the BLAKE3 of each file it
+    /// covers, by path in the source (the lock keeps them, so that a changed source names the
+    /// file). Known at open, or completed from the pass's reads when first asked for.
+    pub fingerprint: fingerprint::SourcePrint,
     /// Whether episodes carry timestamps read from the source.
     pub timestamps: bool,
     /// The split the source itself stores, if any (used with `[split] from = "source"`).
@@ -141,7 +142,7 @@ impl Manifest {
         fps: f64,
         episodes: Vec<EpisodeInfo>,
         mapped: &mapping::Mapped,
-        fingerprint: fingerprint::Fingerprint,
+        fingerprint: impl Into<fingerprint::SourcePrint>,
         warnings: Vec<String>,
     ) -> Manifest {
         Manifest {
@@ -149,8 +150,7 @@ impl Manifest {
             fps,
             episodes,
             channels: mapped.channels.clone(),
-            fingerprint: fingerprint.hash,
-            files: fingerprint.files,
+            fingerprint: fingerprint.into(),
             timestamps: false,
             source_split: None,
             warnings,
