@@ -486,8 +486,20 @@ fn one_malloc_arena() {
     }
 }
 
+/// Output piped into a program that stops reading (`chunkc plan | head`) ends chunkc quietly, as
+/// it ends any Unix tool, not with a panic at the next print (Rust ignores `SIGPIPE`). chunkc
+/// writes to no other pipe or socket, so nothing else meets the signal.
+fn quiet_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: restores the signal's default action; called before any other thread runs.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
     one_malloc_arena();
+    quiet_on_closed_pipe();
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,

@@ -145,7 +145,10 @@ fn every_cause_is_distinct_in_text_json_and_locked() {
         serde_json::from_str(&fs::read_to_string(s.out("dp/meta.json")).unwrap()).unwrap();
     let from_disk = &plan["source"]["fingerprint"];
     assert_eq!(from_disk.as_str().map(str::len), Some(64));
-    assert_eq!(&lock["specs"]["pusht.toml"]["source_fingerprint"], from_disk);
+    assert_eq!(
+        &lock["specs"]["pusht.toml"]["source_fingerprint"],
+        from_disk
+    );
     assert_eq!(&meta["source"]["fingerprint"], from_disk);
     up_to_date(&s);
 

@@ -292,19 +292,22 @@ pub(super) fn status_of(now: &Current, lock: Option<&SpecLock>) -> Result<Status
             new: TOOL_VERSION.to_string(),
         });
     }
-    // Only a profile built before needs the source's fingerprint at plan time.
+    let recorded = !entry.inputs.is_empty();
+    let value = recorded.then(|| changed_value(&entry.inputs, now.inputs));
+    // A changed spec value is the first cause, and needs no source fingerprint: a source that
+    // is still pending is then completed from the build's own reads, not read once more now.
+    if let Some(Some(reason)) = value {
+        return stale(reason);
+    }
     if entry.fingerprint != now.fingerprint.get()? {
-        let recorded = !entry.inputs.is_empty();
-        let value = recorded.then(|| changed_value(&entry.inputs, now.inputs));
         let source = now.manifest.fingerprint.get()?;
         let source_changed = lock.source_fingerprint != source.hash;
         let file = (source_changed && !lock.source_files.is_empty())
             .then(|| changed_source_file(&lock.source_files, &source.files));
-        let reason = match (value.flatten(), file.flatten()) {
-            (Some(v), _) => v,
-            (None, Some(f)) => f,
-            (None, None) if source_changed => DirtyReason::SourceChanged,
-            (None, None) => DirtyReason::FingerprintChanged,
+        let reason = match file.flatten() {
+            Some(f) => f,
+            None if source_changed => DirtyReason::SourceChanged,
+            None => DirtyReason::FingerprintChanged,
         };
         return stale(reason);
     }

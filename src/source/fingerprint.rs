@@ -288,7 +288,9 @@ mod tests {
         // A file neither seen nor on disk is an error naming it.
         let seen = Seen::default();
         let files = vec![PathBuf::from("c/0")];
-        let err = SourcePrint::pending(dir.path(), files, seen).get().unwrap_err();
+        let err = SourcePrint::pending(dir.path(), files, seen)
+            .get()
+            .unwrap_err();
         assert!(err.to_string().contains("c/0"), "{err}");
     }
 
