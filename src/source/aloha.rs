@@ -90,20 +90,14 @@ impl AlohaSource {
             jpeg: &jpeg,
             wanted: &wanted,
         };
-        // Each file's header is read through HDF5, one file at a time (its lock); the content
-        // hashes of the fingerprint run on the other threads meanwhile.
+        // The content hashes of the fingerprint run on a thread of their own from now on, while
+        // each file's header is read through HDF5 and then while the build reads the episodes.
         let names: Vec<PathBuf> = found.iter().map(|(_, n)| PathBuf::from(n)).collect();
-        let (listed, fingerprint) = rayon::join(
-            || headers.read(&found),
-            || {
-                let _fingerprint = crate::timings::phase("fingerprint source");
-                fingerprint::of_files(dir, &names)
-            },
-        );
-        let (episodes, direct) = listed?;
+        let fingerprint = fingerprint::SourcePrint::beside(dir, names);
+        let (episodes, direct) = headers.read(&found)?;
         let fps = spec.source().fps.unwrap_or(DEFAULT_FPS);
         let format = SourceFormat::AlohaHdf5;
-        let manifest = Manifest::one_source(format, fps, episodes, &mapped, fingerprint?, warnings);
+        let manifest = Manifest::one_source(format, fps, episodes, &mapped, fingerprint, warnings);
         Ok(AlohaSource {
             files,
             manifest,

@@ -9,6 +9,11 @@
 //! file's bytes as the pass reads them ([`Seen::saw`]), and the first caller that needs
 //! the value ([`SourcePrint::get`]: the lock, `meta.json`, a rebuild's freshness) hashes only the
 //! files the pass did not read. The value is the same as hashing every file at open.
+//!
+//! An adapter whose files are read in parts (HDF5 datasets, parquet row groups, videos) opens
+//! with a [`SourcePrint::beside`] fingerprint instead: one thread of its own, at the lowest
+//! scheduling priority, hashes the files while the build reads them, on the cores the pass
+//! leaves idle (an image build waits on its reads and writes), and the first caller waits for it.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
@@ -87,6 +92,8 @@ struct Pending {
     root: PathBuf,
     files: Vec<PathBuf>,
     seen: Seen,
+    /// The thread hashing every file, for a [`SourcePrint::beside`] fingerprint.
+    hashing: Mutex<Option<std::thread::JoinHandle<Result<Fingerprint>>>>,
 }
 
 /// The hashes of whole files as an adapter's own reads saw them, by name in the fingerprint
@@ -136,8 +143,31 @@ impl SourcePrint {
                 root: root.to_path_buf(),
                 files,
                 seen,
+                hashing: Mutex::new(None),
             }),
         }))
+    }
+
+    /// The fingerprint of `files` (relative to `root`, sorted), hashed by a thread of its own at
+    /// the lowest priority from now on, beside the build (see the module's text).
+    pub fn beside(root: &Path, files: Vec<PathBuf>) -> SourcePrint {
+        let print = SourcePrint::pending(root, files.clone(), Seen::default());
+        let root = root.to_path_buf();
+        let spawned = std::thread::Builder::new()
+            .name("chunkc-fingerprint".into())
+            .spawn(move || {
+                lowest_priority();
+                let hashes: Result<Vec<blake3::Hash>> = files
+                    .iter()
+                    .map(|rel| hash_file_here(&root.join(rel)))
+                    .collect();
+                Ok(combine(&files, &hashes?))
+            });
+        // Without a thread, the first caller hashes the files.
+        if let (Ok(thread), Some(pending)) = (spawned, &print.0.pending) {
+            *lock(&pending.hashing) = Some(thread);
+        }
+        print
     }
 
     /// The fingerprint: the value known, or (the first time) the hashes the pass recorded and
@@ -152,6 +182,15 @@ impl SourcePrint {
             .pending
             .as_ref()
             .expect("a print is known or pending");
+        if let Some(thread) = lock(&pending.hashing).take() {
+            let _waiting = crate::timings::phase("fingerprint source (waiting for its thread)");
+            // An error (a file gone or unreadable) is found again below, and reported there.
+            if let Ok(Ok(value)) = thread.join() {
+                let value = Arc::new(value);
+                *done = Some(value.clone());
+                return Ok(value);
+            }
+        }
         let seen = pending.seen.close();
         let _rest = crate::timings::phase("fingerprint source (files the pass did not read)");
         let hashes =
@@ -232,6 +271,25 @@ pub fn hash_file(path: &Path) -> Result<blake3::Hash> {
     Ok(h.finalize())
 }
 
+/// BLAKE3 of a file's contents on the calling thread alone (a large file is not split over the
+/// pool's threads, as [`hash_file`] does).
+fn hash_file_here(path: &Path) -> Result<blake3::Hash> {
+    let file = std::fs::File::open(path).at("open", path)?;
+    let mut h = blake3::Hasher::new();
+    h.update_reader(file).at("hash", path)?;
+    Ok(h.finalize())
+}
+
+/// Lowers the calling thread to the lowest scheduling priority (Linux keeps a nice value per
+/// thread), so that it runs only where the build leaves a core idle.
+fn lowest_priority() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: `setpriority` only changes the calling thread's nice value (`who` 0 is the caller).
+    unsafe {
+        libc::setpriority(libc::PRIO_PROCESS, 0, 19);
+    }
+}
+
 /// Reads from `file` until `buf` is full or the file ends; how many bytes were read.
 fn fill(file: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize> {
     use std::io::Read;
@@ -292,6 +350,25 @@ mod tests {
             .get()
             .unwrap_err();
         assert!(err.to_string().contains("c/0"), "{err}");
+    }
+
+    /// A fingerprint hashed beside the build has the value of hashing at open; a file that
+    /// cannot be read is an error naming it, at the first call that needs the value.
+    #[test]
+    fn beside_equals_hashing_at_open_and_names_a_missing_file() {
+        let dir = tempfile::tempdir().unwrap();
+        for (name, len) in [("a", 10usize), ("b", (8 << 20) * 2 + 7), ("c", 0)] {
+            let bytes: Vec<u8> = (0..len).map(|i| (i * 13 + i / 977) as u8).collect();
+            std::fs::write(dir.path().join(name), bytes).unwrap();
+        }
+        let files = list_files(dir.path()).unwrap();
+        let at_open = of_files(dir.path(), &files).unwrap();
+        let print = SourcePrint::beside(dir.path(), files.clone());
+        assert_eq!(*print.get().unwrap(), at_open);
+        assert_eq!(*print.clone().get().unwrap(), at_open);
+        let gone = [files, vec![PathBuf::from("gone")]].concat();
+        let err = SourcePrint::beside(dir.path(), gone).get().unwrap_err();
+        assert!(err.to_string().contains("gone"), "{err}");
     }
 
     #[test]

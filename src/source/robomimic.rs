@@ -80,7 +80,7 @@ impl RobomimicSource {
         let source_split = read_masks(&file, &demos, &shown, &mut warnings)?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let name = PathBuf::from(path.file_name().unwrap_or_default());
-        let fingerprint = fingerprint::of_files(dir, &[name])?;
+        let fingerprint = fingerprint::SourcePrint::beside(dir, vec![name]);
         let raw = std::fs::File::open(path)
             .map_err(|e| Error::source(format!("{shown}: cannot open: {e}")))?;
         let format = SourceFormat::RobomimicHdf5;

@@ -129,7 +129,7 @@ impl LerobotSource {
         let source_split = stored_split(&info, &episodes, &info_path);
         read_files.sort();
         read_files.dedup();
-        let fingerprint = fingerprint::of_files(root, &read_files)?;
+        let fingerprint = fingerprint::SourcePrint::beside(root, read_files);
         let has_timestamp = info.features.iter().any(|k| k.key == "timestamp");
         let footers = row_groups(root, &locations)?;
         let manifest = Manifest {

@@ -117,7 +117,7 @@ impl RldsSource {
         }
         let mut warnings = mapped.warnings.clone();
         warnings.extend(listed.warnings());
-        let fingerprint = fingerprint::of_files(&dir, &meta.files())?;
+        let fingerprint = fingerprint::SourcePrint::beside(&dir, meta.files());
         let fps = spec.source().fps.ok_or_else(|| {
             spec.error_at(
                 &["source", "fps"],
