@@ -28,7 +28,8 @@
 //!   behind the `video` cargo feature.
 //! - `parquet_read`: parquet columns (scalars, fixed- and variable-size lists) as rows of numbers.
 //! - `subset`: `[source] episodes = […]`, a view of some episodes of any source.
-//! - `fingerprint`: the content hash that tells the plan whether a source changed.
+//! - `fingerprint`: the content hash that tells the plan whether a source changed (`later`: hashed
+//!   as the build reads, or beside it, not before it).
 //! - `zarr_read_store`: the store a zarr source is read through, hashing each file it reads.
 //! - `detect`: which layout a path holds, and the keys a source offers before any is mapped
 //!   (`chunkc init`, `chunkc inspect`).

@@ -1,8 +1,5 @@
-//! Content fingerprints of source files.
-//!
-//! A fingerprint is BLAKE3 over the sorted list of (relative path, BLAKE3 of contents) of every
-//! file an adapter reads. File names are sorted bytewise so the result is independent of the
-//! directory listing order and of the thread count.
+//! A fingerprint completed later than the source's opening, so that a build need not wait for
+//! it before it reads.
 //!
 //! An adapter that reads whole files through code of its own (a zarr store's chunk files) need
 //! not read its source twice: it opens with a [`SourcePrint::pending`] fingerprint, hashes each
@@ -15,66 +12,13 @@
 //! scheduling priority, hashes the files while the build reads them, on the cores the pass
 //! leaves idle (an image build waits on its reads and writes), and the first caller waits for it.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
-use rayon::prelude::*;
-
-use crate::error::{IoContext, Result};
-
-/// Every regular file under `root` (recursively), as paths relative to `root`, sorted.
-pub fn list_files(root: &Path) -> Result<Vec<PathBuf>> {
-    let mut out = Vec::new();
-    let mut stack = vec![PathBuf::new()];
-    while let Some(rel) = stack.pop() {
-        let dir = root.join(&rel);
-        for entry in std::fs::read_dir(&dir).at("list", &dir)? {
-            let entry = entry.at("list", &dir)?;
-            let ty = entry.file_type().at("stat", entry.path())?;
-            let child = rel.join(entry.file_name());
-            if ty.is_dir() {
-                stack.push(child);
-            } else {
-                out.push(child);
-            }
-        }
-    }
-    out.sort();
-    Ok(out)
-}
-
-/// A source's content fingerprint, and the hash of each file it covers.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct Fingerprint {
-    pub hash: String,
-    /// BLAKE3 (hex) of each file, by its path relative to the source root with `/` separators.
-    pub files: BTreeMap<String, String>,
-}
-
-/// Fingerprint of the given files (relative to `root`).
-pub fn of_files(root: &Path, files: &[PathBuf]) -> Result<Fingerprint> {
-    let hashes = crate::error::in_order(files.par_iter().map(|rel| hash_file(&root.join(rel))))?;
-    Ok(combine(files, &hashes))
-}
-
-/// The fingerprint of `files` (sorted) whose contents hash to `hashes`.
-fn combine(files: &[PathBuf], hashes: &[blake3::Hash]) -> Fingerprint {
-    let mut all = blake3::Hasher::new();
-    let mut each = BTreeMap::new();
-    for (rel, h) in files.iter().zip(hashes) {
-        let name = name_of(rel);
-        all.update(&(name.len() as u64).to_le_bytes());
-        all.update(name.as_bytes());
-        all.update(h.as_bytes());
-        each.insert(name, h.to_hex().to_string());
-    }
-    Fingerprint {
-        hash: all.finalize().to_hex().to_string(),
-        files: each,
-    }
-}
+use super::{combine, name_of, Fingerprint};
+use crate::error::{Error, IoContext, Result};
 
 /// A source's fingerprint, known at open or completed on first use from the hashes its pass
 /// recorded. Clones share one value.
@@ -193,13 +137,7 @@ impl SourcePrint {
         }
         let seen = pending.seen.close();
         let _rest = crate::timings::phase("fingerprint source (files the pass did not read)");
-        let hashes =
-            crate::error::in_order(pending.files.par_iter().map(
-                |rel| match seen.get(&name_of(rel)) {
-                    Some(h) => Ok(*h),
-                    None => hash_file(&pending.root.join(rel)),
-                },
-            ))?;
+        let hashes = hash_all(&pending.root, &pending.files, &seen)?;
         let value = Arc::new(combine(&pending.files, &hashes));
         *done = Some(value.clone());
         Ok(value)
@@ -239,36 +177,41 @@ impl serde::Serialize for SourcePrint {
     }
 }
 
-/// A file's name in a fingerprint: its path relative to the source root, `/` separators.
-pub fn name_of(rel: &Path) -> String {
-    rel.to_string_lossy().replace('\\', "/")
-}
-
-/// BLAKE3 of a file's contents (sources for their fingerprint, outputs for the lock). Streams
-/// the file (no mmap, never whole in memory: one robomimic HDF5 holds every episode), so hashing
-/// large files does not show up as resident memory. A large file is read a block at a time
-/// while the block before is hashed on every thread (BLAKE3's tree gives the same hash however
-/// it is split).
-pub fn hash_file(path: &Path) -> Result<blake3::Hash> {
-    const BLOCK: usize = 8 << 20;
-    let mut h = blake3::Hasher::new();
-    let mut file = std::fs::File::open(path).at("open", path)?;
-    let size = file.metadata().at("stat", path)?.len();
-    if size < 2 * BLOCK as u64 {
-        h.update_reader(file).at("hash", path)?;
-        return Ok(h.finalize());
+/// The hashes of `files` (under `root`), in order: those `seen` recorded, the others read.
+///
+/// On plain threads, as many as the pool has, not on the pool: the caller holds the print's
+/// lock, and may be one of the pool's threads. A pool thread that waited for its own parallel
+/// job could take up another job meanwhile, one that asks for this same print, and wait on the
+/// lock it holds itself.
+fn hash_all(
+    root: &Path,
+    files: &[PathBuf],
+    seen: &HashMap<String, blake3::Hash>,
+) -> Result<Vec<blake3::Hash>> {
+    let threads = rayon::current_num_threads().clamp(1, files.len().max(1));
+    let one = |rel: &PathBuf| match seen.get(&name_of(rel)) {
+        Some(h) => Ok(*h),
+        None => hash_file_here(&root.join(rel)),
+    };
+    let parts: Vec<Vec<Result<blake3::Hash>>> = std::thread::scope(|scope| {
+        let running: Vec<_> = (0..threads)
+            .map(|k| scope.spawn(move || files.iter().skip(k).step_by(threads).map(one).collect()))
+            .collect();
+        running
+            .into_iter()
+            .map(|t| t.join().unwrap_or_default())
+            .collect()
+    });
+    // Back in file order; the first error in that order is the one reported.
+    let mut parts: Vec<_> = parts.into_iter().map(Vec::into_iter).collect();
+    let mut hashes = Vec::with_capacity(files.len());
+    for i in 0..files.len() {
+        let hash = parts[i % threads].next().ok_or_else(|| {
+            Error::Internal("a thread hashing the source's fingerprint panicked".into())
+        })?;
+        hashes.push(hash?);
     }
-    let (mut this, mut next) = (vec![0u8; BLOCK], vec![0u8; BLOCK]);
-    let mut filled = fill(&mut file, &mut this).at("hash", path)?;
-    while filled > 0 {
-        let (_, read) = rayon::join(
-            || h.update_rayon(&this[..filled]),
-            || fill(&mut file, &mut next),
-        );
-        filled = read.at("hash", path)?;
-        std::mem::swap(&mut this, &mut next);
-    }
-    Ok(h.finalize())
+    Ok(hashes)
 }
 
 /// BLAKE3 of a file's contents on the calling thread alone (a large file is not split over the
@@ -290,37 +233,10 @@ fn lowest_priority() {
     }
 }
 
-/// Reads from `file` until `buf` is full or the file ends; how many bytes were read.
-fn fill(file: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize> {
-    use std::io::Read;
-    let mut filled = 0;
-    while filled < buf.len() {
-        match file.read(&mut buf[filled..]) {
-            Ok(0) => break,
-            Ok(n) => filled += n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(filled)
-}
-
 #[cfg(test)]
 mod tests {
+    use super::super::{list_files, of_files};
     use super::*;
-
-    #[test]
-    fn changes_with_content_and_not_with_order() {
-        let dir = tempfile::tempdir().unwrap();
-        std::fs::create_dir(dir.path().join("a")).unwrap();
-        std::fs::write(dir.path().join("a/x"), b"1").unwrap();
-        std::fs::write(dir.path().join("y"), b"2").unwrap();
-        let files = list_files(dir.path()).unwrap();
-        assert_eq!(files, vec![PathBuf::from("a/x"), PathBuf::from("y")]);
-        let before = of_files(dir.path(), &files).unwrap();
-        std::fs::write(dir.path().join("y"), b"3").unwrap();
-        assert_ne!(before, of_files(dir.path(), &files).unwrap());
-    }
 
     /// A pending fingerprint takes the hashes of the files the pass read from what it saw (a
     /// file deleted after it was read is not read again) and reads the rest; the value is the
@@ -371,20 +287,21 @@ mod tests {
         assert!(err.to_string().contains("gone"), "{err}");
     }
 
+    /// Many files, a third of them seen: the hashes come back in file order from every thread.
     #[test]
-    fn streamed_hash_equals_the_whole_file_hash() {
+    fn many_files_come_back_in_order() {
         let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("big");
-        // Several blocks (the double-buffered path), and not a multiple of one.
-        let bytes: Vec<u8> = (0..(33u32 << 20) + 12345)
-            .map(|i| (i * 7 % 251) as u8)
-            .collect();
-        std::fs::write(&path, &bytes).unwrap();
-        assert_eq!(hash_file(&path).unwrap(), blake3::hash(&bytes));
-        // Small files are hashed in one go.
-        std::fs::write(&path, &bytes[..1000]).unwrap();
-        assert_eq!(hash_file(&path).unwrap(), blake3::hash(&bytes[..1000]));
-        std::fs::write(&path, b"").unwrap();
-        assert_eq!(hash_file(&path).unwrap(), blake3::hash(b""));
+        let seen = Seen::default();
+        for i in 0..37 {
+            let bytes = format!("file {i}").repeat(i);
+            std::fs::write(dir.path().join(format!("f{i:02}")), &bytes).unwrap();
+            if i % 3 == 0 {
+                seen.saw(&format!("f{i:02}"), bytes.as_bytes());
+            }
+        }
+        let files = list_files(dir.path()).unwrap();
+        let at_open = of_files(dir.path(), &files).unwrap();
+        let print = SourcePrint::pending(dir.path(), files, seen);
+        assert_eq!(*print.get().unwrap(), at_open);
     }
 }
