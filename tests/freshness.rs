@@ -280,3 +280,37 @@ fn every_cause_is_distinct_in_text_json_and_locked() {
         &[],
     );
 }
+
+/// A Zarr store's chunk files are hashed from the bytes as they are written, not read back: the
+/// lock's hash of every output file is that of the file on disk, and a rebuild finds them all
+/// up to date.
+#[test]
+fn files_hashed_as_written_are_the_files_on_disk() {
+    let s = Scratch::new();
+    let spec = fs::read_to_string(&s.spec).unwrap();
+    let zarr = spec.replacen("format = \"hdf5\"", "format = \"zarr\"", 1);
+    assert_ne!(zarr, spec);
+    fs::write(&s.spec, zarr).unwrap();
+    let built = s.run(&["build", "-q"]);
+    assert!(
+        built.status.success(),
+        "{}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    let lock: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(s.lock()).unwrap()).unwrap();
+    let files = lock["specs"]["pusht.toml"]["profiles"]["dp"]["files"]
+        .as_object()
+        .unwrap();
+    // Chunk files (not `.zarray`, `.zgroup` or `zarr.json`) of the store's arrays.
+    let chunks = files
+        .keys()
+        .filter(|f| f.starts_with("data.zarr/") && !f.rsplit('/').next().unwrap().contains('z'))
+        .count();
+    assert!(chunks >= 4, "{} files, {chunks} chunks", files.len());
+    for (rel, hash) in files {
+        let bytes = fs::read(s.out(&format!("dp/{rel}"))).unwrap();
+        assert_eq!(hash, &blake3::hash(&bytes).to_hex().to_string(), "{rel}");
+    }
+    up_to_date(&s);
+}

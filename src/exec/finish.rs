@@ -2,29 +2,26 @@
 //! normalizers, the window index, the container's last writes, and every document and generated
 //! file beside it. Returns the BLAKE3 of each file, for the lock.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
+use super::hash_outputs::hash_and_sync;
 use super::rate::RateState;
 use super::shared::{Shared, Stats};
 use super::staging::Staging;
 use super::FileHashes;
-use crate::error::{Error, IoContext, Result};
-use crate::lock;
+use crate::error::{IoContext, Result};
 use crate::plan::{ProfilePlan, META_FILE, STATS_FILE};
 use crate::render;
 use crate::sink::video_info::StoredVideo;
 use crate::sink::{self, documents, Sink};
-use crate::source::{self, ChannelKind, Manifest};
+use crate::source::{ChannelKind, Manifest};
 use crate::stats::normalize::{Normalizer, RowNormalizer};
 use crate::stats::ChannelStats;
 use crate::timings;
 use crate::window::Sampling;
-
-/// Threads that fsync a profile's outputs while they are hashed (they mostly wait on the disk).
-const SYNC_THREADS: usize = 4;
 
 /// A stale profile waiting for its rate's statistics: a position (of its rate when handed in,
 /// of the profile once grouped by rate), its sink and its staging directory.
@@ -114,11 +111,13 @@ pub(super) fn profile(
     write_documents(shared, p, rate, stats, &data, dir)?;
     drop(documents);
     let _hashing = timings::phase("hash outputs");
-    hash_and_sync(dir)
+    hash_and_sync(dir, &data.hashed)
 }
 
 /// What the container's writes leave for the documents.
 struct Written {
+    /// The BLAKE3 of the files the sink hashed as it wrote them, by path.
+    hashed: HashMap<PathBuf, blake3::Hash>,
     normalizers: BTreeMap<String, Normalizer>,
     /// A training mixture's, per source: what its rows are normalized with.
     source_normalizers: Vec<BTreeMap<String, Normalizer>>,
@@ -194,6 +193,7 @@ fn write_data(
     let normalized = sink.stores_normalized() && !raw;
     let finished = sink.finish()?;
     Ok(Written {
+        hashed: finished.written,
         videos: finished.videos,
         normalizers,
         source_normalizers: mixture.map(|m| m.by_source).unwrap_or_default(),
@@ -292,48 +292,6 @@ fn codebase_files(
         stats_files.push((f.name, f.what));
     }
     Ok(stats_files)
-}
-
-/// The BLAKE3 of every file under `dir`, each fsynced meanwhile.
-fn hash_and_sync(dir: &Path) -> Result<BTreeMap<String, String>> {
-    let listed = source::fingerprint::list_files(dir)?;
-    // The files start reaching the disk (fsync, which mostly waits) while they are hashed, so
-    // the commit need not sync them again. Several syncing threads: an output of many small
-    // files (a Zarr store holds one per frame) waits on the disk once per file.
-    let paths: Vec<PathBuf> = listed.iter().map(|rel| dir.join(rel)).collect();
-    let (files, synced) = std::thread::scope(|scope| {
-        let syncing: Vec<_> = (0..SYNC_THREADS)
-            .map(|k| {
-                let paths = &paths;
-                scope.spawn(move || -> Result<()> {
-                    for path in paths.iter().skip(k).step_by(SYNC_THREADS) {
-                        std::fs::File::open(path)
-                            .and_then(|f| f.sync_all())
-                            .at("sync", path)?;
-                    }
-                    Ok(())
-                })
-            })
-            .collect();
-        // Small files side by side; a large one is hashed on every thread by `hash_file` itself.
-        let hashed: Result<BTreeMap<String, String>> =
-            crate::error::in_order(listed.par_iter().map(|rel| -> Result<(String, String)> {
-                let name = rel.to_string_lossy().replace('\\', "/");
-                Ok((name, lock::hash_file(&dir.join(rel))?))
-            }))
-            .map(|pairs| pairs.into_iter().collect());
-        let synced = syncing
-            .into_iter()
-            .map(|t| {
-                t.join()
-                    .map_err(|_| Error::Internal("a thread syncing outputs panicked".into()))?
-            })
-            .collect::<Result<Vec<()>>>();
-        (hashed, synced)
-    });
-    let files = files?;
-    synced?;
-    Ok(files)
 }
 
 /// A profile's window index, generated on demand from the sampling (see [`sink::WindowIndex`]).

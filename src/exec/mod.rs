@@ -29,6 +29,7 @@
 mod doctor;
 mod finish;
 mod guard;
+mod hash_outputs;
 pub mod memory;
 pub mod partial;
 mod process;

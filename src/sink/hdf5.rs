@@ -547,6 +547,9 @@ impl Sink for Hdf5Writer {
         let Hdf5Writer { file, data, .. } = *self;
         drop(data);
         file.close()?;
-        Ok(super::Finished { videos })
+        Ok(super::Finished {
+            videos,
+            ..Default::default()
+        })
     }
 }

@@ -79,8 +79,8 @@ pub mod video_info;
 pub mod zarr;
 mod zarr_store;
 
-use std::collections::BTreeMap;
-use std::path::Path;
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub use frames::{encode_frame, FrameEncoding, Frames};
@@ -178,6 +178,9 @@ pub struct Finished {
     /// Per camera stored as one video per episode (chunkc's HDF5 `image_compression =
     /// "video"`), what its files hold.
     pub videos: BTreeMap<String, video_info::StoredVideo>,
+    /// The BLAKE3 of files the sink took from the bytes as it wrote them, by path: the build
+    /// records these in the lock without reading the files back.
+    pub written: HashMap<PathBuf, blake3::Hash>,
 }
 
 /// Which split of the window index.

@@ -289,6 +289,9 @@ impl Sink for ZarrWriter {
     }
 
     fn finish(self: Box<Self>) -> Result<super::Finished> {
-        Ok(super::Finished::default())
+        Ok(super::Finished {
+            written: self.store.take_written(),
+            ..Default::default()
+        })
     }
 }

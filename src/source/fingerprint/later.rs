@@ -217,10 +217,7 @@ fn hash_all(
 /// BLAKE3 of a file's contents on the calling thread alone (a large file is not split over the
 /// pool's threads, as [`hash_file`] does).
 fn hash_file_here(path: &Path) -> Result<blake3::Hash> {
-    let file = std::fs::File::open(path).at("open", path)?;
-    let mut h = blake3::Hasher::new();
-    h.update_reader(file).at("hash", path)?;
-    Ok(h.finalize())
+    super::hash_opened(std::fs::File::open(path).at("open", path)?, path)
 }
 
 /// Lowers the calling thread to the lowest scheduling priority (Linux keeps a nice value per

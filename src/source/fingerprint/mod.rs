@@ -80,13 +80,12 @@ fn name_of(rel: &Path) -> String {
 /// it is split).
 pub fn hash_file(path: &Path) -> Result<blake3::Hash> {
     const BLOCK: usize = 8 << 20;
-    let mut h = blake3::Hasher::new();
     let mut file = std::fs::File::open(path).at("open", path)?;
     let size = file.metadata().at("stat", path)?.len();
     if size < 2 * BLOCK as u64 {
-        h.update_reader(file).at("hash", path)?;
-        return Ok(h.finalize());
+        return hash_opened(file, path);
     }
+    let mut h = blake3::Hasher::new();
     let (mut this, mut next) = (vec![0u8; BLOCK], vec![0u8; BLOCK]);
     let mut filled = fill(&mut file, &mut this).at("hash", path)?;
     while filled > 0 {
@@ -97,6 +96,13 @@ pub fn hash_file(path: &Path) -> Result<blake3::Hash> {
         filled = read.at("hash", path)?;
         std::mem::swap(&mut this, &mut next);
     }
+    Ok(h.finalize())
+}
+
+/// BLAKE3 of an opened file's contents (`path`, for errors), on the calling thread.
+pub(super) fn hash_opened(file: std::fs::File, path: &Path) -> Result<blake3::Hash> {
+    let mut h = blake3::Hasher::new();
+    h.update_reader(file).at("hash", path)?;
     Ok(h.finalize())
 }
 
