@@ -358,6 +358,9 @@ impl Sink for LerobotWriter {
         self.episodes()?;
         self.info()?;
         self.chunkc_index()?;
-        Ok(super::Finished::default())
+        Ok(super::Finished {
+            written: self.files.take_written(),
+            ..Default::default()
+        })
     }
 }

@@ -1,10 +1,13 @@
 //! How the LeRobot exports (v3.0 and v2.1) write their files: parquet with fixed writer
 //! properties (created_by, zstd level, no dictionary, chunk statistics, one row group per
-//! batch), so the bytes depend only on the contents; pretty JSON and JSON Lines.
+//! batch), so the bytes depend only on the contents; pretty JSON and JSON Lines. The parquet
+//! files, the export's bulk, are hashed as they are written ([`DatasetFiles::take_written`]).
 
+use std::collections::HashMap;
 use std::fs::File;
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use arrow_array::RecordBatch;
 use arrow_schema::Schema;
@@ -24,6 +27,8 @@ const DEFAULT_ZSTD_LEVEL: u32 = 3;
 pub(super) struct DatasetFiles {
     pub dir: PathBuf,
     props: WriterProperties,
+    /// The BLAKE3 of each parquet file as last written, by path (shared with [`Self::under`]'s).
+    written: Arc<Mutex<HashMap<PathBuf, blake3::Hash>>>,
 }
 
 impl DatasetFiles {
@@ -46,6 +51,7 @@ impl DatasetFiles {
         Ok(DatasetFiles {
             dir: dir.to_path_buf(),
             props,
+            written: Arc::default(),
         })
     }
 
@@ -54,7 +60,14 @@ impl DatasetFiles {
         DatasetFiles {
             dir: self.dir.join(sub),
             props: self.props.clone(),
+            written: self.written.clone(),
         }
+    }
+
+    /// The BLAKE3 of every parquet file written (here or under a folder of this one), by path,
+    /// taken from the bytes as they were written.
+    pub(super) fn take_written(&self) -> HashMap<PathBuf, blake3::Hash> {
+        std::mem::take(&mut *self.written.lock().unwrap_or_else(|e| e.into_inner()))
     }
 
     /// `rel` under the root, its directory created.
@@ -74,14 +87,21 @@ impl DatasetFiles {
         batches: impl IntoIterator<Item = Result<RecordBatch>>,
     ) -> Result<()> {
         let path = self.create(rel)?;
-        let file = File::create(&path).at("create", &path)?;
-        let mut w = ArrowWriter::try_new(file, schema, Some(self.props.clone())).map_err(err)?;
+        let mut out = Hashing {
+            file: File::create(&path).at("create", &path)?,
+            hasher: blake3::Hasher::new(),
+        };
+        let mut w =
+            ArrowWriter::try_new(&mut out, schema, Some(self.props.clone())).map_err(err)?;
         for b in batches {
             w.write(&b?).map_err(err)?;
             // One row group per batch.
             w.flush().map_err(err)?;
         }
         w.close().map_err(err)?;
+        let hash = out.hasher.finalize();
+        let mut written = self.written.lock().unwrap_or_else(|e| e.into_inner());
+        written.insert(path, hash);
         Ok(())
     }
 
@@ -104,6 +124,24 @@ impl DatasetFiles {
             text.push(b'\n');
         }
         std::fs::write(&path, text).at("write", &path)
+    }
+}
+
+/// A file that hashes what is written to it (the parquet writer writes in order, never seeks).
+struct Hashing {
+    file: File,
+    hasher: blake3::Hasher,
+}
+
+impl Write for Hashing {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.file.write(buf)?;
+        self.hasher.update(&buf[..n]);
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
     }
 }
 
@@ -159,5 +197,50 @@ mod tests {
             "{\"episode_index\": 0, \"tasks\": [\"pick\", \"place\"], \"length\": 3}\n\
              {\"task_index\": 0, \"task\": \"pick\"}\n"
         );
+    }
+
+    /// Parquet files are hashed as written: the hashes are those of the files read back, for
+    /// a file written twice (its last bytes), and under a folder (`under`) as at the root.
+    #[test]
+    fn parquet_hashes_are_the_files_on_disk() {
+        use arrow_array::Int64Array;
+        use arrow_schema::{DataType, Field};
+        let dir = tempfile::tempdir().unwrap();
+        let files = DatasetFiles::new(dir.path(), Compression::Zstd, None).unwrap();
+        let schema = Arc::new(Schema::new(vec![Field::new("x", DataType::Int64, false)]));
+        let batch = |n: i64| {
+            let x = Int64Array::from((0..n).collect::<Vec<_>>());
+            Ok(RecordBatch::try_new(schema.clone(), vec![Arc::new(x)]).unwrap())
+        };
+        files
+            .parquet("data/a.parquet", schema.clone(), [batch(10), batch(5)])
+            .unwrap();
+        files
+            .parquet("data/a.parquet", schema.clone(), [batch(3000)])
+            .unwrap();
+        let sub = files.under("part");
+        sub.parquet("data/b.parquet", schema.clone(), [batch(7)])
+            .unwrap();
+        files
+            .json("meta/info.json", &serde_json::json!({}))
+            .unwrap();
+        let written = files.take_written();
+        let mut paths: Vec<_> = written.keys().cloned().collect();
+        paths.sort();
+        assert_eq!(
+            paths,
+            [
+                dir.path().join("data/a.parquet"),
+                dir.path().join("part/data/b.parquet")
+            ]
+        );
+        for (path, hash) in &written {
+            assert_eq!(
+                *hash,
+                blake3::hash(&std::fs::read(path).unwrap()),
+                "{path:?}"
+            );
+        }
+        assert!(sub.take_written().is_empty());
     }
 }

@@ -385,6 +385,9 @@ impl Sink for LerobotV21Writer {
                 super::groot::write(&files, &dataset)?;
             }
         }
-        Ok(super::Finished::default())
+        Ok(super::Finished {
+            written: self.files.take_written(),
+            ..Default::default()
+        })
     }
 }
