@@ -82,10 +82,12 @@
 //!
 //! - [`exec`]: episodes of a batch decoded and converted side by side, the row stores filled
 //!   side by side, rates and profiles finished side by side; a few plain threads fsync outputs
-//!   while they are hashed (they wait on the disk, not the CPU).
+//!   while they are hashed (they wait on the disk, not the CPU). A Zarr store's files and a
+//!   LeRobot export's parquet files are hashed by their writers as they write them.
 //! - [`source`]: storage chunks decoded in parallel (zarr, ALOHA's per-episode headers), the
 //!   cameras of a LeRobot episode decoded side by side (one decoder thread per video file), and
-//!   the source fingerprint hashed in parallel with the opening.
+//!   the source fingerprint hashed beside the pass (zarr chunks as they are read; other files
+//!   by one low-priority thread of its own).
 //! - [`audit`]: the camera videos' packet times demuxed for several episodes at once.
 //! - [`stats`]: the percentile passes, one column per task.
 //! - [`sink`]: frames compressed and normalized blocks prepared in parallel, while the previous

@@ -1,6 +1,6 @@
 //! The last step of a profile's build: the BLAKE3 of every output file, for the lock, while
-//! the files are fsynced. A file the sink hashed as it wrote it (a Zarr store's chunks) is not
-//! read back.
+//! the files are fsynced. A file the sink hashed as it wrote it (a Zarr store's files, a LeRobot
+//! export's parquet files) is not read back.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
