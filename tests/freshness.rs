@@ -49,6 +49,16 @@ impl Scratch {
             .unwrap()
     }
 
+    /// `chunkc build -q`, which must succeed.
+    fn build(&self) {
+        let built = self.run(&["build", "-q"]);
+        assert!(
+            built.status.success(),
+            "{}",
+            String::from_utf8_lossy(&built.stderr)
+        );
+    }
+
     fn plan_text(&self) -> String {
         let out = self.run(&["plan"]);
         assert!(
@@ -129,12 +139,7 @@ fn every_cause_is_distinct_in_text_json_and_locked() {
         "not in chunkc.lock: first build",
         &[],
     );
-    let built = s.run(&["build", "-q"]);
-    assert!(
-        built.status.success(),
-        "{}",
-        String::from_utf8_lossy(&built.stderr)
-    );
+    s.build();
     // The first build completes the source's fingerprint from its own reads of the chunk files;
     // `plan` hashes every file from disk: the same value in the lock, `meta.json` and the plan.
     let plan: serde_json::Value =
@@ -291,12 +296,7 @@ fn files_hashed_as_written_are_the_files_on_disk() {
     let zarr = spec.replacen("format = \"hdf5\"", "format = \"zarr\"", 1);
     assert_ne!(zarr, spec);
     fs::write(&s.spec, zarr).unwrap();
-    let built = s.run(&["build", "-q"]);
-    assert!(
-        built.status.success(),
-        "{}",
-        String::from_utf8_lossy(&built.stderr)
-    );
+    s.build();
     let lock: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(s.lock()).unwrap()).unwrap();
     let files = lock["specs"]["pusht.toml"]["profiles"]["dp"]["files"]
