@@ -231,7 +231,8 @@ pub fn execute(
 
 /// Finishes the profiles (`finish`). With a doctor and `stored` (the rate that keeps the
 /// source's steps), the doctor reduces every episode from that rate's rows beside the writes,
-/// then judges: the episodes it leaves out, if any, in place of the hashes.
+/// then judges, while the last writes and their hashing go on: the episodes it leaves out, if
+/// any, in place of the hashes.
 fn finish_beside(
     finish: impl FnOnce() -> Result<FileHashes> + Send,
     doctor: Option<&mut Doctor>,
@@ -240,13 +241,15 @@ fn finish_beside(
     let (Some(doctor), Some(rate)) = (doctor, stored) else {
         return finish().map(Ok);
     };
-    let (hashes, reduced) = rayon::join(finish, || {
-        let _features = crate::timings::phase("dataset doctor (beside the writes)");
-        doctor.take_stored(rate)
+    let (hashes, judged) = rayon::join(finish, || {
+        {
+            let _features = crate::timings::phase("dataset doctor (beside the writes)");
+            doctor.take_stored(rate)?;
+        }
+        judge(Some(doctor))
     });
     let hashes = hashes?;
-    reduced?;
-    Ok(match judge(Some(doctor))? {
+    Ok(match judged? {
         Some(excluded) => Err(excluded),
         None => Ok(hashes),
     })
