@@ -34,11 +34,10 @@ use super::lerobot_columns::Channel;
 use super::lerobot_episode_stats::FeatureStats;
 use super::lerobot_features::features;
 use super::lerobot_files::DatasetFiles;
-use super::lerobot_rows::{
-    timestamp, with_hf_features, DataTable, EpisodeRows, INDEX_COLUMNS, SOURCE_COLUMN,
-};
+use super::lerobot_rows::DataTable;
 use super::lerobot_spill::{FrameSpill, SpillReader};
 use super::lerobot_tasks::Tasks;
+use super::lerobot_v21_data::{EpisodeData, EpisodeStats};
 use super::lerobot_v21_meta::{data_file, layout_of, video_file, Meta, Part};
 use super::video_episodes::{Encoders, EpisodeCamera};
 use super::{FrameEncoding, Frames, Sink, SinkContext, WindowIndex};
@@ -160,79 +159,26 @@ impl LerobotV21Writer {
         }
     }
 
-    /// Writes every episode's data file, in stored order; returns each episode's statistics.
-    fn data(&mut self) -> Result<Vec<Vec<(String, FeatureStats)>>> {
+    /// Writes every episode's data file, side by side; returns each episode's statistics, in
+    /// stored order.
+    fn data(&mut self) -> Result<Vec<EpisodeStats>> {
         let mut frames: Vec<Option<SpillReader>> = std::mem::take(&mut self.frames)
             .into_iter()
             .map(|f| f.map(FrameSpill::into_reader).transpose())
             .collect::<Result<_>>()?;
-        let schemas: Vec<_> = (0..self.parts.len())
-            .map(|p| with_hf_features(&self.table(p)))
-            .collect();
-        let mut first_index = vec![0i64; self.parts.len()];
-        let mut stats = Vec::with_capacity(self.ends.len());
-        for e in 0..self.ends.len() {
-            let (p, index) = self.place[e];
-            let part = &self.parts[p];
-            let table = self.table(p);
-            let ep = EpisodeRows {
-                rows: self.ends.range(e),
-                episode_index: index as i64,
-                first_index: first_index[p],
-                task: part.tasks.of_episode[index] as i64,
-                source: self.sources.get(e).copied().filter(|_| table.mixture),
-            };
-            first_index[p] += ep.rows.len() as i64;
-            let batch = table.batch(&schemas[p], &self.raw, &mut frames, &ep);
-            self.files
-                .parquet(&part.path(&data_file(index)), schemas[p].clone(), [batch])?;
-            stats.push(self.episode_stats(e, &table, &ep)?);
-        }
-        Ok(stats)
-    }
-
-    /// Every feature's statistics over stored episode `e` (its rows `ep`, in `table`), in
-    /// `features` order.
-    fn episode_stats(
-        &self,
-        e: usize,
-        table: &DataTable,
-        ep: &EpisodeRows,
-    ) -> Result<Vec<(String, FeatureStats)>> {
-        let mut out = Vec::new();
-        for (c, name, shape, kind) in table.written() {
-            let name = name.to_string();
-            let s = match kind {
-                ChannelKind::Lowdim => {
-                    let raw = self.raw[c]
-                        .as_ref()
-                        .ok_or_else(|| Error::Internal(format!("no values for {name}")))?;
-                    FeatureStats::of_rows(&table.rows(raw, c, ep.rows.start, ep.rows.end)?, &shape)
-                }
-                ChannelKind::Image => self.image_stats[e].get(&c).cloned().ok_or_else(|| {
-                    Error::Internal(format!("no frames of {name} in episode {}", self.ids[e]))
-                })?,
-            };
-            out.push((name, s));
-        }
-        let n = ep.rows.len();
-        let constant = |v: i64| vec![v as f64; n];
-        let columns: [Vec<f64>; 5] = [
-            (0..n).map(|i| f64::from(timestamp(i, self.fps))).collect(),
-            (0..n).map(|i| i as f64).collect(),
-            constant(ep.episode_index),
-            (0..n).map(|i| (ep.first_index + i as i64) as f64).collect(),
-            constant(ep.task),
-        ];
-        for ((name, dtype), values) in INDEX_COLUMNS.iter().zip(&columns) {
-            let integer = *dtype == "int64";
-            out.push((name.to_string(), FeatureStats::of_column(values, integer)));
-        }
-        if let Some(source) = ep.source {
-            let values = constant(source as i64);
-            out.push((SOURCE_COLUMN.into(), FeatureStats::of_column(&values, true)));
-        }
-        Ok(out)
+        let data = EpisodeData {
+            files: &self.files,
+            fps: self.fps,
+            ends: &self.ends,
+            ids: &self.ids,
+            sources: &self.sources,
+            raw: &self.raw,
+            image_stats: &self.image_stats,
+            parts: &self.parts,
+            tables: (0..self.parts.len()).map(|p| self.table(p)).collect(),
+            place: &self.place,
+        };
+        data.write(&mut frames)
     }
 
     /// The `info` block of camera `name` in `part`: what its first episode's file holds.

@@ -18,7 +18,8 @@
 //!   spilled until their row groups (`lerobot_spill`) and its tasks (`lerobot_tasks`).
 //! - `lerobot_v21`: a LeRobot v2.1 dataset (`lerobot_version = "v2.1"`): a parquet file and a
 //!   video per episode, the validation episodes a second dataset in `val/`; its layout and
-//!   `meta/` files (`lerobot_v21_meta`), its per-episode statistics (`lerobot_episode_stats`).
+//!   `meta/` files (`lerobot_v21_meta`), its per-episode statistics (`lerobot_episode_stats`),
+//!   its data files and their statistics written side by side (`lerobot_v21_data`).
 //! - `groot`: GR00T's files of a `groot` profile's v2.1 datasets (`meta/modality.json`, its
 //!   `meta/stats.json` and `meta/relative_stats.json`).
 //! - `lerobot_cameras`: how either LeRobot export encodes (or copies) a camera's video;
@@ -65,6 +66,7 @@ mod lerobot_rows;
 mod lerobot_spill;
 mod lerobot_tasks;
 pub mod lerobot_v21;
+mod lerobot_v21_data;
 pub mod lerobot_v21_meta;
 pub mod lerobot_v3_videos;
 mod meta_sources;

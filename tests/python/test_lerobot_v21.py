@@ -581,3 +581,51 @@ action = { xy = [0, 2] }
     assert any("val/videos" in f for f in files["j1"])
     assert "groot/val/meta/relative_stats.json" in files["j1"]
     assert files["j1"] == files["j2"] == files["shards"]
+
+
+def test_many_episodes_written_side_by_side_are_the_sources_in_order(tmp_path):
+    """More episodes than the writer takes at once (64), with PNG frames: every data file holds
+    its source episode's rows under LeRobot's running `index` (carried from group to group, per
+    dataset), its `episodes_stats.jsonl` entry is numpy's over the file, and the bytes are the
+    same with one thread and two."""
+    zarr = pytest.importorskip("zarr")
+    src = tmp_path / "syn"
+    run_chunkc("synth", src, "--format", "diffusion-policy-zarr", "--episodes", 150, "--steps", 12,
+               "--cameras", 1, "--resolution", "16x16")
+    text = (src / "spec.toml").read_text().split("[profiles.act]")[0]
+    text = text.replace('path = "replay.zarr"', f'path = "{src / "replay.zarr"}"')
+    text += '[profiles.v21]\npreset = "pi0"\nchunk = 4\nformat = "parquet"\nlerobot_version = "v2.1"\n'
+    files = {}
+    for jobs in ("1", "2"):
+        d = tmp_path / f"j{jobs}"
+        d.mkdir()
+        (d / "spec.toml").write_text(text)
+        run_chunkc("build", "-q", "-j", jobs, d / "spec.toml")
+        root = d / "out"
+        files[jobs] = {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
+                       if p.is_file() and p.name != "chunkc.lock"}
+    assert files["1"] == files["2"]
+    out = tmp_path / "j1" / "out" / "v21"
+    meta = json.loads((out / "meta.json").read_text())
+    places = v21_places(meta)
+    buffer = zarr.open(str(src / "replay.zarr"), mode="r")
+    ends = np.asarray(buffer["meta/episode_ends"])
+    action = np.asarray(buffer["data/action"])
+    for name, folder in meta["lerobot"]["datasets"].items():
+        root = out / folder
+        stats = [json.loads(line) for line in (root / "meta" / "episodes_stats.jsonl").read_text().splitlines()]
+        paths = sorted((root / "data").glob("chunk-*/episode_*.parquet"))
+        assert len(paths) == len(stats) == sum(d == name for d, _ in places) > 64 * (name == "train")
+        index = []
+        for i, path in enumerate(paths):
+            t = pq.read_table(path)
+            assert t.column("episode_index").to_pylist() == [i] * t.num_rows
+            index += t.column("index").to_pylist()
+            e = places[(name, i)]
+            rows = action[(ends[e - 1] if e else 0):ends[e]]
+            got = np.asarray(t.column("action").to_pylist(), dtype=np.float32)
+            np.testing.assert_array_equal(got, rows)
+            assert stats[i]["episode_index"] == i
+            np.testing.assert_allclose(stats[i]["stats"]["action"]["mean"], got.mean(axis=0, dtype=np.float64),
+                                       rtol=1e-6, atol=1e-9)
+        assert index == list(range(len(index)))
