@@ -474,15 +474,25 @@ fn synth_options(args: &SynthArgs) -> Result<synth::SynthOptions, Error> {
     })
 }
 
-/// Episodes' frame buffers (megabytes each) are allocated on worker threads and freed on the
-/// writing thread. glibc's per-thread arenas then keep freed buffers scattered over several
-/// heaps, and peak memory grew with the number of episodes (145 MiB for 200 image episodes
-/// against 117 MiB for 100); with one arena it stays flat (110 / 103 MiB).
-fn one_malloc_arena() {
+/// glibc's allocator, set for a build's pattern of allocations.
+///
+/// - One arena: episodes' frame buffers (megabytes each) are allocated on worker threads and
+///   freed on the writing thread. glibc's per-thread arenas then keep freed buffers scattered
+///   over several heaps, and peak memory grew with the number of episodes (145 MiB for 200 image
+///   episodes against 117 MiB for 100); with one arena it stays flat (110 / 103 MiB).
+/// - Fixed thresholds: blocks up to 32 MiB come from the heap, and the heap keeps up to 64 MiB
+///   free at its top. With glibc's adaptive defaults, the blocks of a few hundred kilobytes that
+///   every parquet column chunk and zstd context allocate and free went back to the kernel and
+///   were faulted in again, zeroed, the next time: a LeRobot export spent a second of system
+///   time there, and its row groups could not be encoded side by side (bench: performance.md,
+///   "The allocator's thresholds").
+fn malloc_settings() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: `mallopt` only sets an allocator parameter; called before any other thread runs.
+    // SAFETY: `mallopt` only sets allocator parameters; called before any other thread runs.
     unsafe {
         libc::mallopt(libc::M_ARENA_MAX, 1);
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 64 << 20);
     }
 }
 
@@ -498,7 +508,7 @@ fn quiet_on_closed_pipe() {
 }
 
 fn main() -> ExitCode {
-    one_malloc_arena();
+    malloc_settings();
     quiet_on_closed_pipe();
     let cli = Cli::parse();
     match run(cli) {
