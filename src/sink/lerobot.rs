@@ -37,7 +37,7 @@
 use std::sync::Arc;
 
 use arrow_array::builder::{ListBuilder, StringBuilder};
-use arrow_array::{ArrayRef, RecordBatch, StringArray};
+use arrow_array::{ArrayRef, RecordBatch};
 use arrow_schema::{DataType, Field, Schema};
 use serde_json::{json, Value};
 
@@ -276,7 +276,9 @@ impl LerobotWriter {
         self.files.json("meta/info.json", &doc)
     }
 
-    fn chunkc_index(&self) -> Result<()> {
+    /// `chunkc_index.parquet`: every window, the training ones first. The windows are let go as
+    /// their columns are built (2 million windows are 64 MB, and the columns as much again).
+    fn chunkc_index(&mut self) -> Result<()> {
         let schema = Arc::new(Schema::new(vec![
             Field::new("split", DataType::Utf8, false),
             Field::new("episode", DataType::Int64, false),
@@ -284,18 +286,21 @@ impl LerobotWriter {
             Field::new("limit", DataType::Int64, false),
             Field::new("sub", DataType::Int64, false),
         ]));
-        let (train, val) = (&self.train, &self.val);
-        let rows: Vec<(&str, &[i64; 4])> = train
-            .iter()
-            .map(|r| ("train", r))
-            .chain(val.iter().map(|r| ("val", r)))
-            .collect();
-        let mut cols: Vec<ArrayRef> = vec![Arc::new(StringArray::from(
-            rows.iter().map(|(s, _)| *s).collect::<Vec<_>>(),
-        ))];
-        for k in 0..4 {
-            cols.push(i64_col(rows.iter().map(|(_, r)| r[k])));
+        let (train, val) = (
+            std::mem::take(&mut self.train),
+            std::mem::take(&mut self.val),
+        );
+        let names = [("train", train.len()), ("val", val.len())];
+        let bytes = names.iter().map(|(name, n)| name.len() * n).sum();
+        let mut split = StringBuilder::with_capacity(train.len() + val.len(), bytes);
+        for (name, n) in names {
+            (0..n).for_each(|_| split.append_value(name));
         }
+        let mut cols: Vec<ArrayRef> = vec![Arc::new(split.finish())];
+        for k in 0..4 {
+            cols.push(i64_col(train.iter().chain(&val).map(|r| r[k])));
+        }
+        drop((train, val));
         let batch = RecordBatch::try_new(schema.clone(), cols).map_err(err)?;
         self.files.parquet(INDEX_FILE, schema, [Ok(batch)])
     }
