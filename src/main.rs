@@ -481,11 +481,12 @@ fn synth_options(args: &SynthArgs) -> Result<synth::SynthOptions, Error> {
 ///   over several heaps, and peak memory grew with the number of episodes (145 MiB for 200 image
 ///   episodes against 117 MiB for 100); with one arena it stays flat (110 / 103 MiB).
 /// - Fixed thresholds: blocks up to 32 MiB come from the heap, and the heap keeps up to 64 MiB
-///   free at its top. With glibc's adaptive defaults, the blocks of a few hundred kilobytes that
-///   every parquet column chunk and zstd context allocate and free went back to the kernel and
-///   were faulted in again, zeroed, the next time: a LeRobot export spent a second of system
-///   time there, and its row groups could not be encoded side by side (bench: performance.md,
-///   "The allocator's thresholds").
+///   free at its top. With glibc's adaptive defaults, the short-lived blocks of a few hundred
+///   kilobytes a build allocates and frees by the thousand (decoded chunks, HDF5's and parquet's
+///   buffers, zstd's contexts) went back to the kernel and were faulted in again, zeroed, the
+///   next time: 89,110 page faults against 76,267 for the doctor-off build of the bench's
+///   5,000-episode zarr set, 0.80 s against 0.62 s (performance.md, "The allocator's
+///   thresholds").
 fn malloc_settings() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: `mallopt` only sets allocator parameters; called before any other thread runs.

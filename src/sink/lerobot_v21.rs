@@ -168,7 +168,6 @@ impl LerobotV21Writer {
             .collect::<Result<_>>()?;
         let data = EpisodeData {
             files: &self.files,
-            fps: self.fps,
             ends: &self.ends,
             ids: &self.ids,
             sources: &self.sources,

@@ -34,7 +34,6 @@ pub(super) type EpisodeStats = Vec<(String, FeatureStats)>;
 /// What the episodes' files are made of: the stored rows and where each episode goes.
 pub(super) struct EpisodeData<'a> {
     pub files: &'a DatasetFiles,
-    pub fps: f64,
     pub ends: &'a Ends,
     pub ids: &'a [u64],
     /// A mixture's: each stored episode's source (empty otherwise).
@@ -135,7 +134,7 @@ impl EpisodeData<'_> {
         let n = ep.rows.len();
         let constant = |v: i64| vec![v as f64; n];
         let columns: [Vec<f64>; 5] = [
-            (0..n).map(|i| f64::from(timestamp(i, self.fps))).collect(),
+            (0..n).map(|i| f64::from(timestamp(i, table.fps))).collect(),
             (0..n).map(|i| i as f64).collect(),
             constant(ep.episode_index),
             (0..n).map(|i| (ep.first_index + i as i64) as f64).collect(),
